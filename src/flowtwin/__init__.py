@@ -1,0 +1,13 @@
+"""flowtwin: the digital twin of the extrusion system of a filament 3D printer.
+
+Data flows one way (SPEC §5)::
+
+    G-code text -> reader -> moves -> planner -> timeline -> dynamics -> deposition -> result
+
+Internal units are mm, s, N, MPa and °C (SPEC §2); names carry units where ambiguous.
+"""
+
+from flowtwin.errors import FlowtwinError
+
+__version__ = "0.1.0"
+__all__ = ["FlowtwinError", "__version__"]

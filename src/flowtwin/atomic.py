@@ -1,0 +1,62 @@
+"""Atomic output: a file is either complete or not there (no half-written outputs)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Literal, overload
+
+__all__ = ["atomic_open", "atomic_write_bytes", "atomic_write_text"]
+
+
+@overload
+def atomic_open(path: str | os.PathLike[str], mode: Literal["w"] = ...,
+                encoding: str | None = ...) -> contextlib.AbstractContextManager[IO[str]]: ...
+@overload
+def atomic_open(path: str | os.PathLike[str], mode: Literal["wb"],
+                encoding: str | None = ...) -> contextlib.AbstractContextManager[IO[bytes]]: ...
+
+
+def atomic_open(path: str | os.PathLike[str], mode: str = "w",
+                encoding: str | None = "utf-8") -> contextlib.AbstractContextManager[IO]:  # type: ignore[type-arg]
+    """Open ``path`` for writing through a temporary file in the same folder.
+
+    On normal exit the temporary file is flushed, fsynced and renamed over ``path``
+    (``os.replace`` is atomic on POSIX); on an exception it is deleted and ``path`` is
+    left untouched.
+    """
+    if mode not in ("w", "wb"):
+        raise ValueError(f"atomic_open mode must be 'w' or 'wb', got {mode!r}")
+    return _atomic(Path(path), mode, None if mode == "wb" else encoding)
+
+
+@contextlib.contextmanager
+def _atomic(path: Path, mode: str, encoding: str | None) -> Iterator[IO]:  # type: ignore[type-arg]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, encoding=encoding,
+                       newline="" if encoding else None) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_open(path, "wb") as fh:
+        fh.write(data)
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_open(path, "w") as fh:
+        fh.write(text)

@@ -1,0 +1,9 @@
+"""CLI commands: demo (to be filled in)."""
+
+from __future__ import annotations
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    """Add the `demo` commands to app."""

@@ -1,0 +1,74 @@
+"""Entry point of the ``flowtwin`` command.
+
+Each command group lives in its own module with a ``register(app)`` function; this module
+only assembles them and turns :class:`~flowtwin.errors.FlowtwinError` into a one-line
+message on stderr and a non-zero exit status (never a traceback to a user).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+import typer
+from rich.console import Console
+
+from flowtwin.errors import FlowtwinError
+
+__all__ = ["app", "main"]
+
+#: Modules under ``flowtwin.cli`` that contribute commands (each has ``register(app)``).
+COMMAND_MODULES = ("profiles", "plan", "demo", "vision")
+
+EXIT_USER_ERROR = 2
+EXIT_INTERNAL_ERROR = 3
+
+
+def build_app() -> typer.Typer:
+    """Create the typer application with every command group registered."""
+    application = typer.Typer(
+        name="flowtwin",
+        help="Digital twin of the extrusion system of a filament 3D printer.",
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    for name in COMMAND_MODULES:
+        module = importlib.import_module(f"flowtwin.cli.{name}")
+        module.register(application)
+    return application
+
+
+app = build_app()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the CLI; user errors exit 2 with a message, internal errors exit 3."""
+    err = Console(stderr=True, highlight=False)
+    try:
+        app(args=argv, standalone_mode=False)
+    except FlowtwinError as exc:
+        err.print(f"[bold red]error:[/] {exc}", markup=True, soft_wrap=True)
+        sys.exit(EXIT_USER_ERROR)
+    except KeyboardInterrupt:
+        err.print("interrupted")
+        sys.exit(130)
+    except SystemExit:
+        raise
+    except Exception as exc:  # noqa: BLE001 - last line of defence for the user
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            exc.show()
+            sys.exit(exc.exit_code)
+        if isinstance(exc, click.exceptions.Abort):
+            err.print("aborted")
+            sys.exit(1)
+        if os.environ.get("FLOWTWIN_DEBUG"):
+            raise
+        err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {exc} "
+                  "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
+        sys.exit(EXIT_INTERNAL_ERROR)
+    else:
+        sys.exit(0)

@@ -1,0 +1,1 @@
+"""Motion planners: trapezoidal look-ahead as Klipper and Marlin execute it."""
