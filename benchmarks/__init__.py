@@ -1,0 +1,1 @@
+"""Benchmarks of flowtwin (``make bench``): figures and ratios against named peers."""
