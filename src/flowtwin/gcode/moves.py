@@ -120,9 +120,15 @@ class MoveTable:
         return int(self.moves.shape[0])
 
     def net_filament_mm(self) -> dict[int, float]:
-        """Net filament per tool as written in the G-code (sum of E changes, before M221)."""
+        """Net filament per tool as written in the G-code E words (before M221).
+
+        Firmware retractions (``G10``/``G11``) are motions of the extruder but not
+        filament the G-code asks for, so they are not counted here.
+        """
         out: dict[int, float] = {}
+        written = (self.moves["kind"] & MoveKind.FW_RETRACT) == 0
         tools = self.moves["tool"]
         for tool in np.unique(tools):
-            out[int(tool)] = float(np.sum(self.moves["de"][tools == tool]))
+            sel = written & (tools == tool)
+            out[int(tool)] = float(np.sum(self.moves["de"][sel]))
         return out

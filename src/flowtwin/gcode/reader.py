@@ -1,0 +1,616 @@
+"""Streaming G-code reader: text (path, gzip, stdin, bytes) → :class:`MoveTable`.
+
+The frequent commands are executed by a numba kernel over raw bytes
+(:mod:`flowtwin.gcode._kernel`); everything else (comments, events, unknown and rare
+commands) is interpreted here in file order. Input is read in chunks that end on a line
+break, so :func:`iter_move_chunks` streams files of any size in bounded memory, and
+:func:`read_gcode` concatenates the chunks.
+
+Semantics follow the firmware where they agree (Klipper and Marlin): ``F`` is mm/min;
+``G91`` makes E relative as well; ``G92`` sets G-code coordinates without moving; ``G28``
+puts the named axes (all when none is named) at :attr:`ReadOptions.home_xyz`; ``M220``
+scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools such as
+``T255`` or ``T1000`` are kept as numbers); ``G10``/``G11`` are firmware retractions
+(``M207``/``M208`` settings) unless they carry RepRapFirmware tool parameters
+(``G10 P0 S195 R160`` sets temperatures); ``M200 D<d>`` switches E to mm³.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import math
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+from flowtwin.errors import GcodeError
+from flowtwin.gcode import _kernel as K
+from flowtwin.gcode.metadata import CommentInterpreter
+from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
+from flowtwin.gcode.words import parse_line
+
+__all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]
+
+#: Commands kept as :class:`Event` for the planner and the physics.
+EVENT_CODES = frozenset({
+    "G4", "G10", "G11", "G28", "G29", "M0", "M1", "M18", "M84", "M104", "M106", "M107",
+    "M109", "M140", "M190", "M141", "M191", "M200", "M201", "M203", "M204", "M205",
+    "M207", "M208", "M220", "M221", "M400", "M572", "M900", "SET_VELOCITY_LIMIT",
+    "SET_PRESSURE_ADVANCE", "ACTIVATE_EXTRUDER", "M82", "M83", "G90", "G91", "G92",
+})
+#: Commands understood without consequence for the twin (not "unknown").
+HARMLESS_CODES = frozenset({"G21", "G20", "G17", "M117", "M73", "M105", "M115", "M110",
+                            "M17", "M108", "M113", "M103", "M101", "M82", "M83"})
+#: Parameters that must be numbers, per command.
+NUMERIC_PARAMS: dict[str, frozenset[str]] = {
+    "G4": frozenset("PS"), "M104": frozenset("ST"), "M109": frozenset("STR"),
+    "M140": frozenset("S"), "M190": frozenset("SR"), "M201": frozenset("XYZE"),
+    "M203": frozenset("XYZE"), "M204": frozenset("PRTS"), "M205": frozenset("XYZEJBST"),
+    "M207": frozenset("SFZ"), "M208": frozenset("SF"), "M220": frozenset("S"),
+    "M900": frozenset("K"), "M572": frozenset("SD"), "M200": frozenset("DT"),
+    "SET_VELOCITY_LIMIT": frozenset({"ACCEL", "VELOCITY", "SQUARE_CORNER_VELOCITY",
+                                     "MINIMUM_CRUISE_RATIO", "ACCEL_TO_DECEL"}),
+    "SET_PRESSURE_ADVANCE": frozenset({"ADVANCE", "SMOOTH_TIME"}),
+}
+
+_GZIP_MAGIC = b"\x1f\x8b"
+_BGCODE_MAGIC = b"GCDE"
+DEFAULT_CHUNK_BYTES = 16 * 1024 * 1024
+
+
+@dataclass(frozen=True, slots=True)
+class FirmwareRetraction:
+    """Settings of ``G10``/``G11`` firmware retraction (``M207``/``M208``).
+
+    Defaults are Marlin's (``RETRACT_LENGTH`` 3 mm at 45 mm/s, recover at 8 mm/s).
+    """
+
+    length_mm: float = 3.0
+    speed_mm_s: float = 45.0
+    z_hop_mm: float = 0.0
+    extra_unretract_mm: float = 0.0
+    unretract_speed_mm_s: float = 8.0
+
+
+@dataclass(frozen=True, slots=True)
+class ReadOptions:
+    """How to read a G-code file.
+
+    Attributes
+    ----------
+    arc_segment_mm
+        Split arcs into ``max(1, floor(L / arc_segment_mm))`` equal-angle segments
+        (Klipper's ``[gcode_arcs] resolution``); ``None`` uses ``arc_tolerance_mm``.
+    arc_tolerance_mm
+        Maximum chord deviation from the true arc, mm.
+    home_xyz
+        Where ``G28`` leaves each axis (Klipper's ``position_endstop``), mm.
+    start_xyz
+        Toolhead position before the first line, mm.
+    firmware_retraction
+        ``G10``/``G11`` settings, or ``None`` when the firmware ignores them.
+    strict
+        Unknown commands are errors instead of counted.
+    filament_diameter_mm
+        Used by ``M200`` volumetric E when the command gives no diameter.
+    """
+
+    arc_segment_mm: float | None = None
+    arc_tolerance_mm: float = 0.002
+    home_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    firmware_retraction: FirmwareRetraction | None = field(default_factory=FirmwareRetraction)
+    strict: bool = False
+    filament_diameter_mm: float = 1.75
+
+    def __post_init__(self) -> None:
+        if self.arc_segment_mm is not None and not self.arc_segment_mm > 0:
+            raise GcodeError("arc segment length must be positive", field="arc_segment_mm",
+                             value=self.arc_segment_mm, allowed="> 0 mm")
+        if not self.arc_tolerance_mm > 0:
+            raise GcodeError("arc tolerance must be positive", field="arc_tolerance_mm",
+                             value=self.arc_tolerance_mm, allowed="> 0 mm")
+
+
+# ----------------------------------------------------------------------------- input ---
+
+def _open(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[BinaryIO, str]:
+    """Return a binary stream (gzip transparently decompressed) and a display name."""
+    if isinstance(source, bytes | bytearray | memoryview):
+        raw: BinaryIO = io.BytesIO(bytes(source))
+        name = "<bytes>"
+    elif isinstance(source, str | os.PathLike):
+        name = os.fspath(source)
+        if name == "-":
+            raw = sys.stdin.buffer
+            name = "<stdin>"
+        else:
+            try:
+                raw = open(name, "rb")
+            except OSError as exc:
+                raise GcodeError(f"cannot open G-code file: {exc.strerror}",
+                                 source=name) from exc
+    else:
+        raw = source
+        name = getattr(source, "name", "<stream>")
+        name = name if isinstance(name, str) else "<stream>"
+    peek = raw.peek(4)[:4] if hasattr(raw, "peek") else b""
+    if not peek and isinstance(raw, io.BytesIO):
+        peek = raw.getvalue()[:4]
+    if peek[:2] == _GZIP_MAGIC:
+        return gzip.GzipFile(fileobj=raw, mode="rb"), name  # type: ignore[return-value]
+    if peek == _BGCODE_MAGIC:
+        raise GcodeError("this is a binary G-code (.bgcode) file, not text G-code",
+                         source=name, allowed="text G-code (export as .gcode)")
+    return raw, name
+
+
+def _chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes]:
+    """Yield pieces of ``stream`` that end on a line break (the last may not)."""
+    rest = b""
+    while True:
+        try:
+            block = stream.read(chunk_bytes)
+        except (OSError, EOFError, gzip.BadGzipFile) as exc:
+            raise GcodeError(f"cannot read G-code: {exc}", source=name) from exc
+        if not block:
+            if rest:
+                yield rest
+            return
+        data = rest + block
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            rest = data
+            continue
+        rest = data[cut + 1:]
+        yield data[:cut + 1]
+
+
+# ------------------------------------------------------------------------ the reader ---
+
+@dataclass
+class _Rows:
+    """Growable output buffers of the kernel for one chunk."""
+
+    f: np.ndarray
+    i: np.ndarray
+    k: np.ndarray
+    flow: np.ndarray
+    other: np.ndarray
+    n: int = 0
+    n_other: int = 0
+
+    @classmethod
+    def make(cls, cap: int, cap_other: int) -> _Rows:
+        return cls(np.empty((cap, 5)), np.empty((cap, 2), np.int32), np.empty(cap, np.uint8),
+                   np.empty(cap, np.float32), np.empty((cap_other, 4), np.int64))
+
+    def grow_moves(self, need: int) -> None:
+        cap = max(2 * self.f.shape[0], self.n + need + 16)
+        for name in ("f", "i", "k", "flow"):
+            old = getattr(self, name)
+            new = np.empty((cap, *old.shape[1:]), old.dtype)
+            new[: self.n] = old[: self.n]
+            setattr(self, name, new)
+
+    def grow_other(self) -> None:
+        new = np.empty((2 * self.other.shape[0] + 16, 4), np.int64)
+        new[: self.n_other] = self.other[: self.n_other]
+        self.other = new
+
+    def add(self, line: int, tool: int, xyz: tuple[float, float, float], de: float,
+            feed: float, flow: float, kind: int) -> None:
+        if self.n >= self.f.shape[0]:
+            self.grow_moves(1)
+        self.f[self.n] = (*xyz, de, feed)
+        self.i[self.n] = (line, tool)
+        self.k[self.n] = kind
+        self.flow[self.n] = flow
+        self.n += 1
+
+
+class _Reader:
+    """State of one read across chunks."""
+
+    def __init__(self, name: str, options: ReadOptions) -> None:
+        self.name = name
+        self.options = options
+        s = np.zeros(K.N_STATE)
+        s[K.S_X:K.S_Z + 1] = options.start_xyz
+        s[K.S_FEED] = 25.0  # 1500 mm/min until the file says otherwise
+        s[K.S_SPEED_FACTOR] = 1.0
+        s[K.S_FLOW] = 1.0
+        s[K.S_ABS_XYZ] = 1.0
+        s[K.S_ABS_E] = 1.0
+        s[K.S_UNIT] = 1.0
+        s[K.S_E_FACTOR] = 1.0
+        s[K.S_HOME_X:K.S_HOME_Z + 1] = options.home_xyz
+        if options.arc_segment_mm is not None:
+            s[K.S_ARC_MODE] = 0.0
+            s[K.S_ARC_PARAM] = options.arc_segment_mm
+        else:
+            s[K.S_ARC_MODE] = 1.0
+            s[K.S_ARC_PARAM] = options.arc_tolerance_mm
+        s[K.S_PLANE] = 17.0
+        self.state = s
+        self.retraction = options.firmware_retraction
+        self.retracted = False
+        self.comments = CommentInterpreter()
+        self.unknown: dict[str, int] = {}
+        self.warnings: list[str] = []
+        self.n_moves = 0            # moves emitted in earlier chunks
+        self.e_per_tool: dict[int, float] = {}
+        self.feature = -1
+        self.layer = -1
+        self.layer_z: list[float] = []
+        self.max_extrude_z = -math.inf
+        self.last_byte_newline = True
+
+    # -- errors ------------------------------------------------------------------------
+    def _kernel_error(self, buf: bytes, pos: int) -> GcodeError:
+        line = int(self.state[K.S_ERR_LINE])
+        end = buf.find(b"\n", pos)
+        text = buf[pos: end if end >= 0 else len(buf)].decode("utf-8", "replace").rstrip("\r")
+        code = int(self.state[K.S_ERR_CODE])
+        if code == K.ERR_CHECKSUM:
+            return GcodeError("checksum does not match the line", source=self.name,
+                              line=line, value=text,
+                              allowed="'*' followed by the XOR of all bytes before it")
+        if code == K.ERR_ARC:
+            return GcodeError("arc needs I/J (centre offset) or an R at least half the chord",
+                              source=self.name, line=line, value=text)
+        if code == K.ERR_FEED:
+            return GcodeError("feed rate must be positive", source=self.name, line=line,
+                              field="F", value=text, allowed="F > 0 (mm/min)")
+        # a malformed number: let the exact parser name the word
+        parse_line(text, source=self.name, line=line, numeric=frozenset("XYZEFIJRKPS"))
+        return GcodeError("malformed word", source=self.name, line=line, value=text,
+                          allowed="letter followed by a decimal number, e.g. X10.5")
+
+    # -- lines the kernel hands over ---------------------------------------------------
+    def _python_line(self, text: str, line: int, rows: _Rows) -> None:
+        parsed = parse_line(text, source=self.name, line=line)
+        code, p = parsed.code, parsed.params
+        s = self.state
+        if code in ("G0", "G1", "G2", "G3"):
+            if code in ("G2", "G3") and s[K.S_PLANE] != 17.0:
+                raise GcodeError(f"arcs in the G{int(s[K.S_PLANE])} plane are not supported",
+                                 source=self.name, line=line, value=text,
+                                 allowed="G17 (XY plane) arcs")
+            # malformed parameters of a move (kernel said so): name them
+            parse_line(text, source=self.name, line=line, numeric=frozenset("XYZEFIJR"))
+            raise GcodeError("malformed move", source=self.name, line=line, value=text)
+        if code.startswith("T") and code[1:].isdigit():
+            s[K.S_TOOL] = float(code[1:])
+            self._event(Event(self.n_moves + rows.n, line, code, p))
+            return
+        if code in ("G18", "G19"):
+            s[K.S_PLANE] = float(code[1:])
+            return
+        if code == "G10" and self.retraction is not None and not _is_rrf_g10(p):
+            if not self.retracted:
+                self._fw_retract(line, rows, retract=True)
+            return
+        if code == "G11" and self.retraction is not None:
+            if self.retracted:
+                self._fw_retract(line, rows, retract=False)
+            return
+        if code in ("M207", "M208") and self.retraction is not None:
+            self._check_numeric(code, p, line, text)
+            r = self.retraction
+            if code == "M207":
+                r = replace(r, length_mm=_num(p, "S", r.length_mm),
+                            speed_mm_s=_num(p, "F", r.speed_mm_s * 60.0) / 60.0,
+                            z_hop_mm=_num(p, "Z", r.z_hop_mm))
+            else:
+                r = replace(r, extra_unretract_mm=_num(p, "S", r.extra_unretract_mm),
+                            unretract_speed_mm_s=_num(p, "F", r.unretract_speed_mm_s * 60) / 60)
+            self.retraction = r
+        elif code == "M200":
+            self._check_numeric(code, p, line, text)
+            d = _num(p, "D", self.options.filament_diameter_mm)
+            s[K.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0) if d > 0 else 1.0
+        elif code == "M221":
+            value = p.get("S")
+            tool = p.get("T")
+            if isinstance(value, float) and (tool is None or tool == s[K.S_TOOL]):
+                if not value > 0:
+                    raise GcodeError("M221 flow must be positive", source=self.name, line=line,
+                                     field="S", value=value, allowed="S > 0 (%)")
+                s[K.S_FLOW] = value / 100.0
+            else:
+                self.warnings.append(f"{self.name}:{line}: '{text.strip()}' does not set the "
+                                     "flow of the active tool; ignored")
+        self._record(parsed.code, p, parsed.comment, line, self.n_moves + rows.n, text)
+
+    def _check_numeric(self, code: str, params: dict[str, float | str], line: int,
+                       text: str) -> None:
+        need = NUMERIC_PARAMS.get(code, frozenset())
+        for key, value in params.items():
+            if key in need and not isinstance(value, float):
+                raise GcodeError(f"{code} parameter {key} is not a number", source=self.name,
+                                 line=line, field=key, value=value or text.strip(),
+                                 allowed="a finite decimal number")
+
+    def _fw_retract(self, line: int, rows: _Rows, *, retract: bool) -> None:
+        r = self.retraction
+        assert r is not None
+        s = self.state
+        tool = int(s[K.S_TOOL])
+        x, y, z = float(s[K.S_X]), float(s[K.S_Y]), float(s[K.S_Z])
+        base = int(MoveKind.FW_RETRACT)
+        if retract:
+            if r.length_mm > 0:
+                rows.add(line, tool, (x, y, z), -r.length_mm, r.speed_mm_s, float(s[K.S_FLOW]),
+                         base | MoveKind.RETRACT)
+            if r.z_hop_mm > 0:
+                rows.add(line, tool, (x, y, z + r.z_hop_mm), 0.0, r.speed_mm_s,
+                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z)
+                s[K.S_Z] = z + r.z_hop_mm
+            self.retracted = True
+        else:
+            if r.z_hop_mm > 0:
+                rows.add(line, tool, (x, y, z - r.z_hop_mm), 0.0, r.unretract_speed_mm_s,
+                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z)
+                s[K.S_Z] = z - r.z_hop_mm
+            amount = r.length_mm + r.extra_unretract_mm
+            if amount > 0:
+                rows.add(line, tool, (x, y, float(s[K.S_Z])), amount, r.unretract_speed_mm_s,
+                         float(s[K.S_FLOW]), base | MoveKind.EXTRUDE)
+            self.retracted = False
+
+    # -- recorded lines ------------------------------------------------------------------
+    def _event(self, event: Event) -> None:
+        self.events.append(event)
+
+    def _record(self, code: str, params: dict[str, float | str], comment: str, line: int,
+                move_index: int, text: str) -> None:
+        if not code:
+            self.comments.feed(comment, move_index, line)
+            return
+        if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
+            self._check_numeric(code, params, line, text)
+            self._event(Event(move_index, line, code, params))
+        elif code not in HARMLESS_CODES:
+            if self.options.strict:
+                raise GcodeError(f"unknown command {code}", source=self.name, line=line,
+                                 value=text.strip(), allowed="commands flowtwin interprets "
+                                 "(run without --strict to count and skip unknown ones)")
+            self.unknown[code] = self.unknown.get(code, 0) + 1
+
+    def _other_lines(self, buf: bytes, rows: _Rows) -> None:
+        for lineno, start, end, move_index in rows.other[: rows.n_other].tolist():
+            raw = buf[start:end]
+            text = raw.decode("utf-8", "replace").rstrip("\r")
+            if "\ufffd" in text:
+                self.warnings.append(f"{self.name}:{lineno}: bytes that are not UTF-8 "
+                                     "(replaced)")
+            parsed = parse_line(text, source=self.name, line=lineno)
+            self._record(parsed.code, parsed.params, parsed.comment, lineno,
+                         self.n_moves + move_index, text)
+
+    # -- one chunk -------------------------------------------------------------------------
+    def chunk(self, buf: bytes) -> MoveTable:
+        self.events: list[Event] = []
+        arr = np.frombuffer(buf, dtype=np.uint8)
+        if arr.size and not np.all(arr):  # a NUL byte: binary data
+            zero = int(np.argmin(arr))
+            line = int(self.state[K.S_LINE]) + buf.count(b"\n", 0, zero) + 1
+            raise GcodeError("binary data (NUL byte) in G-code", source=self.name, line=line,
+                             allowed="text G-code")
+        n_lines = buf.count(b"\n") + 1
+        rows = _Rows.make(n_lines + 16, max(64, n_lines // 4))
+        pos = 0
+        while True:
+            status, pos, rows.n, rows.n_other = K.scan(
+                arr, pos, self.state, rows.f, rows.i, rows.k, rows.flow, rows.n,
+                rows.other, rows.n_other)
+            if status == K.ST_DONE:
+                break
+            if status == K.ST_MOVES_FULL:
+                rows.grow_moves(max(1024, rows.f.shape[0]))
+            elif status == K.ST_OTHER_FULL:
+                rows.grow_other()
+            elif status == K.ST_ERROR:
+                raise self._kernel_error(buf, pos)
+            else:  # ST_PYTHON: this line is interpreted here, in order
+                # lines recorded so far come first
+                self._other_lines(buf, rows)
+                rows.n_other = 0
+                end = buf.find(b"\n", pos)
+                end = len(buf) if end < 0 else end
+                line = int(self.state[K.S_LINE]) + 1
+                text = buf[pos:end].decode("utf-8", "replace").rstrip("\r")
+                self._python_line(text, line, rows)
+                self.state[K.S_LINE] = line
+                pos = end + 1
+        self._other_lines(buf, rows)
+        self.last_byte_newline = buf.endswith(b"\n")
+        return self._table(rows)
+
+    def _table(self, rows: _Rows) -> MoveTable:
+        n = rows.n
+        moves = np.empty(n, dtype=MOVE_DTYPE)
+        moves["x"] = rows.f[:n, 0]
+        moves["y"] = rows.f[:n, 1]
+        moves["z"] = rows.f[:n, 2]
+        moves["de"] = rows.f[:n, 3]
+        moves["feed_mm_s"] = rows.f[:n, 4]
+        moves["line"] = rows.i[:n, 0]
+        moves["tool"] = rows.i[:n, 1]
+        moves["kind"] = rows.k[:n]
+        moves["flow"] = rows.flow[:n]
+        # cumulative E per tool, continuing across chunks
+        e = np.empty(n)
+        tools = moves["tool"]
+        for tool in np.unique(tools).tolist():
+            sel = tools == tool
+            e[sel] = self.e_per_tool.get(tool, 0.0) + np.cumsum(moves["de"][sel])
+            self.e_per_tool[tool] = float(e[sel][-1])
+        moves["e"] = e
+        self._assign_features(moves)
+        self._assign_layers(moves)
+        table = MoveTable(moves=moves, events=self.events,
+                          start_xyze=np.zeros(4), source=self.name)
+        self.n_moves += n
+        return table
+
+    def _assign_features(self, moves: np.ndarray) -> None:
+        col = moves["feature"]
+        start = 0
+        cur = self.feature
+        base = self.n_moves
+        for mi, fid in self.comments.feature_changes:
+            k = mi - base
+            col[start:k] = cur
+            cur, start = fid, max(k, start)
+        col[start:] = cur
+        self.feature = cur
+        self.comments.feature_changes.clear()
+
+    def _assign_layers(self, moves: np.ndarray) -> None:
+        col = moves["layer"]
+        base = self.n_moves
+        changes = self.comments.layer_changes
+        if self.comments.metadata.get("_layer_mode") == "markers" or changes:
+            self.comments.metadata["_layer_mode"] = "markers"
+            start = 0
+            cur = self.layer
+            for mi, _line, z in changes:
+                k = mi - base
+                col[start:k] = cur
+                cur, start = cur + 1, max(k, start)
+                self.layer_z.append(z)
+            col[start:] = cur
+            self.layer = cur
+            changes.clear()
+            return
+        # no slicer markers: a new layer starts at the first extrusion above the last
+        extruding = (moves["kind"] & MoveKind.EXTRUDE) != 0
+        z = np.where(extruding, moves["z"], -np.inf)
+        running = np.maximum.accumulate(np.concatenate(([self.max_extrude_z], z)))
+        rises = running[1:] > running[:-1] + 1e-6
+        col[:] = self.layer + np.cumsum(rises)
+        self.layer_z.extend(running[1:][rises].tolist())
+        self.layer += int(np.count_nonzero(rises))
+        self.max_extrude_z = float(running[-1])
+
+
+def _num(params: dict[str, float | str], key: str, default: float) -> float:
+    value = params.get(key)
+    return value if isinstance(value, float) else default
+
+
+def _is_rrf_g10(params: dict[str, float | str]) -> bool:
+    """RepRapFirmware's ``G10 P<tool> S<active> R<standby>`` (or offsets), not a retraction."""
+    if any(k in params for k in ("P", "R", "L", "X", "Y", "Z", "U", "V", "W")):
+        return True
+    s = params.get("S")
+    return isinstance(s, float) and s > 1.0
+
+
+# -------------------------------------------------------------------------- public API ---
+
+def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
+                     options: ReadOptions | None = None,
+                     chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Iterator[MoveTable]:
+    """Read G-code in bounded memory, yielding one :class:`MoveTable` per chunk.
+
+    Parameters
+    ----------
+    source
+        A path, ``"-"`` for standard input, the file's bytes, or a binary stream;
+        gzip-compressed input is detected and decompressed.
+    options
+        Reading options (arcs, homing position, firmware retraction, strictness).
+    chunk_bytes
+        Bytes read per chunk; memory stays proportional to it, not to the file.
+
+    Yields
+    ------
+    MoveTable
+        Moves and events of one chunk (move rows, features and layers continue across
+        chunks). The last table carries the file's metadata, unknown commands and warnings.
+    """
+    options = options or ReadOptions()
+    stream, name = _open(source)
+    reader = _Reader(name, options)
+    last: MoveTable | None = None
+    try:
+        for piece in _chunks(stream, name, chunk_bytes):
+            if last is not None:
+                yield last
+            last = reader.chunk(piece)
+    finally:
+        if isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
+            stream.close()
+    if last is None:
+        last = reader._table(_Rows.make(0, 0)) if hasattr(reader, "events") else _empty(reader)
+    n_lines = int(reader.state[K.S_LINE])
+    if not reader.last_byte_newline and n_lines:
+        reader.warnings.append(f"{name}:{n_lines}: file does not end with a line break "
+                               "(truncated?)")
+    last.metadata = reader.comments.finish()
+    last.metadata.pop("_layer_mode", None)
+    last.features = list(reader.comments.features)
+    last.layer_z = list(reader.layer_z)
+    last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))
+    last.warnings = list(reader.warnings)
+    last.n_lines = n_lines
+    yield last
+
+
+def _empty(reader: _Reader) -> MoveTable:
+    reader.events = []
+    return reader._table(_Rows.make(0, 0))
+
+
+def read_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
+               options: ReadOptions | None = None) -> MoveTable:
+    """Read a whole G-code file into one :class:`MoveTable`.
+
+    Parameters
+    ----------
+    source
+        A path (plain or gzip), ``"-"`` for standard input, bytes, or a binary stream.
+    options
+        Reading options; defaults to :class:`ReadOptions`.
+
+    Returns
+    -------
+    MoveTable
+        One row per straight segment, events, metadata, unknown commands, warnings.
+
+    Raises
+    ------
+    GcodeError
+        The file cannot be read, or a word or number is malformed (message names the file
+        and line).
+    """
+    options = options or ReadOptions()
+    chunks = list(iter_move_chunks(source, options=options))
+    last = chunks[-1]
+    if len(chunks) == 1:
+        table = last
+    else:
+        table = MoveTable(moves=np.concatenate([c.moves for c in chunks]),
+                          events=[e for c in chunks for e in c.events],
+                          start_xyze=chunks[0].start_xyze, features=last.features,
+                          layer_z=last.layer_z, metadata=last.metadata,
+                          unknown_commands=last.unknown_commands, warnings=last.warnings,
+                          source=last.source, n_lines=last.n_lines)
+    table.start_xyze = np.array([*options.start_xyz, 0.0])
+    return table
+
+
+def source_name(source: str | os.PathLike[str] | bytes | BinaryIO) -> str:
+    """Display name of a source (for messages)."""
+    if isinstance(source, str | os.PathLike):
+        return "<stdin>" if os.fspath(source) == "-" else str(Path(source))
+    return "<bytes>" if isinstance(source, bytes | bytearray) else "<stream>"
