@@ -274,7 +274,6 @@ def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):
             continue
         # command letter + number
         code_num = -1.0
-        handled = False
         if (c0 == 71 or c0 == 77 or c0 == 84) and i + 1 < cend and 48 <= buf[i + 1] <= 57:
             # G/M/T with an integer code (a '.' sub-code goes to Python)
             k = i + 1
