@@ -290,6 +290,11 @@ class _Reader:
             s[K.S_TOOL] = float(code[1:])
             self._event(Event(self.n_moves + rows.n, line, code, p))
             return
+        if code == "G28":
+            axes = [a for a in "XYZ" if a in p]
+            for axis in axes or ["X", "Y", "Z"]:
+                idx = "XYZ".index(axis)
+                s[K.S_X + idx] = s[K.S_HOME_X + idx]
         if code in ("G18", "G19"):
             s[K.S_PLANE] = float(code[1:])
             return
@@ -451,7 +456,9 @@ class _Reader:
         tools = moves["tool"]
         for tool in np.unique(tools).tolist():
             sel = tools == tool
-            e[sel] = self.e_per_tool.get(tool, 0.0) + np.cumsum(moves["de"][sel])
+            # summed in file order from the running total, so chunking never changes a bit
+            start = np.array([self.e_per_tool.get(tool, 0.0)])
+            e[sel] = np.cumsum(np.concatenate((start, moves["de"][sel])))[1:]
             self.e_per_tool[tool] = float(e[sel][-1])
         moves["e"] = e
         self._assign_features(moves)
