@@ -1,0 +1,536 @@
+"""Marlin 2.x motion planner model: trapezoids with look-ahead, classic jerk or JD.
+
+What the model does, per move (Marlin/src/module/planner.cpp, ``_populate_block``;
+the G-code side from the Marlin documentation of M201, M203, M204, M205 and M900):
+
+* speed: the requested feed (already × M220 in the move table), raised to M205 S (moves
+  with E) or T (without), then scaled down so no axis exceeds its M203 limit — the E
+  axis counts with its real (× M221) distance;
+* acceleration: M204 P for moves with X/Y/Z and E, T for X/Y/Z without E, R for E-only
+  moves; then, except for E-only moves, capped so that no axis exceeds its M201 limit
+  (``a · |d_i| / L ≤ amax_i``) and, with ``LIN_ADVANCE`` built in and ``K > 0``, at
+  ``E-jerk / (K · e/D)`` for extruding moves with ``e/D ≤ 3``;
+* junction speed with the previous move: classic jerk (M205 X Y Z E, two variants, see
+  :class:`JerkVariant`) or junction deviation (M205 J), never below the minimum planner
+  speed;
+* look-ahead: Marlin fixes the exit speed of the block it starts executing with only the
+  ``BLOCK_BUFFER_SIZE - 2`` blocks queued behind it, the last of which must be able to
+  stop; the reverse and forward passes run on squared speeds
+  (:mod:`flowtwin.planner._marlin_kernel` has the equations);
+* stops: the planner drains (speed → minimum planner speed) before ``G4``, ``M400``,
+  homing, heater waits and other synchronising commands (:data:`SYNC_CODES`), at tool
+  changes, at ``M900 K`` changes and after the lines the caller names; ``G4 P<ms>`` /
+  ``S<s>`` adds its dwell.
+
+Not modelled: step rounding (``MIN_STEPS_PER_SEGMENT``, integer step rates), the
+100 ms first-block delay after an empty buffer (skipped when ≥ 3 moves are queued, as
+they are when printing), S-curve acceleration (same durations), input shaping, and a
+buffer drained by a slow host (except by the optional ``SLOWDOWN`` rule).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from enum import Enum
+
+import numpy as np
+
+from flowtwin.errors import GcodeError, ProfileError
+from flowtwin.gcode.moves import Event, MoveTable
+from flowtwin.planner import _marlin_kernel as K
+from flowtwin.planner.timeline import PHASE_DTYPE, Timeline
+
+__all__ = [
+    "SETTINGS_CODES",
+    "SYNC_CODES",
+    "JerkVariant",
+    "MarlinSettings",
+    "marlin_settings_from_slicer_config",
+    "plan_marlin",
+]
+
+#: Commands after which Marlin's planner has drained (``planner.synchronize()`` or a wait
+#: that blocks the command queue until the moves already queued have run).
+SYNC_CODES = frozenset({
+    "G4", "M400", "G28", "G29", "G30", "G33", "G34", "M0", "M1", "M25", "M109", "M190",
+    "M191", "M125", "M226", "M420", "M600", "M601", "M701", "M702", "M18", "M84",
+})
+
+Vec4 = tuple[float, float, float, float]
+
+
+class JerkVariant(Enum):
+    """Which classic-jerk junction rule the firmware uses (``CLASSIC_JERK`` builds)."""
+
+    #: Marlin 1.1 – 2.1.2.x, Prusa firmware and PrusaSlicer's time estimator: coasting /
+    #: axis-reversal jerk with the "safe speed" rule (see
+    #: :func:`flowtwin.planner._marlin_kernel.junction_classic_legacy`).
+    LEGACY = "legacy"
+    #: Marlin bugfix-2.1.x after the 2023 CLASSIC_JERK rework: signed per-axis velocity
+    #: difference at the shared junction speed.
+    REWORKED = "reworked"
+
+
+def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> None:
+    ok = value >= 0.0 if allow_zero else value > 0.0
+    if not (ok and np.isfinite(value)):
+        raise ProfileError("invalid Marlin setting", field=name, value=value,
+                           allowed=">= 0" if allow_zero else "> 0 (finite)")
+
+
+@dataclass(frozen=True, slots=True)
+class MarlinSettings:
+    """Motion settings of a Marlin 2.x firmware (defaults: stock ``Configuration.h``).
+
+    Per-axis tuples are ``(X, Y, Z, E)``.
+
+    Attributes
+    ----------
+    max_feedrate_mm_s
+        M203, mm/s.
+    max_acceleration_mm_s2
+        M201, mm/s².
+    print_accel_mm_s2, retract_accel_mm_s2, travel_accel_mm_s2
+        M204 P, R, T, mm/s².
+    jerk_mm_s
+        M205 X Y Z E "classic jerk", mm/s (used when ``junction_deviation_mm`` is None).
+    junction_deviation_mm
+        M205 J, mm; ``None`` means the firmware is built with ``CLASSIC_JERK``.
+    jerk_variant
+        Classic-jerk junction rule (:class:`JerkVariant`).
+    jd_small_segments
+        ``JD_HANDLE_SMALL_SEGMENTS`` (on in stock Marlin).
+    minimum_planner_speed_mm_s
+        Floor of every junction speed and the exit speed of the last queued block, mm/s.
+    min_feedrate_mm_s, min_travel_feedrate_mm_s
+        M205 S and T, mm/s.
+    min_segment_time_s
+        M205 B (given in µs in G-code), s; used only by the ``SLOWDOWN`` option.
+    slowdown_moves_queued
+        Model Marlin's ``SLOWDOWN`` as if the buffer always held this many moves: a move
+        shorter than ``min_segment_time_s`` then takes ``t + 2 (t_min - t) / q``. Marlin
+        applies it only while ``2 <= q <= BLOCK_BUFFER_SIZE/2 - 1`` (a host that cannot
+        keep up); 0 (default) turns it off.
+    block_buffer_size
+        ``BLOCK_BUFFER_SIZE`` (look-ahead), ≥ 3; ``None`` plans with unlimited look-ahead
+        (as slicer estimators do).
+    lin_advance
+        Firmware built with ``LIN_ADVANCE``: M900 K is honoured, changing K drains the
+        planner, and the acceleration cap ``E-jerk / (K · e/D)`` applies.
+    linear_advance_k
+        M900 K, s (mm of filament per mm/s of filament speed).
+    """
+
+    max_feedrate_mm_s: Vec4 = (300.0, 300.0, 5.0, 25.0)
+    max_acceleration_mm_s2: Vec4 = (3000.0, 3000.0, 100.0, 10000.0)
+    print_accel_mm_s2: float = 3000.0
+    retract_accel_mm_s2: float = 3000.0
+    travel_accel_mm_s2: float = 3000.0
+    jerk_mm_s: Vec4 = (10.0, 10.0, 0.3, 5.0)
+    junction_deviation_mm: float | None = 0.013
+    jerk_variant: JerkVariant = JerkVariant.LEGACY
+    jd_small_segments: bool = True
+    minimum_planner_speed_mm_s: float = 0.05
+    min_feedrate_mm_s: float = 0.0
+    min_travel_feedrate_mm_s: float = 0.0
+    min_segment_time_s: float = 0.02
+    slowdown_moves_queued: int = 0
+    block_buffer_size: int | None = 16
+    lin_advance: bool = False
+    linear_advance_k: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("max_feedrate_mm_s", "max_acceleration_mm_s2", "jerk_mm_s"):
+            vec = getattr(self, name)
+            if len(vec) != 4:
+                raise ProfileError("needs 4 values (X, Y, Z, E)", field=name, value=vec)
+            for v in vec:
+                _check_positive(name, float(v), allow_zero=(name == "jerk_mm_s"))
+        for name in ("print_accel_mm_s2", "retract_accel_mm_s2", "travel_accel_mm_s2",
+                     "minimum_planner_speed_mm_s"):
+            _check_positive(name, getattr(self, name))
+        for name in ("min_feedrate_mm_s", "min_travel_feedrate_mm_s", "min_segment_time_s",
+                     "linear_advance_k"):
+            _check_positive(name, getattr(self, name), allow_zero=True)
+        if self.junction_deviation_mm is not None:
+            _check_positive("junction_deviation_mm", self.junction_deviation_mm)
+        if not isinstance(self.jerk_variant, JerkVariant):
+            raise ProfileError("unknown classic-jerk variant", field="jerk_variant",
+                               value=self.jerk_variant,
+                               allowed=", ".join(v.value for v in JerkVariant))
+        if self.slowdown_moves_queued != 0 and self.slowdown_moves_queued < 2:
+            raise ProfileError("SLOWDOWN needs at least 2 queued moves",
+                               field="slowdown_moves_queued",
+                               value=self.slowdown_moves_queued, allowed="0 (off) or >= 2")
+        if self.block_buffer_size is not None and self.block_buffer_size < 3:
+            raise ProfileError("look-ahead buffer too small", field="block_buffer_size",
+                               value=self.block_buffer_size, allowed=">= 3 or None")
+
+    @property
+    def classic_jerk(self) -> bool:
+        """True when the firmware uses classic jerk rather than junction deviation."""
+        return self.junction_deviation_mm is None
+
+    def updated_from_event(self, event: Event, *, source: str | None = None
+                           ) -> MarlinSettings:
+        """Settings after one G-code command (M201, M203, M204, M205, M900; others: self).
+
+        Parameters
+        ----------
+        event
+            The command; parameters Marlin ignores (e.g. ``M205 J`` on a classic-jerk
+            build, ``M201 F``) leave the settings unchanged.
+        source
+            File name for error messages.
+
+        Raises
+        ------
+        GcodeError
+            A limit that would stall the printer (zero or negative acceleration or feed
+            rate, negative jerk); the message names the line and parameter.
+        """
+        return self.updated_from_events((event,), source=source)
+
+    def updated_from_events(self, events: Iterable[Event], *, source: str | None = None
+                            ) -> MarlinSettings:
+        """Settings after every command of ``events`` in order (see
+        :meth:`updated_from_event`)."""
+        row = self.param_row()
+        for ev in events:
+            if ev.code in SETTINGS_CODES:
+                _apply_event(row, ev, self, source)
+        return self if row == self.param_row() else self._with_row(row)
+
+    def param_row(self) -> list[float]:
+        """The G-code-settable values as one row of the kernel's parameter table."""
+        row = [0.0] * K.N_PARAMS
+        row[K.P_VMAX:K.P_VMAX + 4] = self.max_feedrate_mm_s
+        row[K.P_AMAX:K.P_AMAX + 4] = self.max_acceleration_mm_s2
+        row[K.P_ACCEL_P] = self.print_accel_mm_s2
+        row[K.P_ACCEL_R] = self.retract_accel_mm_s2
+        row[K.P_ACCEL_T] = self.travel_accel_mm_s2
+        row[K.P_JERK:K.P_JERK + 4] = self.jerk_mm_s
+        row[K.P_JD] = self.junction_deviation_mm or 0.0
+        row[K.P_MIN_FEED] = self.min_feedrate_mm_s
+        row[K.P_MIN_TRAVEL] = self.min_travel_feedrate_mm_s
+        row[K.P_MIN_SEG_T] = self.min_segment_time_s
+        row[K.P_LA_K] = self.linear_advance_k
+        return row
+
+    def _with_row(self, row: Sequence[float]) -> MarlinSettings:
+        """Inverse of :meth:`param_row` (build options are kept from ``self``)."""
+        def vec(c: int) -> Vec4:
+            return (row[c], row[c + 1], row[c + 2], row[c + 3])
+        return replace(
+            self, max_feedrate_mm_s=vec(K.P_VMAX), max_acceleration_mm_s2=vec(K.P_AMAX),
+            print_accel_mm_s2=row[K.P_ACCEL_P], retract_accel_mm_s2=row[K.P_ACCEL_R],
+            travel_accel_mm_s2=row[K.P_ACCEL_T], jerk_mm_s=vec(K.P_JERK),
+            junction_deviation_mm=None if self.classic_jerk else row[K.P_JD],
+            min_feedrate_mm_s=row[K.P_MIN_FEED],
+            min_travel_feedrate_mm_s=row[K.P_MIN_TRAVEL],
+            min_segment_time_s=row[K.P_MIN_SEG_T], linear_advance_k=row[K.P_LA_K])
+
+
+#: Commands that change the planner settings.
+SETTINGS_CODES = frozenset({"M201", "M203", "M204", "M205", "M900"})
+
+
+def _number(event: Event, letter: str, source: str | None, *, positive: bool) -> float | None:
+    """Numeric value of a parameter, ``None`` when absent or given without a value."""
+    raw = event.params.get(letter)
+    if raw is None or raw == "":
+        return None
+    if isinstance(raw, str):
+        try:
+            raw = float(raw)
+        except ValueError:
+            raise GcodeError(f"{event.code} {letter} is not a number", source=source,
+                             line=event.line, field=f"{event.code} {letter}",
+                             value=raw) from None
+    value = float(raw)
+    ok = (value > 0.0 if positive else value >= 0.0) and np.isfinite(value)
+    if not ok:
+        raise GcodeError(f"{event.code} {letter} would stall the Marlin planner",
+                         source=source, line=event.line, field=f"{event.code} {letter}",
+                         value=value, allowed="> 0" if positive else ">= 0")
+    return value
+
+
+def _set_axes(row: list[float], col: int, event: Event, source: str | None, *,
+              positive: bool) -> None:
+    for ax, letter in enumerate("XYZE"):
+        v = _number(event, letter, source, positive=positive)
+        if v is not None:
+            row[col + ax] = v
+
+
+def _set(row: list[float], col: int, event: Event, letter: str, source: str | None, *,
+         positive: bool, scale: float = 1.0) -> None:
+    v = _number(event, letter, source, positive=positive)
+    if v is not None:
+        row[col] = v * scale
+
+
+def _apply_event(row: list[float], ev: Event, build: MarlinSettings, source: str | None
+                 ) -> str | None:
+    """Apply a settings command to a parameter row in place; say what Marlin ignores.
+
+    ``build`` supplies the firmware build options (classic jerk or JD, LIN_ADVANCE).
+    Marlin documentation: M201 X Y Z E (mm/s²), M203 X Y Z E (mm/s), M204 S (sets P and
+    T), P, R, T (mm/s²), M205 S T (mm/s), B (µs), X Y Z E (jerk, mm/s, CLASSIC_JERK
+    builds) or J (mm, junction-deviation builds), M900 K (0–10, LIN_ADVANCE builds).
+    """
+    code = ev.code
+    if code == "M201":
+        _set_axes(row, K.P_AMAX, ev, source, positive=True)
+        return "M201 F/S (XY frequency limit) not modelled" if (
+            "F" in ev.params or "S" in ev.params) else None
+    if code == "M203":
+        _set_axes(row, K.P_VMAX, ev, source, positive=True)
+        return None
+    if code == "M204":
+        legacy = _number(ev, "S", source, positive=True)
+        if legacy is not None:
+            row[K.P_ACCEL_P] = row[K.P_ACCEL_T] = legacy
+        _set(row, K.P_ACCEL_P, ev, "P", source, positive=True)
+        _set(row, K.P_ACCEL_R, ev, "R", source, positive=True)
+        _set(row, K.P_ACCEL_T, ev, "T", source, positive=True)
+        return None
+    if code == "M205":
+        _set(row, K.P_MIN_FEED, ev, "S", source, positive=False)
+        _set(row, K.P_MIN_TRAVEL, ev, "T", source, positive=False)
+        _set(row, K.P_MIN_SEG_T, ev, "B", source, positive=False, scale=1e-6)
+        has_jerk = any(k in ev.params for k in "XYZE")
+        if build.classic_jerk:
+            _set_axes(row, K.P_JERK, ev, source, positive=False)
+            return "M205 J ignored: firmware built with CLASSIC_JERK" if (
+                "J" in ev.params) else None
+        _set(row, K.P_JD, ev, "J", source, positive=True)
+        return "M205 X/Y/Z/E ignored: firmware uses junction deviation" if has_jerk else None
+    if code == "M900":
+        if not build.lin_advance:
+            return "M900 ignored: firmware built without LIN_ADVANCE"
+        k = _number(ev, "K", source, positive=False)
+        if k is not None and k > 10.0:
+            return "M900 K out of range (0-10) ignored"
+        if k is not None:
+            row[K.P_LA_K] = k
+        return None
+    return None
+
+
+# ------------------------------------------------------------------ slicer config ---
+
+_LIMIT_KEYS: dict[str, tuple[str, ...]] = {
+    "max_feedrate_mm_s": ("machine_max_feedrate_{}", "machine_max_speed_{}"),
+    "max_acceleration_mm_s2": ("machine_max_acceleration_{}",),
+    "jerk_mm_s": ("machine_max_jerk_{}",),
+}
+_SCALAR_KEYS = {
+    "print_accel_mm_s2": "machine_max_acceleration_extruding",
+    "retract_accel_mm_s2": "machine_max_acceleration_retracting",
+    "travel_accel_mm_s2": "machine_max_acceleration_travel",
+    "min_feedrate_mm_s": "machine_min_extruding_rate",
+    "min_travel_feedrate_mm_s": "machine_min_travel_rate",
+}
+
+
+def _config_float(config: Mapping[str, object], key: str) -> float | None:
+    """First value of a slicer option (``"4000,2500"`` → 4000: normal, not stealth mode)."""
+    raw = config.get(key)
+    if raw is None:
+        return None
+    text = str(raw).split(",")[0].strip().strip('"')
+    if text == "":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise ProfileError("slicer machine limit is not a number", field=key,
+                           value=raw) from None
+
+
+def marlin_settings_from_slicer_config(metadata: Mapping[str, object], *,
+                                       base: MarlinSettings | None = None
+                                       ) -> MarlinSettings | None:
+    """Marlin settings from the machine limits a PrusaSlicer / OrcaSlicer / Bambu Studio
+    file embeds in its config block.
+
+    Parameters
+    ----------
+    metadata
+        ``MoveTable.metadata`` (the config is read from its ``"slicer_config"`` entry) or
+        the config mapping itself (``key → raw string``).
+    base
+        Settings for whatever the config does not give; defaults to
+        :class:`MarlinSettings` with classic jerk (slicers describe classic-jerk machines).
+
+    Returns
+    -------
+    MarlinSettings or None
+        ``None`` when the config lists no machine limit, or says the limits are ignored
+        (``machine_limits_usage = ignore``). Comma lists (normal, stealth) use the first
+        value. ``machine_max_junction_deviation`` > 0 (OrcaSlicer) selects junction
+        deviation; a zero or missing travel acceleration falls back to the extruding one.
+
+    Raises
+    ------
+    ProfileError
+        A limit that is not a number, or not positive (names the key).
+    """
+    raw_config = metadata.get("slicer_config", metadata)
+    if not isinstance(raw_config, Mapping):
+        raise ProfileError("slicer_config is not a mapping", field="slicer_config",
+                           value=type(raw_config).__name__)
+    config: Mapping[str, object] = raw_config
+    if not any(str(k).startswith("machine_max_") for k in config):
+        return None
+    if str(config.get("machine_limits_usage", "")).strip() == "ignore":
+        return None
+    s = base or MarlinSettings(junction_deviation_mm=None)
+    changes: dict[str, object] = {}
+    for name, patterns in _LIMIT_KEYS.items():
+        vec = list(getattr(s, name))
+        for ax, letter in enumerate("xyze"):
+            for pattern in patterns:
+                v = _config_float(config, pattern.format(letter))
+                if v is not None:
+                    vec[ax] = v
+                    break
+        changes[name] = tuple(vec)
+    for name, key in _SCALAR_KEYS.items():
+        v = _config_float(config, key)
+        if v is not None and not (name == "travel_accel_mm_s2" and v == 0.0):
+            changes[name] = v
+    if _config_float(config, "machine_max_acceleration_travel") in (None, 0.0):
+        changes["travel_accel_mm_s2"] = changes.get("print_accel_mm_s2",
+                                                    s.print_accel_mm_s2)
+    jd = _config_float(config, "machine_max_junction_deviation")
+    if jd is not None and jd > 0.0:
+        changes["junction_deviation_mm"] = jd
+    try:
+        return replace(s, **changes)  # type: ignore[arg-type]
+    except ProfileError as exc:
+        raise ProfileError(exc.message + " (from the slicer's machine limits)",
+                           field=exc.field, value=exc.value, allowed=exc.allowed) from None
+
+
+# ------------------------------------------------------------------------ planner ---
+
+def _stop_index(lines: np.ndarray, after_line: int) -> int:
+    """Number of moves whose source line is ≤ ``after_line``."""
+    return int(np.count_nonzero(lines <= after_line))
+
+
+def _dwell_s(ev: Event, source: str | None) -> float:
+    """G4 dwell in s (Marlin: ``S`` seconds wins over ``P`` milliseconds)."""
+    s = _number(ev, "S", source, positive=False)
+    if s is not None:
+        return s
+    p = _number(ev, "P", source, positive=False)
+    return 0.0 if p is None else p * 1e-3
+
+
+def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
+                stop_after_lines: Sequence[int] = ()) -> Timeline:
+    """Plan a move table as Marlin 2.x would execute it.
+
+    Parameters
+    ----------
+    table
+        Moves (``n`` rows) and events from the G-code reader. M201/M203/M204/M205/M900
+        events change the settings from the move they precede on.
+    settings
+        Firmware settings in force before the first line.
+    stop_after_lines
+        Source lines after which the toolhead must come to a stop (the planner drains
+        after the last move that comes from a line ≤ each of them).
+
+    Returns
+    -------
+    Timeline
+        ``firmware="marlin"``; one phase row per move (zero-length moves take no time),
+        G4 dwells in ``dwell_s``, settings commands Marlin ignores in ``warnings``.
+
+    Raises
+    ------
+    GcodeError
+        A move with motion but no positive feed rate, or a settings command that would
+        stall the planner (names the file and line).
+    """
+    moves = table.moves
+    n = len(table)
+    source = table.source
+    xyz = np.empty((n, 3))
+    for ax, name in enumerate("xyz"):
+        xyz[:, ax] = moves[name]
+    d = np.empty((n, 4))
+    if n:
+        d[0, :3] = xyz[0] - np.asarray(table.start_xyze[:3], dtype=np.float64)
+        d[1:, :3] = np.diff(xyz, axis=0)
+    de_raw = np.ascontiguousarray(moves["de"], dtype=np.float64)
+    d[:, 3] = de_raw * moves["flow"]
+    feed = np.ascontiguousarray(moves["feed_mm_s"], dtype=np.float64)
+    moving = np.any(np.abs(d) > 0.0, axis=1)
+    bad = moving & ~(np.isfinite(feed) & (feed > 0.0))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise GcodeError("move without a positive feed rate", source=source,
+                         line=int(moves["line"][i]), field="F", value=float(feed[i]),
+                         allowed="> 0 mm/min")
+
+    stop_before = np.zeros(n + 1, dtype=np.bool_)
+    dwell_before = np.zeros(n + 1)
+    dwells: list[tuple[int, float, str]] = []
+    notes: dict[str, list[int]] = {}
+    rows = [settings.param_row()]
+    change_at = [0]
+    for ev in table.events:
+        mi = min(max(ev.move_index, 0), n)
+        code = ev.code
+        if code in SYNC_CODES:
+            if code in ("M18", "M84") and ev.params and set(ev.params) <= {"S"}:
+                continue                      # M84 S<timeout> only sets the idle timeout
+            stop_before[mi] = True
+            if code == "G4":
+                t = _dwell_s(ev, source)
+                dwell_before[mi] += t
+                dwells.append((mi, t, f"G4 line {ev.line}"))
+        elif code in SETTINGS_CODES:
+            row = rows[-1].copy()
+            note = _apply_event(row, ev, settings, source)
+            if note is not None:
+                notes.setdefault(note, []).append(ev.line)
+            if row != rows[-1]:
+                if row[K.P_LA_K] != rows[-1][K.P_LA_K]:
+                    stop_before[mi] = True    # M900 K change: planner.synchronize()
+                rows.append(row)
+                change_at.append(mi)
+    if n > 1:
+        tools = moves["tool"]
+        stop_before[1:n][tools[1:] != tools[:-1]] = True
+    lines = moves["line"]
+    for line in stop_after_lines:
+        stop_before[_stop_index(lines, int(line))] = True
+
+    state = (np.searchsorted(np.asarray(change_at), np.arange(n), side="right") - 1
+             ).astype(np.int32)
+    params = np.array(rows, dtype=np.float64)
+    out = np.empty((n, 8))
+    total = K.plan_kernel(
+        d, de_raw, feed, state, params, stop_before, dwell_before,
+        not settings.classic_jerk, settings.jerk_variant is JerkVariant.LEGACY,
+        settings.jd_small_segments, settings.lin_advance,
+        settings.minimum_planner_speed_mm_s, settings.block_buffer_size or 0,
+        settings.slowdown_moves_queued, out)
+
+    phases = np.zeros(n, dtype=PHASE_DTYPE)
+    for c, name in enumerate(("t_start", "start_v", "cruise_v", "end_v", "accel",
+                              "accel_t", "cruise_t", "decel_t")):
+        phases[name] = out[:, c]
+    warnings = [f"{note}: {len(where)}× (first at line {where[0]})"
+                for note, where in notes.items()]
+    return Timeline(phases=phases, dwell_s=dwells, total_time_s=float(total),
+                    firmware="marlin", warnings=warnings)
+
