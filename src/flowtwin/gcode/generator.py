@@ -53,11 +53,13 @@ class PrintSpec:
     bed_temp_c: float = 60.0
 
     def __post_init__(self) -> None:
+        min_size = 4 * self.line_width_mm * (self.perimeters + 1)
         checks = {
-            "size_x_mm": (self.size_x_mm, self.size_x_mm > 4 * self.line_width_mm * (self.perimeters + 1)),
-            "size_y_mm": (self.size_y_mm, self.size_y_mm > 4 * self.line_width_mm * (self.perimeters + 1)),
+            "size_x_mm": (self.size_x_mm, self.size_x_mm > min_size),
+            "size_y_mm": (self.size_y_mm, self.size_y_mm > min_size),
             "layers": (self.layers, self.layers >= 1),
-            "layer_height_mm": (self.layer_height_mm, 0 < self.layer_height_mm <= self.nozzle_diameter_mm),
+            "layer_height_mm": (self.layer_height_mm,
+                                0 < self.layer_height_mm <= self.nozzle_diameter_mm),
             "line_width_mm": (self.line_width_mm, self.line_width_mm >= self.layer_height_mm),
             "infill_density": (self.infill_density, 0 < self.infill_density <= 1),
             "perimeters": (self.perimeters, self.perimeters >= 1),

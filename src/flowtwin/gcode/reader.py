@@ -390,12 +390,18 @@ class _Reader:
             self.unknown[code] = self.unknown.get(code, 0) + 1
 
     def _other_lines(self, buf: bytes, rows: _Rows) -> None:
+        feed = self.comments.feed
+        base = self.n_moves
         for lineno, start, end, move_index in rows.other[: rows.n_other].tolist():
-            raw = buf[start:end]
-            text = raw.decode("utf-8", "replace").rstrip("\r")
+            text = buf[start:end].decode("utf-8", "replace")
             if "\ufffd" in text:
                 self.warnings.append(f"{self.name}:{lineno}: bytes that are not UTF-8 "
                                      "(replaced)")
+            stripped = text.lstrip()
+            if stripped[:1] == ";":  # comment-only line: straight to the interpreter
+                feed(stripped[1:].rstrip(), base + move_index, lineno)
+                continue
+            text = text.rstrip("\r")
             parsed = parse_line(text, source=self.name, line=lineno)
             self._record(parsed.code, parsed.params, parsed.comment, lineno,
                          self.n_moves + move_index, text)

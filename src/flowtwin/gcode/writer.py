@@ -89,7 +89,7 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
     edits = dict(edits or {})
     src = Path(source)
     try:
-        raw = open(src, "rb")  # noqa: SIM115 - closed below
+        raw = open(src, "rb")
     except OSError as exc:
         raise GcodeError(f"cannot open G-code file: {exc.strerror}", source=src) from exc
     touched = 0

@@ -1,0 +1,179 @@
+"""Reader (and read + plan) throughput against the Python G-code readers on PyPI.
+
+Files: the largest corpus file (../shared/corpus) and a generated print of >= 2 M lines.
+Peers, run on the same files in the same process: Printrun's ``printrun.gcoder``,
+``gcodeparser``, ``gcode-lib``, ``pygcode`` (line by line) and a plain regex loop.
+Peers that are not installed are reported as such (``make bench`` installs them).
+
+Memory: peak traced allocation (tracemalloc, numpy included) per move of a whole-file read,
+and the peak of a streaming read of a file 1x and 4x as long (it must not grow).
+"""
+
+from __future__ import annotations
+
+import gc
+import re
+import time
+import tracemalloc
+from collections.abc import Callable
+from pathlib import Path
+
+from flowtwin.gcode.generator import PrintSpec, write_print
+from flowtwin.gcode.reader import iter_move_chunks, read_gcode
+
+HERE = Path(__file__).resolve().parent
+SHARED = HERE.parent.parent / "shared" / "corpus"
+OUT = HERE.parent / "bench-out"
+
+#: A generated print of about 2.1 M lines: 0.45 mm lines, dense infill, polygon pillar.
+BIG_SPEC = PrintSpec(size_x_mm=120.0, size_y_mm=120.0, layers=1450, infill_density=1.0,
+                     use_arcs=False, polygon_segments=360, pillar_radius_mm=20.0)
+
+
+def _best_of(fn: Callable[[], object], repeat: int) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        gc.collect()
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _regex_loop(path: Path) -> int:
+    word = re.compile(r"([A-Z])([-+]?[0-9.]+)")
+    n = 0
+    with path.open("rb") as fh:
+        for raw in fh:
+            line = raw.split(b";", 1)[0].decode("ascii", "replace").upper()
+            if line:
+                n += len(word.findall(line))
+    return n
+
+
+def _peers(path: Path) -> dict[str, Callable[[], object]]:
+    text_lines: list[str] = path.read_text(errors="replace").splitlines()
+    peers: dict[str, Callable[[], object]] = {"regex loop": lambda: _regex_loop(path)}
+    try:
+        from printrun import gcoder
+
+        peers["printrun.gcoder"] = lambda: gcoder.GCode(text_lines)
+    except ImportError:
+        pass
+    try:
+        import gcodeparser
+
+        peers["gcodeparser"] = lambda: gcodeparser.GcodeParser(path.read_text(errors="replace"),
+                                                              include_comments=False).lines
+    except ImportError:
+        pass
+    try:
+        import gcode_lib
+
+        peers["gcode-lib"] = lambda: gcode_lib.parse_lines(path.read_text(errors="replace"))
+    except ImportError:
+        pass
+    try:
+        from pygcode import Line
+
+        def _pygcode() -> int:
+            count = 0
+            for raw in text_lines:
+                try:
+                    Line(raw)
+                except Exception:
+                    count += 1
+            return count
+
+        peers["pygcode"] = _pygcode
+    except ImportError:
+        pass
+    return peers
+
+
+def _plan_fn(path: Path) -> Callable[[], object] | None:
+    try:
+        from flowtwin.planner.klipper import KlipperSettings, plan_klipper
+    except ImportError:
+        return None
+    settings = KlipperSettings()
+    return lambda: plan_klipper(read_gcode(path), settings)
+
+
+def _memory(path: Path) -> tuple[float, int]:
+    gc.collect()
+    tracemalloc.start()
+    table = read_gcode(path)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak / max(1, len(table.moves)), len(table.moves)
+
+
+def _stream_peak(path: Path) -> int:
+    gc.collect()
+    tracemalloc.start()
+    for _chunk in iter_move_chunks(path, chunk_bytes=4 * 1024 * 1024):
+        pass
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak
+
+
+def run(quick: bool = False) -> dict[str, object]:
+    OUT.mkdir(exist_ok=True)
+    files: list[Path] = []
+    corpus = sorted(SHARED.glob("*.gcode"), key=lambda p: p.stat().st_size)
+    if corpus:
+        files.append(corpus[-1])
+    big = OUT / "generated_big.gcode"
+    spec = BIG_SPEC if not quick else PrintSpec(layers=200, infill_density=1.0)
+    if not big.exists() or quick:
+        write_print(big, spec)
+    files.append(big)
+    read_gcode(files[0])  # compile (or load the numba cache) outside the timings
+    results: dict[str, object] = {}
+    for path in files:
+        n_lines = sum(1 for _ in path.open("rb"))
+        repeat = 1 if quick else 3
+        t_read = _best_of(lambda p=path: read_gcode(p), repeat)
+        row: dict[str, object] = {"lines": n_lines, "read_s": t_read,
+                                  "read_lines_per_s": n_lines / t_read}
+        plan = _plan_fn(path)
+        if plan is not None:
+            plan()
+            t_plan = _best_of(plan, repeat)
+            row["read_plan_s"] = t_plan
+            row["read_plan_lines_per_s"] = n_lines / t_plan
+        bytes_per_move, moves = _memory(path)
+        row["moves"] = moves
+        row["peak_bytes_per_move"] = bytes_per_move
+        peers: dict[str, float] = {}
+        if not quick or path == files[0]:
+            for name, fn in _peers(path).items():
+                try:
+                    t = _best_of(fn, 1)
+                except Exception as exc:
+                    print(f"  {name:<20} failed on this file: {type(exc).__name__}: {exc}")
+                    continue
+                peers[name] = n_lines / t
+        row["peers_lines_per_s"] = peers
+        row["speedup_vs_peers"] = {k: (n_lines / t_read) / v for k, v in peers.items()}
+        results[path.name] = row
+        print(f"{path.name}: {n_lines:,} lines, {moves:,} moves")
+        print(f"  flowtwin read        {n_lines / t_read:>12,.0f} lines/s")
+        if "read_plan_lines_per_s" in row:
+            print(f"  flowtwin read+plan   {row['read_plan_lines_per_s']:>12,.0f} lines/s")
+        print(f"  peak memory          {bytes_per_move:>12,.0f} bytes/move (whole table)")
+        for name, rate in peers.items():
+            ratio = n_lines / t_read / rate
+            print(f"  {name:<20} {rate:>12,.0f} lines/s   flowtwin is {ratio:6.1f}x")
+    # streaming: peak memory must not grow with the file
+    small = files[-1]
+    quad = OUT / "generated_big_x4.gcode"
+    if not quad.exists() or quick:
+        data = small.read_bytes()
+        quad.write_bytes(data * 4)
+    p1, p4 = _stream_peak(small), _stream_peak(quad)
+    results["streaming_peak_bytes"] = {"1x": p1, "4x": p4, "ratio": p4 / p1}
+    print(f"streaming peak memory: {p1 / 1e6:.1f} MB (1x file), {p4 / 1e6:.1f} MB (4x file)")
+    return results
