@@ -130,16 +130,17 @@ def _is_word_end(c: int) -> bool:
 
 
 @njit(cache=True)
-def _emit(out_f, out_i, out_k, out_flow, n, line, tool, x, y, z, de, feed, flow, kind):  # type: ignore[no-untyped-def]
-    out_f[n, 0] = x
-    out_f[n, 1] = y
-    out_f[n, 2] = z
-    out_f[n, 3] = de
-    out_f[n, 4] = feed
-    out_i[n, 0] = line
-    out_i[n, 1] = tool
-    out_k[n] = kind
-    out_flow[n] = flow
+def _emit(out, n, line, tool, x, y, z, de, feed, flow, kind):  # type: ignore[no-untyped-def]
+    r = out[n]
+    r.x = x
+    r.y = y
+    r.z = z
+    r.de = de
+    r.feed_mm_s = feed
+    r.line = line
+    r.tool = tool
+    r.kind = kind
+    r.flow = flow
 
 
 @njit(cache=True)
@@ -163,7 +164,7 @@ def _row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool
 
 
 @njit(cache=True)
-def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):  # type: ignore[no-untyped-def]
+def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 
     Parameters
@@ -174,14 +175,8 @@ def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):
         Byte offset of the first line to read.
     state : float64[N_STATE]
         Reader state, updated in place.
-    out_f : float64[cap, 5]
-        Move rows: x, y, z (toolhead, mm), de (mm filament), feed (mm/s, M220 applied).
-    out_i : int32[cap, 2]
-        Move rows: source line, tool.
-    out_k : uint8[cap]
-        Move kinds.
-    out_flow : float32[cap]
-        M221 factor per row.
+    out : MOVE_DTYPE[cap]
+        Move rows; the kernel fills x, y, z, de, feed_mm_s, line, tool, kind, flow.
     n_out : int
         Rows already filled.
     other : int64[cap2, 4]
@@ -196,7 +191,7 @@ def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):
         or ``len(buf)`` when done.
     """
     size = buf.shape[0]
-    cap = out_f.shape[0]
+    cap = out.shape[0]
     cap2 = other.shape[0]
     line = int(state[S_LINE])
     has = np.zeros(26, dtype=np.bool_)
@@ -393,7 +388,7 @@ def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):
             if code_num <= 1.0:
                 if x1 != x0 or y1 != y0 or z1 != z0 or de != 0.0:
                     kind = _row_kind(x1 - x0, y1 - y0, z1 - z0, de, False, rapid)
-                    _emit(out_f, out_i, out_k, out_flow, n_out, lineno, tool,
+                    _emit(out, n_out, lineno, tool,
                           x1, y1, z1, de, feed, flow, kind)
                     n_out += 1
                 state[S_X] = x1
@@ -483,7 +478,7 @@ def scan(buf, pos, state, out_f, out_i, out_k, out_flow, n_out, other, n_other):
                     qz = z0 + dz * frac
                 dseg = de / nseg
                 kind = _row_kind(qx - px, qy - py, qz - pz, dseg, True, False)
-                _emit(out_f, out_i, out_k, out_flow, n_out, lineno, tool,
+                _emit(out, n_out, lineno, tool,
                       qx, qy, qz, dseg, feed, flow, kind)
                 n_out += 1
                 px = qx

@@ -35,9 +35,8 @@ class MoveKind(IntFlag):
     RAPID = 128       #: came from G0
 
 
-#: numpy dtype of one move row. 61 bytes per move.
+#: numpy dtype of one move row (aligned: 72 bytes per move; fields by name, not position).
 MOVE_DTYPE = np.dtype([
-    ("line", np.int32),        # 1-based source line number
     ("x", np.float64),         # end position, mm
     ("y", np.float64),
     ("z", np.float64),
@@ -45,12 +44,13 @@ MOVE_DTYPE = np.dtype([
                                # G-code units (before the M221 flow factor)
     ("de", np.float64),        # E change of this row, mm of filament (before M221)
     ("feed_mm_s", np.float64), # requested speed, F/60 times the M220 factor, mm/s
+    ("line", np.int32),        # 1-based source line number
+    ("layer", np.int32),       # 0-based layer index, -1 before the first layer
     ("flow", np.float32),      # M221 extrusion factor in force (1.0 = 100 %)
     ("tool", np.int16),        # active tool number as written (T255/T1000 kept as such)
-    ("kind", np.uint8),        # MoveKind flags
     ("feature", np.int16),     # index into MoveTable.features, -1 = unknown
-    ("layer", np.int32),       # 0-based layer index, -1 before the first layer
-])
+    ("kind", np.uint8),        # MoveKind flags
+], align=True)
 
 
 @dataclass(frozen=True, slots=True)

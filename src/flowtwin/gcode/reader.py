@@ -178,26 +178,20 @@ def _chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes]:
 class _Rows:
     """Growable output buffers of the kernel for one chunk."""
 
-    f: np.ndarray
-    i: np.ndarray
-    k: np.ndarray
-    flow: np.ndarray
+    moves: np.ndarray
     other: np.ndarray
     n: int = 0
     n_other: int = 0
 
     @classmethod
     def make(cls, cap: int, cap_other: int) -> _Rows:
-        return cls(np.empty((cap, 5)), np.empty((cap, 2), np.int32), np.empty(cap, np.uint8),
-                   np.empty(cap, np.float32), np.empty((cap_other, 4), np.int64))
+        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, 4), np.int64))
 
     def grow_moves(self, need: int) -> None:
-        cap = max(2 * self.f.shape[0], self.n + need + 16)
-        for name in ("f", "i", "k", "flow"):
-            old = getattr(self, name)
-            new = np.empty((cap, *old.shape[1:]), old.dtype)
-            new[: self.n] = old[: self.n]
-            setattr(self, name, new)
+        cap = max(2 * self.moves.shape[0], self.n + need + 16)
+        new = np.empty(cap, MOVE_DTYPE)
+        new[: self.n] = self.moves[: self.n]
+        self.moves = new
 
     def grow_other(self) -> None:
         new = np.empty((2 * self.other.shape[0] + 16, 4), np.int64)
@@ -206,12 +200,16 @@ class _Rows:
 
     def add(self, line: int, tool: int, xyz: tuple[float, float, float], de: float,
             feed: float, flow: float, kind: int) -> None:
-        if self.n >= self.f.shape[0]:
+        if self.n >= self.moves.shape[0]:
             self.grow_moves(1)
-        self.f[self.n] = (*xyz, de, feed)
-        self.i[self.n] = (line, tool)
-        self.k[self.n] = kind
-        self.flow[self.n] = flow
+        row = self.moves[self.n]
+        row["x"], row["y"], row["z"] = xyz
+        row["de"] = de
+        row["feed_mm_s"] = feed
+        row["line"] = line
+        row["tool"] = tool
+        row["kind"] = kind
+        row["flow"] = flow
         self.n += 1
 
 
@@ -420,12 +418,11 @@ class _Reader:
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other = K.scan(
-                arr, pos, self.state, rows.f, rows.i, rows.k, rows.flow, rows.n,
-                rows.other, rows.n_other)
+                arr, pos, self.state, rows.moves, rows.n, rows.other, rows.n_other)
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
-                rows.grow_moves(max(1024, rows.f.shape[0]))
+                rows.grow_moves(max(1024, rows.moves.shape[0]))
             elif status == K.ST_OTHER_FULL:
                 rows.grow_other()
             elif status == K.ST_ERROR:
@@ -447,16 +444,8 @@ class _Reader:
 
     def _table(self, rows: _Rows) -> MoveTable:
         n = rows.n
-        moves = np.empty(n, dtype=MOVE_DTYPE)
-        moves["x"] = rows.f[:n, 0]
-        moves["y"] = rows.f[:n, 1]
-        moves["z"] = rows.f[:n, 2]
-        moves["de"] = rows.f[:n, 3]
-        moves["feed_mm_s"] = rows.f[:n, 4]
-        moves["line"] = rows.i[:n, 0]
-        moves["tool"] = rows.i[:n, 1]
-        moves["kind"] = rows.k[:n]
-        moves["flow"] = rows.flow[:n]
+        # keep the kernel's buffer when it is mostly full, else copy to release the rest
+        moves = rows.moves[:n] if n >= 0.75 * rows.moves.shape[0] else rows.moves[:n].copy()
         # cumulative E per tool, continuing across chunks
         e = np.empty(n)
         tools = moves["tool"]
