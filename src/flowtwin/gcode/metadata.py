@@ -190,10 +190,10 @@ class CommentInterpreter:
                 self.metadata["slicer_filament_mm"] = sum(vals)
         elif low.startswith("filament used =") or low.startswith("filament used:"):
             text = c.split("=", 1)[1] if "=" in c else c.split(":", 1)[1]
-            vals = re.findall(r"(\d+(?:\.\d+)?)\s*(mm|m)\b", text)
-            if vals:
+            pairs: list[tuple[str, str]] = re.findall(r"(\d+(?:\.\d+)?)\s*(mm|m)\b", text)
+            if pairs:
                 self.metadata["slicer_filament_mm"] = sum(
-                    float(v) * (1000.0 if u == "m" else 1.0) for v, u in vals)
+                    float(num) * (1000.0 if unit == "m" else 1.0) for num, unit in pairs)
         elif low.startswith("filament length:") or low.startswith("total filament length [mm]"):
             value = _first_float(c.split(":", 1)[1])
             if value is not None:

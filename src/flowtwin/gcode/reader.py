@@ -495,8 +495,8 @@ class _Reader:
             return
         # no slicer markers: a new layer starts at the first extrusion above the last
         extruding = (moves["kind"] & MoveKind.EXTRUDE) != 0
-        z = np.where(extruding, moves["z"], -np.inf)
-        running = np.maximum.accumulate(np.concatenate(([self.max_extrude_z], z)))
+        z_ext = np.where(extruding, moves["z"], -np.inf)
+        running = np.maximum.accumulate(np.concatenate(([self.max_extrude_z], z_ext)))
         rises = running[1:] > running[:-1] + 1e-6
         col[:] = self.layer + np.cumsum(rises)
         self.layer_z.extend(running[1:][rises].tolist())
