@@ -112,12 +112,13 @@ def junction_deviation_sqr(prev_unit: npt.NDArray[np.float64],
     for ax in range(4):
         ju[ax] = unit[ax] - prev_unit[ax]
         mag += ju[ax] * ju[ax]
-    inv = 1.0 / math.sqrt(mag)
     ja = accel
-    for ax in range(4):
-        c = abs(ju[ax] * inv)
-        if c > 0.0 and ja * c > amax[ax]:
-            ja = amax[ax] / c
+    if mag > 0.0:                # collinear: no direction change, nothing to limit
+        inv = 1.0 / math.sqrt(mag)
+        for ax in range(4):
+            c = abs(ju[ax] * inv)
+            if c > 0.0 and ja * c > amax[ax]:
+                ja = amax[ax] / c
     if cos_theta < -_JD_REVERSAL_COS:
         cos_theta = -_JD_REVERSAL_COS
     s = math.sqrt(0.5 * (1.0 - cos_theta))

@@ -336,7 +336,8 @@ _SCALAR_KEYS = {
 }
 
 
-def _config_float(config: Mapping[str, object], key: str) -> float | None:
+def _config_float(config: Mapping[str, object], key: str, *, allow_zero: bool
+                  ) -> float | None:
     """First value of a slicer option (``"4000,2500"`` → 4000: normal, not stealth mode)."""
     raw = config.get(key)
     if raw is None:
@@ -345,10 +346,14 @@ def _config_float(config: Mapping[str, object], key: str) -> float | None:
     if text == "":
         return None
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
         raise ProfileError("slicer machine limit is not a number", field=key,
                            value=raw) from None
+    if not (np.isfinite(value) and (value >= 0.0 if allow_zero else value > 0.0)):
+        raise ProfileError("slicer machine limit out of range", field=key, value=raw,
+                           allowed=">= 0" if allow_zero else "> 0")
+    return value
 
 
 def marlin_settings_from_slicer_config(metadata: Mapping[str, object], *,
@@ -377,7 +382,7 @@ def marlin_settings_from_slicer_config(metadata: Mapping[str, object], *,
     Raises
     ------
     ProfileError
-        A limit that is not a number, or not positive (names the key).
+        A limit that is not a number, or out of range (names the key).
     """
     raw_config = metadata.get("slicer_config", metadata)
     if not isinstance(raw_config, Mapping):
@@ -389,31 +394,34 @@ def marlin_settings_from_slicer_config(metadata: Mapping[str, object], *,
     if str(config.get("machine_limits_usage", "")).strip() == "ignore":
         return None
     s = base or MarlinSettings(junction_deviation_mm=None)
-    changes: dict[str, object] = {}
+    vecs = {name: list(getattr(s, name)) for name in _LIMIT_KEYS}
     for name, patterns in _LIMIT_KEYS.items():
-        vec = list(getattr(s, name))
         for ax, letter in enumerate("xyze"):
             for pattern in patterns:
-                v = _config_float(config, pattern.format(letter))
+                v = _config_float(config, pattern.format(letter),
+                                  allow_zero=(name == "jerk_mm_s"))
                 if v is not None:
-                    vec[ax] = v
+                    vecs[name][ax] = v
                     break
-        changes[name] = tuple(vec)
-    for name, key in _SCALAR_KEYS.items():
-        v = _config_float(config, key)
-        if v is not None and not (name == "travel_accel_mm_s2" and v == 0.0):
-            changes[name] = v
-    if _config_float(config, "machine_max_acceleration_travel") in (None, 0.0):
-        changes["travel_accel_mm_s2"] = changes.get("print_accel_mm_s2",
-                                                    s.print_accel_mm_s2)
-    jd = _config_float(config, "machine_max_junction_deviation")
-    if jd is not None and jd > 0.0:
-        changes["junction_deviation_mm"] = jd
-    try:
-        return replace(s, **changes)  # type: ignore[arg-type]
-    except ProfileError as exc:
-        raise ProfileError(exc.message + " (from the slicer's machine limits)",
-                           field=exc.field, value=exc.value, allowed=exc.allowed) from None
+    scalars = {name: _config_float(config, key, allow_zero=name != "print_accel_mm_s2")
+               for name, key in _SCALAR_KEYS.items()}
+    p = scalars["print_accel_mm_s2"] or s.print_accel_mm_s2
+    travel = scalars["travel_accel_mm_s2"]
+    jd = _config_float(config, "machine_max_junction_deviation", allow_zero=True)
+
+    def pick(name: str) -> float:
+        v = scalars[name]
+        return getattr(s, name) if v is None else v
+    retract = scalars["retract_accel_mm_s2"]
+    return replace(
+        s, max_feedrate_mm_s=tuple(vecs["max_feedrate_mm_s"]),
+        max_acceleration_mm_s2=tuple(vecs["max_acceleration_mm_s2"]),
+        jerk_mm_s=tuple(vecs["jerk_mm_s"]), print_accel_mm_s2=p,
+        retract_accel_mm_s2=retract if retract else s.retract_accel_mm_s2,
+        travel_accel_mm_s2=travel if travel else p,
+        min_feedrate_mm_s=pick("min_feedrate_mm_s"),
+        min_travel_feedrate_mm_s=pick("min_travel_feedrate_mm_s"),
+        junction_deviation_mm=jd if jd else s.junction_deviation_mm)
 
 
 # ------------------------------------------------------------------------ planner ---
