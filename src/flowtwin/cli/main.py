@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(130)
     except SystemExit:
         raise
-    except Exception as exc:  # noqa: BLE001 - last line of defence for the user
+    except Exception as exc:  # last line of defence for the user
         import click
 
         if isinstance(exc, click.exceptions.ClickException):

@@ -1,9 +1,89 @@
-"""CLI commands: plan (to be filled in)."""
+"""``flowtwin plan``: read a G-code file and plan it as the firmware would."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Annotated
+
 import typer
+
+from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
+from flowtwin.planning import DEFAULT_PRINTER, PlanResult, plan_gcode
+
+__all__ = ["register", "render_plan"]
+
+
+def render_plan(result: PlanResult, *, layers: bool = True, max_layer_rows: int = 40) -> None:
+    """Print a plan's summary (and per-layer table) with rich."""
+    s = result.summary()
+    rows = [
+        ("file", s["file"]), ("printer", f"{s['printer']} ({s['firmware']})"),
+        ("print time", fmt_duration(float(s["total_time_s"]))),  # type: ignore[arg-type]
+        ("net filament (G-code E)", ", ".join(f"T{k}: {v:.2f} mm"
+                                               for k, v in s["net_filament_mm"].items())),  # type: ignore[attr-defined]
+        ("moves / lines / layers", f"{s['moves']:,} / {s['lines']:,} / {s['layers']:,}"),
+    ]
+    if s.get("slicer_time_s"):
+        rows.append(("slicer's own estimate",
+                     f"{fmt_duration(float(s['slicer_time_s']))} ({s['slicer']})"))  # type: ignore[arg-type]
+    unknown = s["unknown_commands"]
+    if unknown:
+        rows.append(("unknown commands (ignored)",
+                     ", ".join(f"{k}×{v}" for k, v in list(unknown.items())[:8])  # type: ignore[attr-defined]
+                     + (" …" if len(unknown) > 8 else "")))  # type: ignore[arg-type]
+    console.print(table_from_rows("Plan", ["", ""], rows))
+    feats = s["time_by_feature_s"]
+    console.print(table_from_rows("Time by feature", ["feature", "time"],
+                                  [(k, fmt_duration(v)) for k, v in feats.items()]))  # type: ignore[attr-defined]
+    if layers:
+        per = result.per_layer()
+        half = max_layer_rows // 2
+        shown = per if len(per) <= max_layer_rows else per[:half] + per[-half:]
+        note = ", first and last shown" if len(shown) < len(per) else ""
+        console.print(table_from_rows(
+            f"Per layer ({len(per)} layers{note}; -1 = before the first layer)",
+            ["layer", "z (mm)", "time", "filament (mm)", "moves"],
+            [(r["layer"], f"{r['z_mm']:.3f}", fmt_duration(float(r["time_s"])),
+              f"{r['filament_mm']:.2f}", r["moves"]) for r in shown]))
+    for w in (result.table.warnings + result.timeline.warnings)[:10]:
+        err_console.print(f"[yellow]warning:[/] {w}")
 
 
 def register(app: typer.Typer) -> None:
-    """Add the `plan` commands to app."""
+    """Add ``flowtwin plan``."""
+
+    @app.command("plan")
+    def plan_cmd(
+        gcode: Annotated[Path, typer.Argument(help="G-code file (plain or .gz; '-' for stdin).")],
+        profile: Annotated[str, typer.Option("--profile", "-p",
+                                             help="Printer profile: built-in name or TOML file.")
+                           ] = DEFAULT_PRINTER,
+        klipper_config: Annotated[Path | None, typer.Option(
+            "--klipper-config", help="Plan with this Klipper printer.cfg instead.")] = None,
+        slicer_limits: Annotated[bool, typer.Option(
+            "--slicer-limits", help="Marlin-style firmware: use the machine limits embedded "
+            "in the slicer's header.")] = False,
+        strict: Annotated[bool, typer.Option("--strict", help="Unknown commands are errors.")
+                          ] = False,
+        json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+        layers: Annotated[bool, typer.Option("--layers/--no-layers",
+                                             help="Show the per-layer table.")] = True,
+    ) -> None:
+        """Plan a G-code file as Klipper or Marlin would: time, filament, moves, layers."""
+        with console.status("reading and planning…", spinner="dots") if not json_out else _null():
+            result = plan_gcode(str(gcode), printer=profile, klipper_config=klipper_config,
+                                use_slicer_limits=slicer_limits, strict=strict)
+        if json_out:
+            out = result.summary()
+            out["per_layer"] = result.per_layer()
+            print_json(out)
+        else:
+            render_plan(result, layers=layers)
+
+
+class _null:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *args: object) -> None:
+        return None

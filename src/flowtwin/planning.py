@@ -1,0 +1,165 @@
+"""Read and plan a G-code file for a printer: the API behind ``flowtwin plan``.
+
+The printer comes from a :class:`~flowtwin.profiles.printer.PrinterProfile` (built-in name,
+TOML file or object) or from a Klipper ``printer.cfg``. For Marlin-style firmware the
+limits of the profile apply, replaced by the machine limits a PrusaSlicer / OrcaSlicer
+header embeds when ``use_slicer_limits`` is set; ``M201``–``M205`` in the G-code then
+apply from where they appear, as on the printer.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+
+from flowtwin.errors import ProfileError
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.gcode.reader import read_gcode
+from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
+from flowtwin.planner.klipper import plan_klipper
+from flowtwin.planner.klipper_config import (
+    KlipperSettings,
+    klipper_read_options,
+    load_printer_cfg,
+)
+from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
+from flowtwin.planner.timeline import Timeline, time_by_feature, time_by_layer
+from flowtwin.profiles.printer import PrinterProfile
+
+__all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
+
+#: Printer used when none is given.
+DEFAULT_PRINTER = "generic-klipper"
+
+
+@dataclass(slots=True)
+class PlanResult:
+    """A G-code file read and planned for one printer.
+
+    Attributes
+    ----------
+    table
+        The moves, events and metadata.
+    timeline
+        Velocity profile of every move and the total time.
+    printer
+        Name of the printer (profile name or ``printer.cfg`` path).
+    settings
+        The firmware settings the planner used.
+    """
+
+    table: MoveTable
+    timeline: Timeline
+    printer: str
+    settings: KlipperSettings | MarlinSettings
+
+    def per_layer(self) -> list[dict[str, float | int]]:
+        """One row per layer: index, Z (mm), time (s), filament (mm), moves."""
+        m = self.table.moves
+        times = time_by_layer(self.timeline, self.table)
+        rows: list[dict[str, float | int]] = []
+        layer = m["layer"]
+        written = (m["kind"] & MoveKind.FW_RETRACT) == 0
+        keys, inv, counts = np.unique(layer, return_inverse=True, return_counts=True)
+        fil = np.bincount(inv, weights=np.where(written, m["de"], 0.0), minlength=len(keys))
+        for k, key in enumerate(keys.tolist()):
+            z = (self.table.layer_z[key] if 0 <= key < len(self.table.layer_z)
+                 else float("nan"))
+            if z != z:  # NaN: take the Z of the layer's first extrusion
+                sel = (layer == key) & ((m["kind"] & MoveKind.EXTRUDE) != 0)
+                z = float(m["z"][sel][0]) if np.any(sel) else float("nan")
+            rows.append({"layer": int(key), "z_mm": z, "time_s": times.get(key, 0.0),
+                         "filament_mm": float(fil[k]), "moves": int(counts[k])})
+        return rows
+
+    def summary(self) -> dict[str, object]:
+        """The whole-print figures as plain JSON-able values."""
+        t = self.table
+        m = t.moves
+        written = (m["kind"] & MoveKind.FW_RETRACT) == 0
+        extruded: dict[str, float] = {}
+        for tool in np.unique(m["tool"]).tolist():
+            sel = m["tool"] == tool
+            extruded[str(tool)] = float(np.sum(m["de"][sel] * m["flow"][sel]))
+        return {
+            "file": t.source,
+            "printer": self.printer,
+            "firmware": self.timeline.firmware,
+            "total_time_s": float(self.timeline.total_time_s),
+            "net_filament_mm": {str(k): v for k, v in t.net_filament_mm().items()},
+            "extruded_filament_mm": extruded,
+            "moves": int(len(m)),
+            "extruding_moves": int(np.count_nonzero((m["kind"] & MoveKind.EXTRUDE) != 0
+                                                    & written)),
+            "lines": t.n_lines,
+            "layers": int(m["layer"].max() + 1) if len(m) else 0,
+            "unknown_commands": t.unknown_commands,
+            "warnings": len(t.warnings) + len(self.timeline.warnings),
+            "time_by_feature_s": time_by_feature(self.timeline, t),
+            "slicer": t.metadata.get("slicer"),
+            "slicer_time_s": t.metadata.get("slicer_time_s"),
+            "slicer_filament_mm": t.metadata.get("slicer_filament_mm"),
+        }
+
+
+def load_printer(printer: PrinterProfile | str | os.PathLike[str] | None) -> PrinterProfile:
+    """A printer profile from an object, a built-in name or a TOML file."""
+    from flowtwin.profiles import load_builtin, load_profile
+
+    if isinstance(printer, PrinterProfile):
+        return printer
+    if printer is None:
+        printer = DEFAULT_PRINTER
+    text = os.fspath(printer)
+    if Path(text).suffix == ".toml" or os.sep in text:
+        return load_profile(text, "printer")
+    profile = load_builtin(text)
+    if not isinstance(profile, PrinterProfile):
+        raise ProfileError("not a printer profile", field="printer", value=text,
+                           allowed="a printer from `flowtwin profiles list`")
+    return profile
+
+
+def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
+               printer: PrinterProfile | str | os.PathLike[str] | None = None,
+               klipper_config: str | os.PathLike[str] | None = None,
+               use_slicer_limits: bool = False, strict: bool = False) -> PlanResult:
+    """Read ``source`` and plan it for a printer.
+
+    Parameters
+    ----------
+    source
+        G-code path (plain or gzip), ``"-"`` for stdin, bytes or a binary stream.
+    printer
+        Printer profile (object, built-in name or TOML path); default
+        :data:`DEFAULT_PRINTER`. Ignored when ``klipper_config`` is given.
+    klipper_config
+        A Klipper ``printer.cfg`` to plan with instead of a profile.
+    use_slicer_limits
+        For Marlin-style firmware: take the machine limits from the slicer's embedded
+        configuration when the file has them.
+    strict
+        Unknown commands are errors.
+
+    Returns
+    -------
+    PlanResult
+    """
+    if klipper_config is not None:
+        ksettings = load_printer_cfg(klipper_config)
+        table = read_gcode(source, options=klipper_read_options(ksettings, strict=strict))
+        return PlanResult(table, plan_klipper(table, ksettings), os.fspath(klipper_config),
+                          ksettings)
+    profile = load_printer(printer)
+    table = read_gcode(source, options=read_options(profile, strict=strict))
+    if profile.firmware == "klipper":
+        ks = klipper_settings(profile)
+        return PlanResult(table, plan_klipper(table, ks), profile.name, ks)
+    ms = marlin_settings(profile)
+    if use_slicer_limits:
+        ms = marlin_settings_from_slicer_config(table.metadata, base=ms) or ms
+    return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
