@@ -92,33 +92,15 @@ def test_provisional_pla_viscosity_spans_tronvolls_range() -> None:
     assert law.mu0_mpa_s == pytest.approx(law.mu0_pa_s * 1e-6)
 
 
-def test_provisional_defaults_give_tronvolls_lag_factor() -> None:
-    """SPEC §4: the provisional E_hot, l_hot, μ0, b should give K ≈ 0.06 s at 0.2 mm layers
-    [001 Table II]. Recomputed from SPEC §3.2–3.4 with the land only:
-    k = (l_RT/E_RT + l_hot/E_hot)/A, R = 8·μ·L/(π·r⁴), K = k·R·A². 10 %: the
-    land-only estimate ignores the cone and the layer back-pressure (to be calibrated)."""
-    mat = load_builtin("pla-4043d")
-    hot = load_builtin("e3d-v6-0.4")
-    fil = load_builtin("pla-4043d-1.75")
-    assert isinstance(mat, MaterialProfile) and isinstance(hot, HotendProfile)
-    assert isinstance(fil, FilamentProfile)
-    law = mat.viscosity
-    assert isinstance(law, ExponentialViscosity)
-    mu_mpa_s = law.mu0_mpa_s * math.exp(-law.b_per_c * 215.0)
-    area = fil.area_mm2
-    k_mm_per_n = (hot.l_rt_mm / mat.e_rt_mpa + hot.l_hot_mm / mat.e_hot_mpa) / area
-    r_hyd = 8.0 * mu_mpa_s * hot.land_length_mm / (math.pi * hot.nozzle_radius_mm ** 4)
-    assert k_mm_per_n * r_hyd * area ** 2 == pytest.approx(0.06, rel=0.10)
-
-
 def test_e3d_v6_nozzle() -> None:
     """[001]: 0.4 mm nozzle, 0.6 mm outlet length."""
     hot = load_builtin("e3d-v6-0.4")
     assert isinstance(hot, HotendProfile)
     assert (hot.nozzle_diameter_mm, hot.land_length_mm) == (0.4, 0.6)
     assert hot.bowden is None
-    # 118° drill point from a 2 mm bore to 0.4 mm: (2 - 0.4)/2 / tan(59°)
-    assert hot.cone_length_mm == pytest.approx(0.8 / math.tan(math.radians(59.0)))
+    # 30° half angle from a 2 mm bore to 0.4 mm: 0.8 mm radial / tan 30° = 1.3856 mm
+    assert (hot.bore_diameter_mm, hot.cone_half_angle_deg) == (2.0, 30.0)
+    assert hot.cone_length_mm == pytest.approx(1.3856, abs=1e-4)
 
 
 def test_tronvoll_setup_matches_table_i() -> None:

@@ -2,8 +2,9 @@
 
 A drive refers to one of the seven rollers of [000] by ``roller_id`` or defines its own
 ``[custom_roller]`` table (same keys as a row of ``rollers.toml``). ``[slip_overrides]``
-replaces single slip parameters of the chosen roller (paper units, like the table).
-:meth:`DriveProfile.resolve_roller` returns the roller with the overrides applied.
+replaces single slip parameters of the chosen roller (paper units, like the table); giving
+``b`` or ``c`` makes the roller velocity dependent (then ``a``, ``b`` and ``c`` must all be
+known). :meth:`DriveProfile.resolve_roller` returns the roller with the overrides applied.
 """
 
 from __future__ import annotations

@@ -46,6 +46,10 @@ class HotendProfile(NamedProfile):
     diameter ``nozzle_diameter_mm`` and length ``land_length_mm`` — the Hagen–Poiseuille
     section of [001 Eq. 4, 002]. ``l_hot_mm`` and ``l_rt_mm`` are the hot and cold filament
     lengths of the column compliance ``Δl = F/A·(l_RT/E_RT + l_hot/E_hot)`` [002].
+    ``back_pressure_length_mm`` and ``back_pressure_exponent`` parametrise the tip
+    back-pressure ``R_bp(h) = 8μ·λ_bp/(π·r⁴)·(2r/h)^n`` of
+    :func:`flowtwin.physics.nozzle.back_pressure_resistance_mpa_s_per_mm3` (beyond the
+    seeds; Tronvoll finds K about twice as high at 0.1 mm as at 0.3 mm layers [001 Table II]).
     """
 
     nozzle_diameter_mm: float = Field(gt=0.0, le=3.0,
@@ -63,6 +67,13 @@ class HotendProfile(NamedProfile):
     l_rt_mm: float = Field(ge=0.0, le=5000.0,
                            description="Length of cold filament from the drive roller to "
                                        "the melt zone, mm.")
+    back_pressure_length_mm: float = Field(0.0, ge=0.0, le=100.0,
+                                           description="λ_bp of the layer-height dependent "
+                                                       "back-pressure under the tip (beyond "
+                                                       "the seeds), mm; 0 = none.")
+    back_pressure_exponent: float = Field(1.0, gt=0.0, le=10.0,
+                                          description="Exponent n of (2r/h)^n in the "
+                                                      "back-pressure model.")
     heater_time_constant_s: float | None = Field(None, gt=0.0, le=10000.0,
                                                  description="First-order time constant of "
                                                              "the heater, s (optional).")

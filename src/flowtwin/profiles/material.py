@@ -71,7 +71,7 @@ class ArrheniusViscosity(_ViscosityRange):
     """``μ(T) = μ_ref·exp(E_a/R·(1/(T+273.15) − 1/(T_ref+273.15)))`` (beyond the seeds)."""
 
     law: Literal["arrhenius"] = Field(description="Selects this law.")
-    mu_ref_pa_s: float = Field(gt=0.0, le=1e12, description="μ at t_ref_c, Pa·s.")
+    mu_ref_pa_s: float = Field(gt=0.0, le=1e30, description="μ at t_ref_c, Pa·s.")
     t_ref_c: float = Field(ge=-100.0, le=600.0, description="Reference temperature, °C.")
     activation_energy_j_mol: float = Field(gt=0.0, le=1e6,
                                            description="Flow activation energy E_a, J/mol.")
@@ -91,7 +91,7 @@ class WlfViscosity(_ViscosityRange):
     """``log10(μ/μ_ref) = −C1·(T − T_ref)/(C2 + T − T_ref)`` (Williams–Landel–Ferry)."""
 
     law: Literal["wlf"] = Field(description="Selects this law.")
-    mu_ref_pa_s: float = Field(gt=0.0, le=1e12, description="μ at t_ref_c, Pa·s.")
+    mu_ref_pa_s: float = Field(gt=0.0, le=1e30, description="μ at t_ref_c, Pa·s.")
     t_ref_c: float = Field(ge=-100.0, le=600.0, description="Reference temperature, °C.")
     c1: float = Field(gt=0.0, le=100.0, description="C1 (dimensionless, base-10 form).")
     c2_k: float = Field(gt=0.0, le=1000.0, description="C2, K (= °C difference).")
