@@ -166,5 +166,7 @@ def test_bad_parameters_name_the_field() -> None:
         slip_gradient(0.0, 0.96, 0.0032)
     with pytest.raises(ProfileError, match="k_inf_per_n"):
         min_pinch_force_n(0.96, 0.0)
-    with pytest.raises(DataError, match="coeffs"):
+    with pytest.raises(ProfileError, match="coeffs"):
         max_feed_force_n(80.0, (1.0, 2.0))
+    with pytest.raises(ProfileError, match="c_s_per_mm"):
+        slip_gradient_velocity(1.0, 0.0024, 0.0018, -0.32)

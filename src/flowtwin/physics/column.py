@@ -72,7 +72,20 @@ def compliance_mm_per_n(filament_area_mm2: npt.ArrayLike, l_rt_mm: npt.ArrayLike
 
 
 def compression_mm(force_n: npt.ArrayLike, k_mm_per_n: npt.ArrayLike) -> FloatArray:
-    """Column shortening ``Δl = k·F`` [001 Eq. 2], mm, for a force in N and ``k`` in mm/N."""
+    """Column shortening ``Δl = k·F`` [001 Eq. 2].
+
+    Parameters
+    ----------
+    force_n
+        Feed force, N, any shape.
+    k_mm_per_n
+        Compliance ``k``, mm/N (≥ 0), e.g. from :func:`compliance_mm_per_n`.
+
+    Returns
+    -------
+    ndarray
+        ``Δl``, mm, broadcast shape.
+    """
     return np.asarray(force_n, dtype=np.float64) * require_nonnegative("k_mm_per_n",
                                                                        k_mm_per_n)
 

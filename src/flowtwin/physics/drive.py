@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.errors import DataError
+from flowtwin.errors import DataError, ProfileError
 from flowtwin.physics._checks import (
     as_float_array,
     require_finite,
@@ -157,7 +157,7 @@ def slip_gradient_velocity(v_fil_mm_s: npt.ArrayLike, a_per_n: npt.ArrayLike,
     b = require_nonnegative("b_per_n", b_per_n)
     c = as_float_array(c_s_per_mm)
     if np.any(np.isnan(c) | (c < 0.0)):
-        raise DataError("c of the velocity law must be >= 0", field="c_s_per_mm",
+        raise ProfileError("c of the velocity law must be >= 0", field="c_s_per_mm",
                         value=c.tolist(), allowed=">= 0 s/mm (inf allowed)")
     with np.errstate(invalid="ignore", over="ignore"):
         decay = np.exp(-c * v)
@@ -237,7 +237,7 @@ def max_feed_force_n(pinch_force_n: npt.ArrayLike, coeffs: Sequence[float]) -> F
     """
     c = np.asarray(coeffs, dtype=np.float64)
     if c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise DataError("the maximum feed force needs three finite coefficients (c0, c1, c2)",
+        raise ProfileError("the maximum feed force needs three finite coefficients (c0, c1, c2)",
                         field="coeffs", value=c.tolist(), allowed="(c0, c1, c2)")
     fp = require_nonnegative("pinch_force_n", pinch_force_n)
     return c[0] + fp * (c[1] + fp * c[2])

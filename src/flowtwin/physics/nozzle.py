@@ -292,7 +292,20 @@ def feed_force_n(dp_mpa: npt.ArrayLike, filament_area_mm2: npt.ArrayLike) -> Flo
 
 
 def outlet_velocity_mm_s(q_mm3_s: npt.ArrayLike, d_out_mm: npt.ArrayLike) -> FloatArray:
-    """Mean melt velocity in the capillary ``v_out = Q/(π·d_out²/4)``, mm/s."""
+    """Mean melt velocity in the capillary ``v_out = Q/(π·d_out²/4)`` (continuity).
+
+    Parameters
+    ----------
+    q_mm3_s
+        Volume flow, mm³/s, any shape.
+    d_out_mm
+        Capillary diameter, mm (> 0).
+
+    Returns
+    -------
+    ndarray
+        ``v_out``, mm/s, broadcast shape.
+    """
     d = require_positive("d_out_mm", d_out_mm)
     return as_float_array(q_mm3_s) / (np.pi * d * d / 4.0)
 

@@ -45,7 +45,20 @@ FloatArray = npt.NDArray[np.float64]
 
 
 def setup_viscosity_mpa_s(setup: SetupConstants, temp_c: float | None = None) -> float:
-    """Melt viscosity of the set-up's material by the exponential law [002], MPa·s."""
+    """Melt viscosity of the set-up's material by the exponential law [002].
+
+    Parameters
+    ----------
+    setup
+        The set-up.
+    temp_c
+        Melt temperature, °C; default the set-up's.
+
+    Returns
+    -------
+    float
+        Viscosity, MPa·s.
+    """
     t = setup.temp_c if temp_c is None else temp_c
     m = setup.material
     return float(pa_s_to_mpa_s(viscosity_exponential_pa_s(t, m.mu0_pa_s, m.b_per_c)))
@@ -54,7 +67,22 @@ def setup_viscosity_mpa_s(setup: SetupConstants, temp_c: float | None = None) ->
 def setup_resistance_mpa_s_per_mm3(setup: SetupConstants, *,
                                    layer_height_mm: npt.ArrayLike | None,
                                    temp_c: float | None = None) -> FloatArray:
-    """Hot-end resistance, MPa·s/mm³: cone + capillary + tip (``layer_height_mm=None``: free)."""
+    """Hot-end resistance: cone + capillary + tip back-pressure (SPEC §3.3).
+
+    Parameters
+    ----------
+    setup
+        The set-up.
+    layer_height_mm
+        Layer height(s), mm, any shape; ``None`` for free extrusion (no tip term).
+    temp_c
+        Melt temperature, °C; default the set-up's.
+
+    Returns
+    -------
+    ndarray
+        ``R_hyd``, MPa·s/mm³, shape of ``layer_height_mm`` (0-d for None or a scalar).
+    """
     he = setup.hotend
     return hydraulic_resistance_mpa_s_per_mm3(
         setup_viscosity_mpa_s(setup, temp_c),
@@ -69,7 +97,18 @@ def setup_resistance_mpa_s_per_mm3(setup: SetupConstants, *,
 
 
 def setup_compliance_mm_per_n(setup: SetupConstants) -> float:
-    """Column compliance ``k`` of the set-up [002], mm/N."""
+    """Column compliance ``k`` of the set-up [002].
+
+    Parameters
+    ----------
+    setup
+        The set-up (``l_rt_mm``, hot end ``l_hot_mm``, material moduli, filament diameter).
+
+    Returns
+    -------
+    float
+        ``k``, mm/N.
+    """
     return float(compliance_mm_per_n(circle_area_mm2(setup.filament_diameter_mm),
                                      setup.l_rt_mm, setup.material.e_rt_mpa,
                                      setup.hotend.l_hot_mm, setup.material.e_hot_mpa))
@@ -77,7 +116,22 @@ def setup_compliance_mm_per_n(setup: SetupConstants) -> float:
 
 def setup_lag_factor_s(setup: SetupConstants, *, layer_height_mm: npt.ArrayLike | None,
                        temp_c: float | None = None) -> FloatArray:
-    """Lag factor ``K = k·R_hyd·A²`` of the set-up (SPEC §3.4), s, shape of the layer heights."""
+    """Lag factor ``K = k·R_hyd·A²`` of the set-up (SPEC §3.4).
+
+    Parameters
+    ----------
+    setup
+        The set-up.
+    layer_height_mm
+        Layer height(s), mm, any shape; ``None`` for free extrusion.
+    temp_c
+        Melt temperature, °C; default the set-up's.
+
+    Returns
+    -------
+    ndarray
+        ``K``, s, shape of ``layer_height_mm``.
+    """
     return lag_factor_s(setup_compliance_mm_per_n(setup),
                         setup_resistance_mpa_s_per_mm3(setup, layer_height_mm=layer_height_mm,
                                                        temp_c=temp_c),
@@ -115,6 +169,22 @@ def setup_steady_feed(setup: SetupConstants, feed_mm_s: float, *,
     """Steady feed force and slip of a set-up at nominal feed velocity ``feed_mm_s`` (mm/s).
 
     Uses Eq. 6 of [000] (pinch-force law); the velocity law Eq. 8 is valid only at 80–130 N.
+
+    Parameters
+    ----------
+    setup
+        The set-up.
+    feed_mm_s
+        Nominal feed velocity ``ω·r``, mm/s.
+    layer_height_mm
+        Layer height, mm; ``None`` (default) for free extrusion.
+    temp_c
+        Melt temperature, °C; default the set-up's.
+
+    Returns
+    -------
+    SteadyFeed
+        Nominal and transmitted force, slip, maximum force and the grinding flag.
     """
     area = float(circle_area_mm2(setup.filament_diameter_mm))
     resistance = float(setup_resistance_mpa_s_per_mm3(setup, layer_height_mm=layer_height_mm,

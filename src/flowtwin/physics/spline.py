@@ -63,7 +63,18 @@ class ClampedSpline:
         return i, h, self.x[i + 1] - xq, xq - self.x[i]
 
     def __call__(self, x_query: npt.ArrayLike) -> FloatArray:
-        """Evaluate ``S(x)`` [004 Eq. 21]; outside the knots the end cubics extrapolate."""
+        """Evaluate ``S(x)`` [004 Eq. 21].
+
+        Parameters
+        ----------
+        x_query
+            Where to evaluate, any shape; outside the knots the end cubics extrapolate.
+
+        Returns
+        -------
+        ndarray
+            ``S(x)``, shape of ``x_query``.
+        """
         xq = as_float_array(x_query)
         i, h, right, left = self._locate(xq)
         m0, m1 = self.moments[i], self.moments[i + 1]
@@ -72,7 +83,18 @@ class ClampedSpline:
                 + (self.y[i + 1] / h - m1 * h / 6.0) * left)
 
     def derivative(self, x_query: npt.ArrayLike) -> FloatArray:
-        """Evaluate ``S'(x)``, the derivative of [004 Eq. 21] (the road slope ``K_i``)."""
+        """Evaluate ``S'(x)``, the derivative of [004 Eq. 21] (the road slope ``K_i``).
+
+        Parameters
+        ----------
+        x_query
+            Where to evaluate, any shape.
+
+        Returns
+        -------
+        ndarray
+            ``S'(x)``, shape of ``x_query``.
+        """
         xq = as_float_array(x_query)
         i, h, right, left = self._locate(xq)
         m0, m1 = self.moments[i], self.moments[i + 1]

@@ -235,7 +235,18 @@ class StrandFit:
     height_mm: float
 
     def z_mm(self, x_mm: npt.ArrayLike) -> FloatArray:
-        """Evaluate the fitted curve at ``x_mm`` (mm), any shape."""
+        """Evaluate the fitted curve.
+
+        Parameters
+        ----------
+        x_mm
+            Distance behind the nozzle, mm, any shape.
+
+        Returns
+        -------
+        ndarray
+            ``z``, mm, shape of ``x_mm``.
+        """
         return _evaluate(self.model, self.params, as_float_array(x_mm), self.height_mm)
 
 

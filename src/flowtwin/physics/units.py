@@ -43,22 +43,66 @@ def pa_s_to_mpa_s(visc_pa_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
 
 
 def mpa_s_to_pa_s(visc_mpa_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Convert a viscosity from MPa·s (internal) to Pa·s. Same shape as the input."""
+    """Convert a viscosity from MPa·s (internal) to Pa·s.
+
+    Parameters
+    ----------
+    visc_mpa_s
+        Viscosity, MPa·s, any shape.
+
+    Returns
+    -------
+    ndarray
+        Viscosity, Pa·s, same shape.
+    """
     return np.asarray(visc_mpa_s, dtype=np.float64) * PA_S_PER_MPA_S
 
 
 def percent_to_fraction(value_pct: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Convert percent (e.g. ``k_s`` in %·N, ``k_∞`` in %/N [000 Table 3]) to a fraction."""
+    """Convert percent (e.g. ``k_s`` in %·N, ``k_∞`` in %/N [000 Table 3]) to a fraction.
+
+    Parameters
+    ----------
+    value_pct
+        Value in percent (or %·N, %/N), any shape.
+
+    Returns
+    -------
+    ndarray
+        ``value_pct / 100``, same shape.
+    """
     return np.asarray(value_pct, dtype=np.float64) / 100.0
 
 
 def fraction_to_percent(value: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Convert a fraction (internal slip) to percent (reports)."""
+    """Convert a fraction (internal slip) to percent (reports).
+
+    Parameters
+    ----------
+    value
+        Fraction, any shape.
+
+    Returns
+    -------
+    ndarray
+        ``100 · value``, same shape.
+    """
     return np.asarray(value, dtype=np.float64) * 100.0
 
 
 def circle_area_mm2(diameter_mm: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Area of a circle, ``π·d²/4``, mm², for a diameter in mm (any shape)."""
+    """Area of a circle, ``π·d²/4``.
+
+    Parameters
+    ----------
+    diameter_mm
+        Diameter, mm, any shape.
+
+    Returns
+    -------
+    ndarray
+        Area, mm², same shape.
+    """
     d = np.asarray(diameter_mm, dtype=np.float64)
     return np.pi * d * d / 4.0
 
@@ -67,5 +111,15 @@ def density_t_mm3(density_g_cm3: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Convert a density from g/cm³ to t/mm³ (= N·s²/mm⁴, consistent with mm, s, N).
 
     1 g/cm³ = 1e-3 g/mm³ = 1e-9 t/mm³.
+
+    Parameters
+    ----------
+    density_g_cm3
+        Density, g/cm³, any shape.
+
+    Returns
+    -------
+    ndarray
+        Density, t/mm³, same shape.
     """
     return np.asarray(density_g_cm3, dtype=np.float64) * 1.0e-9
