@@ -164,6 +164,17 @@ def load_builtin(name: str, kind: ProfileKind | None = None) -> Profile:
     ProfileError
         Unknown name (with the closest names), or a profile of another kind.
     """
+    # Fast path: open only the file the name points to.
+    for stem, file_kind, item in _profile_files():
+        if stem == name and (kind is None or kind == file_kind):
+            return _read(item, _label(f"{file_kind}s", item.name), file_kind)
+    if kind in (None, "roller_table") and name == ROLLER_TABLE_NAME:
+        return load_roller_table()
+    if kind in (None, "roller") and name.startswith("roller-"):
+        for roller in load_roller_table().roller:
+            if roller.name == name:
+                return roller
+    # Not found (or of another kind): build the full list for a helpful message.
     entries = {entry.name: entry for entry in library_entries()}
     entry = entries.get(name)
     if entry is None or (kind is not None and entry.kind != kind):
@@ -175,12 +186,4 @@ def load_builtin(name: str, kind: ProfileKind | None = None) -> Profile:
                   f"built-in profile {name!r} is a {entry.kind}, not a {kind}")
         raise ProfileError(reason, source="flowtwin/data", value=name,
                            allowed="one of " + ", ".join(candidates))
-    if entry.kind == "roller_table":
-        return load_roller_table()
-    if entry.kind == "roller":
-        for roller in load_roller_table().roller:
-            if roller.name == name:
-                return roller
-        raise AssertionError(f"roller {name!r} listed but not found")  # pragma: no cover
-    folder = f"{entry.kind}s"
-    return _read(_data_root() / folder / f"{name}.toml", entry.resource, entry.kind)
+    raise AssertionError(f"built-in {name!r} listed but not loadable")  # pragma: no cover
