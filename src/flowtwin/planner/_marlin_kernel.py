@@ -23,6 +23,7 @@ anew). With ``v²`` written ``v2``, for a block of length ``L`` and acceleration
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -200,23 +201,22 @@ def junction_classic_reworked(prev_speed: npt.NDArray[np.float64],
 
 
 @nb.njit(cache=True)
-def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
-                feed: npt.NDArray[np.float64], state: npt.NDArray[np.int32],
-                params: npt.NDArray[np.float64], stop_before: npt.NDArray[np.bool_],
-                dwell_before: npt.NDArray[np.float64], use_jd: bool, legacy_jerk: bool,
-                jd_small_segments: bool, lin_advance: bool, v_min: float,
-                buffer_blocks: int, slowdown_queued: int,
-                out: npt.NDArray[np.float64]) -> float:
-    """Plan all moves; fill ``out`` and return the total time (s).
+def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
+                state: npt.NDArray[np.int32], params: npt.NDArray[np.float64],
+                stop_before: npt.NDArray[np.bool_], dwell_before: npt.NDArray[np.float64],
+                use_jd: bool, legacy_jerk: bool, jd_small_segments: bool,
+                lin_advance: bool, v_min: float, buffer_blocks: int, slowdown_queued: int,
+                phases: Any) -> tuple[float, int]:
+    """Plan all moves; fill ``phases`` and return ``(total time s, bad move or -1)``.
 
     Parameters
     ----------
-    d
-        Axis deltas X, Y, Z and E (E already times the M221 flow factor), mm, ``(n, 4)``.
-    de_raw
-        E change as written (for LIN_ADVANCE's e/D ratio), mm, ``(n,)``.
-    feed
-        Requested speed (F/60 × M220), mm/s, ``(n,)``.
+    moves
+        Move rows (:data:`~flowtwin.gcode.moves.MOVE_DTYPE`), ``(n,)``: end positions,
+        E change (times ``flow`` for the E axis; as written for LIN_ADVANCE's e/D), feed
+        (F/60 × M220, mm/s) and tool (a change drains the planner).
+    start_xyz
+        Position before the first move, mm, ``(3,)``.
     state
         Row of ``params`` in force for each move, ``(n,)``.
     params
@@ -234,16 +234,29 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
         ``BLOCK_BUFFER_SIZE`` (≥ 3), or 0 for unlimited look-ahead.
     slowdown_queued
         Queued moves assumed by the ``SLOWDOWN`` rule (0 = off).
-    out
-        Output, ``(n, 8)``: t_start, start_v, cruise_v, end_v, accel, accel_t, cruise_t,
-        decel_t.
+    phases
+        Output rows (:data:`~flowtwin.planner.timeline.PHASE_DTYPE`), ``(n,)``.
+
+    Returns
+    -------
+    total, bad
+        Total time including dwells (s); index of the first move with motion but no
+        positive finite feed rate (nothing is planned then), else -1.
     """
-    n = d.shape[0]
+    n = moves.shape[0]
+    mx = moves.x
+    my = moves.y
+    mz = moves.z
+    mde = moves.de
+    mflow = moves.flow
+    mfeed = moves.feed_mm_s
+    mtool = moves.tool
     v2_min = v_min * v_min
     length = np.zeros(n)
     accel = np.zeros(n)
     nominal = np.zeros(n)
     jmax2 = np.zeros(n)
+    d = np.zeros(4)
     speed = np.zeros(4)
     prev_speed = np.zeros(4)
     unit = np.zeros(4)
@@ -254,14 +267,25 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
     have_prev = False
     pending_stop = False
     sqrt_half = math.sqrt(0.5)
+    px = start_xyz[0]
+    py = start_xyz[1]
+    pz = start_xyz[2]
     for i in range(n):
-        if stop_before[i]:
+        if stop_before[i] or (i > 0 and mtool[i] != mtool[i - 1]):
             pending_stop = True
         p = params[state[i]]
-        dx = d[i, 0]
-        dy = d[i, 1]
-        dz = d[i, 2]
-        ex = d[i, 3]
+        dx = mx[i] - px
+        dy = my[i] - py
+        dz = mz[i] - pz
+        px = mx[i]
+        py = my[i]
+        pz = mz[i]
+        de_raw = mde[i]
+        ex = de_raw * mflow[i]
+        d[0] = dx
+        d[1] = dy
+        d[2] = dz
+        d[3] = ex
         lxyz = math.sqrt(dx * dx + dy * dy + dz * dz)
         has_e = abs(ex) > _EPS_MM
         if lxyz > _EPS_MM:
@@ -272,7 +296,9 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
             xyz = False
         else:
             continue                     # zero-length block: Marlin drops it
-        fr = feed[i]
+        fr = mfeed[i]
+        if not (fr > 0.0 and fr < math.inf):
+            return 0.0, i
         floor = p[P_MIN_FEED] if has_e else p[P_MIN_TRAVEL]
         if fr < floor:
             fr = floor
@@ -283,22 +309,22 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
                 inv_s = 1.0 / (seg_t + 2.0 * (p[P_MIN_SEG_T] - seg_t) / slowdown_queued)
         factor = 1.0
         for ax in range(4):
-            cs = abs(d[i, ax]) * inv_s
+            cs = abs(d[ax]) * inv_s
             if cs > p[P_VMAX + ax]:
                 f = p[P_VMAX + ax] / cs
                 if f < factor:
                     factor = f
         v_nom = big * inv_s * factor
         for ax in range(4):
-            speed[ax] = d[i, ax] * inv_s * factor
+            speed[ax] = d[ax] * inv_s * factor
         # Acceleration: M204 R for E-only blocks, else P (with E) or T, LA cap, M201 caps.
         if not xyz:
             a = p[P_ACCEL_R]
         else:
             a = p[P_ACCEL_P] if has_e else p[P_ACCEL_T]
             k = p[P_LA_K]
-            if lin_advance and k > 0.0 and de_raw[i] > 0.0:
-                e_d = de_raw[i] / lxyz
+            if lin_advance and k > 0.0 and de_raw > 0.0:
+                e_d = de_raw / lxyz
                 if e_d <= 3.0:
                     if use_jd:
                         e_jerk = math.sqrt(sqrt_half * p[P_JD] * p[P_AMAX + 3]
@@ -309,7 +335,7 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
                     if cap < a:
                         a = cap
             for ax in range(4):
-                da = abs(d[i, ax])
+                da = abs(d[ax])
                 if da > 0.0:
                     cap = p[P_AMAX + ax] * big / da
                     if cap < a:
@@ -320,12 +346,10 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
         # Junction limit with the previous block.
         first = pending_stop or not have_prev
         if use_jd:
-            if has_e:
-                norm = math.sqrt(lxyz * lxyz + ex * ex)
-            else:
-                norm = lxyz
+            # Unit vector over XYZ, or over XYZE for blocks that move E (Marlin ≥ 2.0.9).
+            norm = math.sqrt(lxyz * lxyz + ex * ex) if has_e else lxyz
             for ax in range(4):
-                unit[ax] = d[i, ax] / norm if (ax < 3 or has_e) else 0.0
+                unit[ax] = d[ax] / norm if (ax < 3 or has_e) else 0.0
             if first:
                 v2 = v2_min
             else:
@@ -396,9 +420,15 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
     # Trapezoids. A block never exceeds its nominal speed: when a (legacy classic-jerk)
     # junction is faster than the previous block's nominal, that block ends at its
     # nominal and the speed steps up at the junction.
-    for i in range(n):
-        for c in range(8):
-            out[i, c] = 0.0
+    o_t = phases.t_start
+    o_vi = phases.start_v
+    o_vc = phases.cruise_v
+    o_vo = phases.end_v
+    o_a = phases.accel
+    o_ta = phases.accel_t
+    o_tc = phases.cruise_t
+    o_td = phases.decel_t
+    move_t = np.zeros(n)
     for k in range(m):
         i = idx[k]
         a = accel[i]
@@ -413,20 +443,19 @@ def plan_kernel(d: npt.NDArray[np.float64], de_raw: npt.NDArray[np.float64],
         vc = math.sqrt(vc2)
         ta = (vc - vi) / a
         td = (vc - vo) / a
-        da = 0.5 * (vc + vi) * ta
-        dd = 0.5 * (vc + vo) * td
-        dc = big - da - dd
+        dc = big - 0.5 * (vc + vi) * ta - 0.5 * (vc + vo) * td
         tc = dc / vc if dc > 0.0 else 0.0
-        out[i, 1] = vi
-        out[i, 2] = vc
-        out[i, 3] = vo
-        out[i, 4] = a
-        out[i, 5] = ta
-        out[i, 6] = tc
-        out[i, 7] = td
+        o_vi[i] = vi
+        o_vc[i] = vc
+        o_vo[i] = vo
+        o_a[i] = a
+        o_ta[i] = ta
+        o_tc[i] = tc
+        o_td[i] = td
+        move_t[i] = ta + tc + td
     t = 0.0
     for i in range(n):
         t += dwell_before[i]
-        out[i, 0] = t
-        t += out[i, 5] + out[i, 6] + out[i, 7]
-    return t + float(dwell_before[n])
+        o_t[i] = t
+        t += move_t[i]
+    return t + float(dwell_before[n]), -1

@@ -232,6 +232,8 @@ class MarlinSettings:
             min_segment_time_s=row[K.P_MIN_SEG_T], linear_advance_k=row[K.P_LA_K])
 
 
+_INF = float("inf")
+
 #: Commands that change the planner settings.
 SETTINGS_CODES = frozenset({"M201", "M203", "M204", "M205", "M900"})
 
@@ -239,7 +241,11 @@ SETTINGS_CODES = frozenset({"M201", "M203", "M204", "M205", "M900"})
 def _number(event: Event, letter: str, source: str | None, *, positive: bool) -> float | None:
     """Numeric value of a parameter, ``None`` when absent or given without a value."""
     raw = event.params.get(letter)
-    if raw is None or raw == "":
+    if raw is None:
+        return None
+    if raw.__class__ is float and (raw > 0.0 if positive else raw >= 0.0) and raw < _INF:
+        return raw                       # the common case, checked first for speed
+    if raw == "":
         return None
     if isinstance(raw, str):
         try:
@@ -426,11 +432,6 @@ def marlin_settings_from_slicer_config(metadata: Mapping[str, object], *,
 
 # ------------------------------------------------------------------------ planner ---
 
-def _stop_index(lines: np.ndarray, after_line: int) -> int:
-    """Number of moves whose source line is ≤ ``after_line``."""
-    return int(np.count_nonzero(lines <= after_line))
-
-
 def _dwell_s(ev: Event, source: str | None) -> float:
     """G4 dwell in s (Marlin: ``S`` seconds wins over ``P`` milliseconds)."""
     s = _number(ev, "S", source, positive=False)
@@ -470,24 +471,6 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
     moves = table.moves
     n = len(table)
     source = table.source
-    xyz = np.empty((n, 3))
-    for ax, name in enumerate("xyz"):
-        xyz[:, ax] = moves[name]
-    d = np.empty((n, 4))
-    if n:
-        d[0, :3] = xyz[0] - np.asarray(table.start_xyze[:3], dtype=np.float64)
-        d[1:, :3] = np.diff(xyz, axis=0)
-    de_raw = np.ascontiguousarray(moves["de"], dtype=np.float64)
-    d[:, 3] = de_raw * moves["flow"]
-    feed = np.ascontiguousarray(moves["feed_mm_s"], dtype=np.float64)
-    moving = np.any(np.abs(d) > 0.0, axis=1)
-    bad = moving & ~(np.isfinite(feed) & (feed > 0.0))
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        raise GcodeError("move without a positive feed rate", source=source,
-                         line=int(moves["line"][i]), field="F", value=float(feed[i]),
-                         allowed="> 0 mm/min")
-
     stop_before = np.zeros(n + 1, dtype=np.bool_)
     dwell_before = np.zeros(n + 1)
     dwells: list[tuple[int, float, str]] = []
@@ -515,28 +498,32 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
                     stop_before[mi] = True    # M900 K change: planner.synchronize()
                 rows.append(row)
                 change_at.append(mi)
-    if n > 1:
-        tools = moves["tool"]
-        stop_before[1:n][tools[1:] != tools[:-1]] = True
-    lines = moves["line"]
-    for line in stop_after_lines:
-        stop_before[_stop_index(lines, int(line))] = True
+    if stop_after_lines:
+        lines = np.asarray(moves["line"])
+        ordered = bool(np.all(lines[1:] >= lines[:-1]))
+        for line in stop_after_lines:
+            k = (int(np.searchsorted(lines, line, side="right")) if ordered
+                 else int(np.count_nonzero(lines <= line)))
+            stop_before[k] = True
 
-    state = (np.searchsorted(np.asarray(change_at), np.arange(n), side="right") - 1
-             ).astype(np.int32)
+    starts = np.asarray(change_at, dtype=np.int64)
+    if np.all(starts[1:] >= starts[:-1]):
+        state = np.repeat(np.arange(len(rows), dtype=np.int32),
+                          np.diff(np.append(starts, n)))
+    else:   # events out of file order: the last one listed before a move wins
+        state = (np.searchsorted(starts, np.arange(n), side="right") - 1).astype(np.int32)
     params = np.array(rows, dtype=np.float64)
-    out = np.empty((n, 8))
-    total = K.plan_kernel(
-        d, de_raw, feed, state, params, stop_before, dwell_before,
-        not settings.classic_jerk, settings.jerk_variant is JerkVariant.LEGACY,
-        settings.jd_small_segments, settings.lin_advance,
-        settings.minimum_planner_speed_mm_s, settings.block_buffer_size or 0,
-        settings.slowdown_moves_queued, out)
-
     phases = np.zeros(n, dtype=PHASE_DTYPE)
-    for c, name in enumerate(("t_start", "start_v", "cruise_v", "end_v", "accel",
-                              "accel_t", "cruise_t", "decel_t")):
-        phases[name] = out[:, c]
+    total, bad = K.plan_kernel(
+        moves, np.asarray(table.start_xyze[:3], dtype=np.float64), state, params,
+        stop_before, dwell_before, not settings.classic_jerk,
+        settings.jerk_variant is JerkVariant.LEGACY, settings.jd_small_segments,
+        settings.lin_advance, settings.minimum_planner_speed_mm_s,
+        settings.block_buffer_size or 0, settings.slowdown_moves_queued, phases)
+    if bad >= 0:
+        raise GcodeError("move without a positive feed rate", source=source,
+                         line=int(moves["line"][bad]), field="F",
+                         value=float(moves["feed_mm_s"][bad]), allowed="> 0 mm/min")
     warnings = [f"{note}: {len(where)}× (first at line {where[0]})"
                 for note, where in notes.items()]
     return Timeline(phases=phases, dwell_s=dwells, total_time_s=float(total),
