@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -28,7 +29,7 @@ FREE = MarlinSettings(max_feedrate_mm_s=(BIG,) * 4, max_acceleration_mm_s2=(BIG,
 RTOL = 1e-6
 
 
-def table(points: list[tuple[float, ...]], feed: float | list[float] = 50.0,
+def table(points: Sequence[tuple[float, ...]], feed: float | list[float] = 50.0,
           de: list[float] | None = None, events: list[Event] | None = None,
           tools: list[int] | None = None) -> MoveTable:
     """Moves to each (x, y[, z]) point from the origin."""

@@ -52,19 +52,18 @@ def test_marlin_model_matches_prusaslicer_estimates(corpus_dir: Path) -> None:
         tl = plan_marlin(table, settings)
         dropped = sum(s for mi, s, _ in tl.dwell_s if mi == 0)
         comparable = tl.total_time_s - dropped
-        la = plan_marlin(table, replace(settings, lin_advance=True)).total_time_s
+        la = plan_marlin(table, replace(settings, lin_advance=True))
         rework = plan_marlin(table, replace(settings, jerk_variant=JerkVariant.REWORKED))
         unlimited = plan_marlin(table, replace(settings, block_buffer_size=None))
         rows.append((path.name, len(table), estimate, tl.total_time_s, dropped,
-                     comparable / estimate, la / tl.total_time_s,
+                     comparable / estimate, la.total_time_s / tl.total_time_s,
                      rework.total_time_s / tl.total_time_s,
                      unlimited.total_time_s / tl.total_time_s))
     print()
     print(f"{'file':40s} {'moves':>7s} {'slicer s':>9s} {'model s':>9s} {'dropped':>8s} "
           f"{'ratio':>7s} {'LA':>7s} {'rework':>7s} {'no-buf':>7s}")
-    for name, n, est, model, dropped, ratio, la, rework, unlimited in rows:
-        print(f"{name:40s} {n:7d} {est:9.0f} {model:9.1f} {dropped:8.1f} {ratio:7.4f} "
-              f"{la:7.4f} {rework:7.4f} {unlimited:7.4f}")
+    for row in rows:
+        print("{:40s} {:7d} {:9.0f} {:9.1f} {:8.1f} {:7.4f} {:7.4f} {:7.4f} {:7.4f}".format(*row))
     for name, *_, ratio, _la, _rework, _unl in rows:
         assert abs(ratio - 1.0) <= TOLERANCE, name
 
