@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from pathlib import Path
 
 import pytest
 
 from flowtwin.gcode.reader import read_gcode
 
-SHARED_CORPUS = Path(__file__).resolve().parents[2].parent / "shared" / "corpus"
+SHARED_CORPUS = Path(os.environ.get("FLOWTWIN_SHARED",
+                                    Path(__file__).resolve().parents[2].parent / "shared")
+                     ) / "corpus"
 
 
 def _anchors() -> list[dict[str, str]]:
