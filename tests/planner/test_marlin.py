@@ -17,6 +17,7 @@ from flowtwin.planner.marlin import (
     marlin_settings_from_slicer_config,
     plan_marlin,
 )
+from flowtwin.planner.timeline import time_by_feature, time_by_layer
 
 # Limits so high they never bind, unless a test lowers one on purpose.
 BIG = 1e9
@@ -250,6 +251,27 @@ def test_tool_change_and_stop_after_lines_stop() -> None:
     tl = plan_marlin(table(pts, 50.0, tools=[0, 1, 1]), FREE, stop_after_lines=[2])
     np.testing.assert_allclose(tl.phases["end_v"], [1e-6, 1e-6, 1e-6], rtol=1e-3)
     assert tl.total_time_s == pytest.approx(3 * 2.05, rel=1e-6)
+
+
+def test_stop_times_layers_and_features() -> None:
+    # Moves on lines 1, 3, 5; dwells of 1 s (line 2) and 2 s (line 4) between them.
+    pts = [(100.0, 0.0), (200.0, 0.0), (300.0, 0.0)]
+    t = table(pts, 50.0, events=[Event(1, 2, "G4", {"S": 1.0}), Event(2, 4, "G4", {"S": 2.0})])
+    t.moves["line"] = [1, 3, 5]
+    t.moves["layer"] = [0, 0, 1]
+    t.moves["feature"] = [0, 1, 1]
+    t.features = ["Perimeter", "Infill"]
+    tl = plan_marlin(t, FREE, stop_after_lines=[0, 2, 3])
+    # Each move is a full 2.05 s trapezoid (stops or not, it starts and ends at rest).
+    assert tl.stop_times_s == pytest.approx({0: 0.0, 2: 2.05 + 1.0, 3: 2 * 2.05 + 1.0})
+    assert tl.time_at_line(4) == pytest.approx(2 * 2.05 + 1.0)
+    assert tl.total_time_s == pytest.approx(3 * 2.05 + 3.0)
+    np.testing.assert_array_equal(tl.lines, [1, 3, 5])
+    assert time_by_layer(tl, t) == pytest.approx({0: 2 * 2.05 + 1.0, 1: 2.05 + 2.0})
+    by_feature = time_by_feature(tl, t)
+    assert by_feature["Perimeter"] == pytest.approx(2.05)
+    assert by_feature["Infill"] == pytest.approx(2 * 2.05)
+    assert sum(by_feature.values()) == pytest.approx(tl.total_time_s)
 
 
 def test_reverse_pass_brakes_before_a_short_final_move() -> None:

@@ -454,13 +454,17 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
         Firmware settings in force before the first line.
     stop_after_lines
         Source lines after which the toolhead must come to a stop (the planner drains
-        after the last move that comes from a line ≤ each of them).
+        after the last move that comes from a line ≤ each of them); the print time of
+        each stop is in :attr:`Timeline.stop_times_s` (line 0 = before the first line).
 
     Returns
     -------
     Timeline
         ``firmware="marlin"``; one phase row per move (zero-length moves take no time),
-        G4 dwells in ``dwell_s``, settings commands Marlin ignores in ``warnings``.
+        G4 dwells in ``dwell_s``, settings commands Marlin ignores in ``warnings``, the
+        source line of each move in ``lines``. Totals per layer and feature:
+        :func:`~flowtwin.planner.timeline.time_by_layer`,
+        :func:`~flowtwin.planner.timeline.time_by_feature`.
 
     Raises
     ------
@@ -474,6 +478,7 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
     stop_before = np.zeros(n + 1, dtype=np.bool_)
     dwell_before = np.zeros(n + 1)
     dwells: list[tuple[int, float, str]] = []
+    dwell_lines: list[int] = []
     notes: dict[str, list[int]] = {}
     rows = [settings.param_row()]
     change_at = [0]
@@ -488,6 +493,7 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
                 t = _dwell_s(ev, source)
                 dwell_before[mi] += t
                 dwells.append((mi, t, f"G4 line {ev.line}"))
+                dwell_lines.append(ev.line)
         elif code in SETTINGS_CODES:
             row = rows[-1].copy()
             note = _apply_event(row, ev, settings, source)
@@ -498,13 +504,15 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
                     stop_before[mi] = True    # M900 K change: planner.synchronize()
                 rows.append(row)
                 change_at.append(mi)
+    lines = np.asarray(moves["line"], dtype=np.int32)
+    stop_at: dict[int, int] = {}
     if stop_after_lines:
-        lines = np.asarray(moves["line"])
         ordered = bool(np.all(lines[1:] >= lines[:-1]))
         for line in stop_after_lines:
             k = (int(np.searchsorted(lines, line, side="right")) if ordered
                  else int(np.count_nonzero(lines <= line)))
             stop_before[k] = True
+            stop_at[int(line)] = k
 
     starts = np.asarray(change_at, dtype=np.int64)
     if np.all(starts[1:] >= starts[:-1]):
@@ -526,6 +534,19 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
                          value=float(moves["feed_mm_s"][bad]), allowed="> 0 mm/min")
     warnings = [f"{note}: {len(where)}× (first at line {where[0]})"
                 for note, where in notes.items()]
+    # Time of each requested stop: end of the moves up to that line plus the dwells of
+    # lines up to it that sit between those moves and the next one.
+    stop_times: dict[int, float] = {}
+    for line, k in stop_at.items():
+        t = 0.0
+        if k > 0:
+            last = phases[k - 1]
+            t = float(last["t_start"]) + float(last["accel_t"]) + float(
+                last["cruise_t"]) + float(last["decel_t"])
+        t += sum(d[1] for d, dl in zip(dwells, dwell_lines, strict=True)
+                 if d[0] == k and dl <= line)
+        stop_times[line] = t
     return Timeline(phases=phases, dwell_s=dwells, total_time_s=float(total),
-                    firmware="marlin", warnings=warnings)
+                    firmware="marlin", warnings=warnings, stop_times_s=stop_times,
+                    lines=lines)
 
