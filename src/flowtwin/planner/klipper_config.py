@@ -360,10 +360,10 @@ def _parse_autosave(lines: list[tuple[int, str]], source: str, cfg: _Cfg) -> Non
     section: str | None = None
     for number, text in lines:
         body = _strip_comment(text)
-        if not body or body.startswith("<"):
+        if not body or text[:1].isspace():
             continue
-        if text[:1].isspace():
-            continue
+        if section is None and not body.startswith("["):
+            continue  # the block's header lines ("<--- SAVE_CONFIG --->", "DO NOT EDIT ...")
         if body.startswith("[") and body.endswith("]"):
             section = body[1:-1].strip()
             cfg.sections.setdefault(section, {})
