@@ -404,8 +404,8 @@ def test_lazy_flush_gives_the_same_plan(seed, ratio):
     rng = np.random.default_rng(seed)
     t = random_table(rng, 3000)
     s = settings(minimum_cruise_ratio=ratio, max_accel=3000.0)
-    lazy = plan_klipper(t, s)
-    full = plan_klipper(t, s, lazy_flush=False)
+    lazy = plan_klipper(t, s, lazy_flush=True)
+    full = plan_klipper(t, s)
     for name in ("start_v", "cruise_v", "end_v", "accel_t", "cruise_t", "decel_t"):
         np.testing.assert_allclose(lazy.phases[name], full.phases[name], rtol=1e-9,
                                    atol=1e-12)

@@ -283,7 +283,7 @@ def _limit_error(err: npt.NDArray[np.float64], lines: npt.NDArray[np.int32],
 
 
 def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
-                 stop_after_lines: Sequence[int] = (), lazy_flush: bool = True) -> Timeline:
+                 stop_after_lines: Sequence[int] = (), lazy_flush: bool = False) -> Timeline:
     """Plan a move table exactly as Klipper's toolhead would execute it.
 
     Parameters
@@ -298,9 +298,10 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
         print time of each stop is in :attr:`Timeline.stop_times_s` (line 0 = before
         the first line).
     lazy_flush
-        Flush the look-ahead queue piecewise as moves arrive, as Klipper does (``False``
-        plans each run of moves between stops in one backward pass; Klipper's design
-        makes both give the same plan).
+        Emulate Klipper's piecewise ("lazy") flushing of the look-ahead queue as moves
+        arrive. Klipper's design makes it give the same plan as one backward pass per
+        run of moves between stops (the default, 2-8x faster); the tests check both
+        agree on every corpus file.
 
     Returns
     -------
