@@ -5,8 +5,9 @@ bookkeeping of ``ToolHead``) re-expressed over flat arrays; the per-move limits 
 applied beforehand (:mod:`flowtwin.planner.klipper`). All velocities are tracked squared
 (``_v2``, mm²/s²), as Klipper does.
 
-Junction (move ``k`` after ``p``, both with XYZ motion), with θ the angle between the two
-directions (``cos θ = −û_p·û_k``) and ``δ = scv²(√2 − 1)/a_max`` the junction deviation::
+Junction (move ``k`` after ``p``, both with XYZ motion), with θ the corner's interior
+angle (``cos θ = −û_p·û_k``: 180° straight on, 90° a square corner) and
+``δ = scv²(√2 − 1)/a_max`` the junction deviation in force when each move was queued::
 
     R            = sin(θ/2) / (1 − sin(θ/2))                 (circle radius / δ)
     v²_jd        = R · δ · a                                 (for both moves' δ and a)
