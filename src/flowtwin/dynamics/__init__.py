@@ -1,0 +1,53 @@
+"""Extrusion dynamics: commanded feed, firmware pressure advance, and the lag/slip integrator.
+
+Flow (SPEC §3.4, §3.6)::
+
+    MoveTable + Timeline ─► nominal_feed ─► apply_advance (Klipper/Marlin/RRF/Prusa)
+        ─► integrate (state Δl: lag [001], no backflow, slip [000], grinding) ─► DynamicsResult
+
+See ``docs/dynamics.md`` for the model, its assumptions and the public API.
+"""
+
+from flowtwin.dynamics.advance import (
+    DEFAULT_SMOOTH_TIME_S,
+    AdvanceSchedule,
+    AdvanceSettings,
+    Firmware,
+    advance_eligible,
+    advance_schedule,
+    apply_advance,
+)
+from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
+from flowtwin.dynamics.integrator import integrate
+from flowtwin.dynamics.params import ExtrusionParams, resolve_per_move
+from flowtwin.dynamics.predict import predict
+from flowtwin.dynamics.result import (
+    MOVE_RESULT_DTYPE,
+    SERIES_DTYPE,
+    DynamicsResult,
+    DynamicsSummary,
+)
+from flowtwin.dynamics.thermal import TemperatureSchedule, move_temperatures, temperature_schedule
+
+__all__ = [
+    "DEFAULT_SMOOTH_TIME_S",
+    "MOVE_RESULT_DTYPE",
+    "SERIES_DTYPE",
+    "AdvanceSchedule",
+    "AdvanceSettings",
+    "CommandedFeed",
+    "DynamicsResult",
+    "DynamicsSummary",
+    "ExtrusionParams",
+    "Firmware",
+    "TemperatureSchedule",
+    "advance_eligible",
+    "advance_schedule",
+    "apply_advance",
+    "integrate",
+    "move_temperatures",
+    "nominal_feed",
+    "predict",
+    "resolve_per_move",
+    "temperature_schedule",
+]

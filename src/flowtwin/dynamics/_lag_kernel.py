@@ -1,0 +1,505 @@
+"""Compiled integrator of the extrusion state equation (SPEC §3.4) over a commanded feed.
+
+Private: called by :func:`flowtwin.dynamics.integrator.integrate`, which validates and
+casts everything first. One pass over the segments, O(number of segments + events).
+
+State ``x = Δl`` (mm of column compression) and a grinding flag. On every segment the
+commanded filament speed is a cubic ``v(τ)``; the segment is first split where ``v``
+changes sign, then each piece is advanced regime by regime (``_expint`` FREE / LAG /
+SLIP / GRIND) until one of these events ends the regime:
+
+* ``x`` rises through 0 (FREE → LAG/SLIP) or falls through 0 while retracting
+  (LAG → FREE): no backflow [001 Fig. 8], the melt never flows back; with ``x < 0`` the
+  filament has been pulled away from the melt and nothing comes out until ``x > 0``;
+* the feed force ``x/k`` reaches the roller's maximum feed force [000 §4]: the drive
+  grinds and stops feeding (GRIND) until the force falls below ``(1 - release)`` times
+  the maximum (hysteresis);
+* that release.
+
+Event times are located by safeguarded Newton iteration to rounding. Extremes of the
+force and flow inside a regime are found at the end points and at the turning point of
+``x`` where ``x'`` changes sign between them (at most one turning point is assumed per
+regime interval: exact for piecewise-linear feeds; a double turning point inside one
+Klipper smoothing piece, shorter than ``smooth_time/2``, is not searched for).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+from flowtwin.dynamics._expint import (
+    FREE,
+    GRIND,
+    LAG,
+    SLIP,
+    colloc_step,
+    dpoly,
+    free_step,
+    ipoly,
+    lag_step,
+    poly,
+    shift,
+    slope_factor,
+)
+
+__all__ = [
+    "A_CMD", "A_FED", "A_FMAX", "A_FWD", "A_GRIND", "A_GTIME", "A_OUT", "A_QMAX", "A_QMIN",
+    "A_SLIP", "A_TIME", "N_ACC", "N_SER", "S_E", "S_F", "S_Q", "S_SLIP", "S_T", "S_VCMD",
+    "S_VFIL", "S_X", "integrate_kernel",
+]
+
+# Accumulator columns (per move, per stop): filament lengths in mm, times in s.
+A_CMD = 0     # ∫ v_cmd dt, the firmware's commanded filament (pressure advance included)
+A_FWD = 1     # ∫ max(v_cmd, 0) dt, forward command (denominator of the mean slip)
+A_FED = 2     # ∫ v_in dt, filament that entered the column (after slip and grinding)
+A_OUT = 3     # ∫ v*_out dt = ∫ max(Δl, 0)/K dt, melt out in filament mm [001 Eq. 5]
+A_SLIP = 4    # filament lost to slip
+A_GRIND = 5   # filament lost while grinding
+A_GTIME = 6   # time spent grinding
+A_FMAX = 7    # peak feed force, N
+A_QMAX = 8    # max v*_out, mm/s
+A_QMIN = 9    # min v*_out, mm/s
+A_TIME = 10   # time covered
+N_ACC = 11
+
+# Series columns.
+S_T = 0
+S_E = 1       # commanded extruder position (pressure advance included), mm
+S_VCMD = 2    # commanded filament speed, mm/s
+S_VFIL = 3    # filament speed into the column (after slip/grinding), mm/s
+S_Q = 4       # v*_out, mm/s (times A_fil gives mm³/s)
+S_F = 5       # feed force, N
+S_SLIP = 6    # slip fraction
+S_X = 7       # Δl, mm
+N_SER = 8
+
+_EV_NONE = 0
+_EV_LEVEL = 1      # x reached a level (0, release) inside the interval
+_EV_THRESHOLD = 2  # force reached the maximum feed force
+_EV_RELEASE = 3    # force fell to the release level
+
+
+@njit(cache=True)
+def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float64]) -> int:
+    """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted; returns the count."""
+    n = 0
+    if c[2] == 0.0 and c[3] == 0.0:
+        if c[1] != 0.0:
+            r = -c[0] / c[1]
+            if 0.0 < r < t_len:
+                out[0] = r
+                n = 1
+        return n
+    # split at the turning points of v (roots of v' = c1 + 2 c2 t + 3 c3 t²)
+    cuts = np.empty(4)
+    nc = 0
+    cuts[nc] = 0.0
+    nc += 1
+    qa = 3.0 * c[3]
+    qb = 2.0 * c[2]
+    qc = c[1]
+    if qa == 0.0:
+        if qb != 0.0:
+            r = -qc / qb
+            if 0.0 < r < t_len:
+                cuts[nc] = r
+                nc += 1
+    else:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc > 0.0:
+            sq = math.sqrt(disc)
+            qq = -0.5 * (qb + math.copysign(sq, qb))
+            r1 = qq / qa
+            r2 = qc / qq if qq != 0.0 else r1
+            lo = min(r1, r2)
+            hi = max(r1, r2)
+            if 0.0 < lo < t_len:
+                cuts[nc] = lo
+                nc += 1
+            if 0.0 < hi < t_len and hi != lo:
+                cuts[nc] = hi
+                nc += 1
+    ends = np.empty(nc + 1)
+    for q in range(nc):
+        ends[q] = cuts[q]
+    ends[nc] = t_len
+    for q in range(nc):
+        a = ends[q]
+        b = ends[q + 1]
+        fa = poly(c, a)
+        fb = poly(c, b)
+        if fa == 0.0 or fb == 0.0 or (fa > 0.0) == (fb > 0.0):
+            continue
+        for _ in range(200):  # bisection on a monotone piece, to rounding
+            m = 0.5 * (a + b)
+            if m <= a or m >= b:
+                break
+            fm = poly(c, m)
+            if (fm > 0.0) == (fa > 0.0):
+                a = m
+                fa = fm
+            else:
+                b = m
+        out[n] = 0.5 * (a + b)
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def _advance(regime: int, x0: float, c: npt.NDArray[np.float64], ta: float, tb: float,
+             ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
+             stiffness: float, b: npt.NDArray[np.float64], phi: npt.NDArray[np.float64],
+             gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
+             gl_a: npt.NDArray[np.float64], mat: npt.NDArray[np.float64],
+             rhs: npt.NDArray[np.float64], beta: npt.NDArray[np.float64],
+             gam: npt.NDArray[np.float64], alp: npt.NDArray[np.float64]
+             ) -> tuple[float, float, float]:
+    """``x(tb)``, ``∫x`` and ``∫γx`` from ``x(ta) = x0`` in one regime."""
+    length = tb - ta
+    if length <= 0.0:
+        return x0, 0.0, 0.0
+    if regime == FREE:
+        shift(c, ta, ascale, b)
+        xe, ix = free_step(x0, b, length)
+        return xe, ix, 0.0
+    if regime != SLIP:
+        shift(c, ta, ascale, b)
+        xe, ix = lag_step(x0, b, k_s, length, phi)
+        return xe, ix, 0.0
+    shift(c, ta, 1.0, b)
+    vbound = abs(b[0]) + length * (abs(b[1]) + length * (abs(b[2]) + length * abs(b[3])))
+    beta_max = 1.0 / k_s + vbound * (sa + sb) / kc
+    n = int(math.ceil(length * beta_max / stiffness))
+    if n < 1:
+        n = 1
+    h = length / n
+    x = x0
+    ix = 0.0
+    igx = 0.0
+    for m in range(n):
+        x, dix, digx = colloc_step(x, c, ta + m * h, h, ascale, k_s, kc, sa, sb, sc,
+                                   gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
+        ix += dix
+        igx += digx
+    return x, ix, igx
+
+
+@njit(cache=True)
+def _slope(regime: int, c: npt.NDArray[np.float64], tau: float, x: float, ascale: float,
+           k_s: float, kc: float, sa: float, sb: float, sc: float) -> tuple[float, float]:
+    """``x'`` and ``x''`` at ``tau`` given ``x(tau)``."""
+    v = poly(c, tau)
+    dv = dpoly(c, tau)
+    if regime == FREE:
+        return ascale * v, ascale * dv
+    if regime == GRIND:
+        y = -x / k_s
+        return y, -y / k_s
+    if regime == LAG:
+        y = ascale * v - x / k_s
+        return y, ascale * dv - y / k_s
+    sp = slope_factor(v, sa, sb, sc)
+    dsp = 0.0 if sb == 0.0 else -sc * sb * math.exp(-sc * v)
+    beta = 1.0 / k_s + v * sp / kc
+    dbeta = dv * (sp + v * dsp) / kc
+    y = ascale * v - beta * x
+    return y, ascale * dv - dbeta * x - beta * y
+
+
+@njit(cache=True)
+def _turn_x(regime: int, c: npt.NDArray[np.float64], tau: float, ascale: float, k_s: float,
+            kc: float, sa: float, sb: float, sc: float) -> float:
+    """``x`` at a turning point (``x' = 0``): ``α/β`` of the regime."""
+    v = poly(c, tau)
+    if regime == LAG:
+        return k_s * ascale * v
+    return ascale * v / (1.0 / k_s + v * slope_factor(v, sa, sb, sc) / kc)
+
+
+@njit(cache=True)
+def _root(which: int, regime: int, x0: float, c: npt.NDArray[np.float64], ta: float,
+          lo: float, hi: float, level: float, ascale: float, k_s: float, kc: float,
+          sa: float, sb: float, sc: float, stiffness: float, b: npt.NDArray[np.float64],
+          phi: npt.NDArray[np.float64], gl_c: npt.NDArray[np.float64],
+          gl_b: npt.NDArray[np.float64], gl_a: npt.NDArray[np.float64],
+          mat: npt.NDArray[np.float64], rhs: npt.NDArray[np.float64],
+          beta: npt.NDArray[np.float64], gam: npt.NDArray[np.float64],
+          alp: npt.NDArray[np.float64]) -> float:
+    """Root in ``[lo, hi]`` of ``x - level`` (``which = 0``) or of ``x'`` (``which = 1``).
+
+    The function must change sign on the bracket. Safeguarded Newton: a Newton step that
+    leaves the bracket is replaced by bisection, so it converges to rounding.
+    """
+    xl = _advance(regime, x0, c, ta, lo, ascale, k_s, kc, sa, sb, sc, stiffness, b, phi,
+                  gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
+    yl = _slope(regime, c, lo, xl, ascale, k_s, kc, sa, sb, sc)[0]
+    glo = xl - level if which == 0 else yl
+    tau = 0.5 * (lo + hi)
+    span = hi - lo
+    for _ in range(200):
+        x = _advance(regime, x0, c, ta, tau, ascale, k_s, kc, sa, sb, sc, stiffness, b,
+                     phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
+        y, dy = _slope(regime, c, tau, x, ascale, k_s, kc, sa, sb, sc)
+        if which == 0:
+            g = x - level
+            dg = y
+        else:
+            g = y
+            dg = dy
+        if g == 0.0:
+            return tau
+        if (g > 0.0) == (glo > 0.0):
+            lo = tau
+            glo = g
+        else:
+            hi = tau
+        if hi - lo <= 4e-16 * max(abs(hi), span):
+            return 0.5 * (lo + hi)
+        step_ok = False
+        if dg != 0.0:
+            nt = tau - g / dg
+            if lo < nt < hi:
+                if abs(nt - tau) <= 1e-15 * max(abs(tau), span):
+                    return nt
+                tau = nt
+                step_ok = True
+        if not step_ok:
+            tau = 0.5 * (lo + hi)
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
+                     coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
+                     seg_param: npt.NDArray[np.int64], seg_slot: npt.NDArray[np.int64],
+                     k_s: npt.NDArray[np.float64], kc: npt.NDArray[np.float64],
+                     kp: npt.NDArray[np.float64], sa: npt.NDArray[np.float64],
+                     sb: npt.NDArray[np.float64], sc: npt.NDArray[np.float64],
+                     fmax: npt.NDArray[np.float64], release: float,
+                     x_init: float, grind_init: bool, stiffness: float,
+                     gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
+                     gl_a: npt.NDArray[np.float64], sample_t: npt.NDArray[np.float64],
+                     samples: npt.NDArray[np.float64], acc: npt.NDArray[np.float64]
+                     ) -> tuple[float, bool, int]:
+    """Integrate all segments; fill ``acc`` (slots × N_ACC) and ``samples``.
+
+    Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
+    """
+    s = gl_c.shape[0]
+    mat = np.empty((s, s))
+    rhs = np.empty(s)
+    beta = np.empty(s)
+    gam = np.empty(s)
+    alp = np.empty(s)
+    b = np.empty(4)
+    phi = np.empty(6)
+    roots = np.empty(8)
+    x = x_init
+    grinding = grind_init
+    n_events = 0
+    ns = sample_t.shape[0]
+    js = 0
+    nseg = t0.shape[0]
+    # samples before the first segment: initial state at rest
+    while js < ns and nseg > 0 and sample_t[js] < t0[0]:
+        samples[js, S_T] = sample_t[js]
+        samples[js, S_E] = e0[0]
+        samples[js, S_X] = x
+        js += 1
+    k_last = 1.0
+    kc_last = 1.0
+    for i in range(nseg):
+        c = coef[i]
+        seg_len = dt[i]
+        p = seg_param[i]
+        slot = seg_slot[i]
+        kk = k_s[p]
+        kcc = kc[p]
+        k_last = kk
+        kc_last = kcc
+        kpp = kp[p]
+        saa = sa[p]
+        sbb = sb[p]
+        scc = sc[p]
+        has_slip = saa != 0.0 or sbb != 0.0
+        thr = kcc * fmax[p]
+        rel = (1.0 - release) * thr
+        nr = _vroots(c, seg_len, roots)
+        pa = 0.0
+        for q in range(nr + 1):
+            pb = roots[q] if q < nr else seg_len
+            if pb <= pa:
+                continue
+            vpos = poly(c, 0.5 * (pa + pb)) > 0.0
+            tau = pa
+            while tau < pb:
+                # regime of the state equation
+                if x > 0.0 or (x == 0.0 and vpos):
+                    if vpos:
+                        if grinding:
+                            regime = GRIND
+                            ascale = 0.0
+                        elif has_slip:
+                            regime = SLIP
+                            ascale = 1.0 - kpp
+                        else:
+                            regime = LAG
+                            ascale = 1.0 - kpp
+                    else:
+                        regime = LAG
+                        ascale = 1.0
+                else:
+                    regime = FREE
+                    ascale = 1.0 - kpp if vpos else 1.0
+                if (regime == LAG or regime == SLIP) and vpos and x >= thr:
+                    grinding = True  # starts above the maximum feed force: grind at once
+                    n_events += 1
+                    continue
+                xe, ix, igx = _advance(regime, x, c, tau, pb, ascale, kk, kcc, saa, sbb, scc,
+                                       stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs, beta,
+                                       gam, alp)
+                tend = pb
+                event = _EV_NONE
+                level = 0.0
+                turn_t = -1.0
+                if regime == FREE:
+                    if vpos and xe > 0.0:
+                        event = _EV_LEVEL
+                        level = 0.0
+                elif regime == GRIND:
+                    if xe <= rel:
+                        event = _EV_RELEASE
+                        level = rel
+                        tend = tau + kk * math.log(x / rel)
+                        if tend > pb:
+                            tend = pb
+                        if tend < tau:
+                            tend = tau
+                elif not vpos:
+                    if grinding and xe <= rel:
+                        event = _EV_RELEASE
+                        level = rel
+                    elif xe < 0.0:
+                        event = _EV_LEVEL
+                        level = 0.0
+                else:
+                    ya = _slope(regime, c, tau, x, ascale, kk, kcc, saa, sbb, scc)[0]
+                    yb = _slope(regime, c, pb, xe, ascale, kk, kcc, saa, sbb, scc)[0]
+                    if (ya > 0.0 and yb < 0.0) or (ya < 0.0 and yb > 0.0):
+                        turn_t = -1.0
+                        if regime == LAG and c[2] == 0.0 and c[3] == 0.0:
+                            # linear input: x' = K b1 + (x'(tau) - K b1) e^{-(τ-tau)/K}
+                            kb1 = kk * ascale * c[1]
+                            ratio = kb1 / (kb1 - ya)
+                            if 0.0 < ratio < 1.0:
+                                turn_t = min(max(tau - kk * math.log(ratio), tau), pb)
+                        if turn_t < 0.0:
+                            turn_t = _root(1, regime, x, c, tau, tau, pb, 0.0, ascale, kk,
+                                           kcc, saa, sbb, scc, stiffness, b, phi, gl_c, gl_b,
+                                           gl_a, mat, rhs, beta, gam, alp)
+                    if thr < math.inf:
+                        if xe >= thr:
+                            event = _EV_THRESHOLD
+                            level = thr
+                        elif turn_t >= 0.0 and ya > 0.0:
+                            xt = _turn_x(regime, c, turn_t, ascale, kk, kcc, saa, sbb, scc)
+                            if xt >= thr:
+                                event = _EV_THRESHOLD
+                                level = thr
+                                tend = turn_t
+                if event != _EV_NONE and regime != GRIND:
+                    tend = _root(0, regime, x, c, tau, tau, tend, level, ascale, kk, kcc, saa,
+                                 sbb, scc, stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs,
+                                 beta, gam, alp)
+                if event != _EV_NONE:
+                    n_events += 1
+                    xe, ix, igx = _advance(regime, x, c, tau, tend, ascale, kk, kcc, saa, sbb,
+                                           scc, stiffness, b, phi, gl_c, gl_b, gl_a, mat,
+                                           rhs, beta, gam, alp)
+                    xe = level
+                # ---- accumulate over [tau, tend]
+                length = tend - tau
+                shift(c, tau, 1.0, b)
+                cmd = ipoly(b, length)
+                row = acc[slot]
+                row[A_CMD] += cmd
+                row[A_TIME] += length
+                if vpos:
+                    row[A_FWD] += cmd
+                if regime == GRIND:
+                    row[A_GRIND] += cmd
+                else:
+                    row[A_FED] += ascale * cmd - igx
+                    if vpos:
+                        row[A_SLIP] += kpp * cmd + igx
+                if grinding:
+                    row[A_GTIME] += length
+                if regime != FREE:
+                    row[A_OUT] += ix / kk
+                    xhi = max(x, xe)
+                    xlo = min(x, xe)
+                    if event == _EV_NONE and turn_t > tau and turn_t < tend:
+                        xt = _turn_x(regime, c, turn_t, ascale, kk, kcc, saa, sbb, scc)
+                        xhi = max(xhi, xt)
+                        xlo = min(xlo, xt)
+                    xlo = max(xlo, 0.0)
+                    xhi = max(xhi, 0.0)
+                else:
+                    xlo = 0.0
+                    xhi = 0.0
+                if xhi / kcc > row[A_FMAX]:
+                    row[A_FMAX] = xhi / kcc
+                if xhi / kk > row[A_QMAX]:
+                    row[A_QMAX] = xhi / kk
+                if xlo / kk < row[A_QMIN]:
+                    row[A_QMIN] = xlo / kk
+                # ---- samples inside [tau, tend)
+                while js < ns and sample_t[js] < t0[i] + tend:
+                    ts = sample_t[js] - t0[i]
+                    if ts < tau:
+                        ts = tau
+                    xs = _advance(regime, x, c, tau, ts, ascale, kk, kcc, saa, sbb, scc,
+                                  stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam,
+                                  alp)[0]
+                    v = poly(c, ts)
+                    if regime == GRIND:
+                        vfil = 0.0
+                    elif regime == SLIP:
+                        vfil = ascale * v - v * slope_factor(v, saa, sbb, scc) / kcc * xs
+                    else:
+                        vfil = ascale * v
+                    row_s = samples[js]
+                    row_s[S_T] = sample_t[js]
+                    row_s[S_E] = e0[i] + ipoly(c, ts)
+                    row_s[S_VCMD] = v
+                    row_s[S_VFIL] = vfil
+                    xp = max(xs, 0.0)
+                    row_s[S_Q] = xp / kk
+                    row_s[S_F] = xp / kcc
+                    row_s[S_SLIP] = 1.0 - vfil / v if v > 0.0 else 0.0
+                    row_s[S_X] = xs
+                    js += 1
+                # ---- state change
+                x = xe
+                tau = tend
+                if event == _EV_THRESHOLD:
+                    grinding = True
+                elif event == _EV_RELEASE:
+                    grinding = False
+            pa = pb
+    # samples after the end: final state at rest
+    e_end = e0[nseg - 1] + ipoly(coef[nseg - 1], dt[nseg - 1]) if nseg > 0 else 0.0
+    while js < ns:
+        row_s = samples[js]
+        row_s[S_T] = sample_t[js]
+        row_s[S_E] = e_end
+        xp = max(x, 0.0)
+        row_s[S_Q] = xp / k_last
+        row_s[S_F] = xp / kc_last
+        row_s[S_X] = x
+        js += 1
+    return x, grinding, n_events

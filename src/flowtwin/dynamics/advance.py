@@ -1,0 +1,420 @@
+"""Firmware pressure advance, applied to the commanded feed as each firmware does it.
+
+Which moves get advance (all firmwares: the advance factor ``K`` is in seconds):
+
+* **Klipper** (``SET_PRESSURE_ADVANCE ADVANCE= SMOOTH_TIME=``; ``[extruder]
+  pressure_advance``/``pressure_advance_smooth_time``): the advanced position
+  ``e + K·v_E`` on moves with XY motion and increasing E (``kinematics/extruder.py``),
+  then a triangular (symmetric) average over ``smooth_time`` (default 0.040 s), which also
+  smooths moves without advance; with ``K = 0`` no smoothing at all (Klipper docs,
+  Pressure_Advance.md, Kinematics.md; formula in ``_advance_kernels``). M900/M572 are
+  unknown to Klipper and ignored.
+* **Prusa** (Buddy firmware, ``M572 S<K> W<smooth time>``): the same filter, evaluated by
+  Prusa as a sampled Bartlett (triangular) FIR window spanning ``W`` (default 0.04 s); the
+  continuous window is used here (the difference is O(sample interval²)). Missing ``S``/``W``
+  keep their value; ``S`` outside 0–10 s or ``W`` outside 0–0.2 s are ignored (as the
+  firmware does, with a message).
+* **Marlin** Linear Advance 1.5 (``M900 K``, 0–10): advance ``K·v_E`` reached by a constant
+  speed offset ``K·a_E`` during acceleration/deceleration (tracking, ``_advance_kernels``),
+  on blocks with XYZ motion, ``de > 0`` and ``de/D ≤ 3``. The planner's acceleration cap
+  (E-jerk / (K·de/D)) belongs to the planner.
+* **RepRapFirmware** (``M572 D<extruder> S<K>``): ``v_E + K·dv_E/dt`` within each move with
+  XY (non-Z) motion and forward extrusion, i.e. the drive is advanced by ``K·v_E`` along a
+  move; a jump of ``v_E`` between two moves (a change of extrusion ratio) is not advanced
+  (a position step cannot be executed).
+
+The G-code commands take effect from the move that follows them. Commands the chosen
+firmware does not know are counted in the warnings, not applied.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.dynamics._advance_kernels import klipper_smooth, marlin_track, merge_breakpoints
+from flowtwin.dynamics.feed import PHASE_GAP, PHASE_MIXED, CommandedFeed
+from flowtwin.errors import ProfileError
+from flowtwin.gcode.moves import Event, MoveKind, MoveTable
+
+__all__ = [
+    "DEFAULT_SMOOTH_TIME_S",
+    "AdvanceSchedule",
+    "AdvanceSettings",
+    "Firmware",
+    "advance_eligible",
+    "advance_schedule",
+    "apply_advance",
+]
+
+#: Klipper's default pressure_advance_smooth_time and Prusa's default M572 W, s.
+DEFAULT_SMOOTH_TIME_S = 0.040
+_MAX_SMOOTH_TIME_S = 0.200  # Klipper (maxval=.200) and Prusa (0-0.2)
+
+
+class Firmware(StrEnum):
+    """Firmware whose pressure advance is modelled."""
+
+    KLIPPER = "klipper"
+    MARLIN = "marlin"
+    RRF = "rrf"
+    PRUSA = "prusa"
+
+
+@dataclass(frozen=True, slots=True)
+class AdvanceSettings:
+    """Pressure advance configuration of a printer.
+
+    Attributes
+    ----------
+    firmware
+        Which firmware's algorithm and G-code commands apply.
+    k_s
+        Advance factor from the profile/config before any G-code command, s (``>= 0``).
+    smooth_time_s
+        Klipper ``pressure_advance_smooth_time`` / Prusa ``W``, s (``0 < t <= 0.2``).
+    use_gcode
+        Honour M900 / M572 / SET_PRESSURE_ADVANCE found in the G-code.
+    tool
+        Extruder the feed belongs to (``None``: tool 0 / the only extruder); commands
+        addressed to other extruders are ignored.
+    """
+
+    firmware: Firmware
+    k_s: float = 0.0
+    smooth_time_s: float = DEFAULT_SMOOTH_TIME_S
+    use_gcode: bool = True
+    tool: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.k_s >= 0.0 and np.isfinite(self.k_s)):
+            raise ProfileError("pressure advance must be >= 0", field="k_s", value=self.k_s,
+                               allowed="0 <= K (s)")
+        if not (0.0 < self.smooth_time_s <= _MAX_SMOOTH_TIME_S):
+            raise ProfileError("smooth time out of range", field="smooth_time_s",
+                               value=self.smooth_time_s, allowed="0 < t <= 0.2 s")
+
+
+@dataclass(frozen=True, slots=True)
+class AdvanceSchedule:
+    """Pressure advance in force for every move.
+
+    Attributes
+    ----------
+    k_s
+        Advance setting in force at each move, s, shape ``(n_moves,)``.
+    smooth_time_s
+        Smoothing window in force at each move, s, shape ``(n_moves,)``.
+    eligible
+        Whether the firmware advances each move, shape ``(n_moves,)``.
+    applied
+        Number of G-code commands that changed the setting.
+    warnings
+        Commands ignored, with line numbers.
+    """
+
+    k_s: npt.NDArray[np.float64]
+    smooth_time_s: npt.NDArray[np.float64]
+    eligible: npt.NDArray[np.bool_]
+    applied: int = 0
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def k_eff_s(self) -> npt.NDArray[np.float64]:
+        """Advance actually applied per move (``k_s`` where eligible, else 0), s."""
+        return np.where(self.eligible, self.k_s, 0.0)
+
+
+def advance_eligible(moves: MoveTable, firmware: Firmware) -> npt.NDArray[np.bool_]:
+    """Moves the firmware applies pressure advance to, shape ``(n_moves,)``.
+
+    Klipper, Prusa, RRF: XY motion and ``de > 0``. Marlin: XYZ motion, ``de > 0`` and
+    ``de/D <= 3`` (``D`` the XYZ length; higher ratios are taken for retract/prime moves).
+    """
+    mv = moves.moves
+    de = np.asarray(mv["de"], dtype=np.float64)
+    if firmware is not Firmware.MARLIN:
+        return (de > 0.0) & ((mv["kind"] & int(MoveKind.XY)) != 0)
+    end = np.stack([mv["x"], mv["y"], mv["z"]], axis=1).astype(np.float64)
+    start = np.vstack([np.asarray(moves.start_xyze[:3], dtype=np.float64)[None, :], end[:-1]])
+    dist = np.sqrt(np.sum((end - start) ** 2, axis=1))
+    ok = (de > 0.0) & (dist > 0.0)
+    ratio = np.zeros_like(de)
+    np.divide(de, dist, out=ratio, where=dist > 0.0)
+    return ok & (ratio <= 3.0)
+
+
+def _num(ev: Event, key: str, warnings: list[str], source: str) -> float | None:
+    if key not in ev.params:
+        return None
+    val = ev.params[key]
+    if isinstance(val, str):
+        warnings.append(f"{source}:{ev.line}: {ev.code} {key}={val!r} is not a number; ignored")
+        return None
+    return float(val)
+
+
+def advance_schedule(moves: MoveTable, settings: AdvanceSettings) -> AdvanceSchedule:
+    """Advance setting per move from the profile and the G-code commands.
+
+    Parameters
+    ----------
+    moves
+        Move table with its events.
+    settings
+        Firmware and profile values.
+
+    Returns
+    -------
+    AdvanceSchedule
+        Per-move setting, smoothing, eligibility and notes.
+    """
+    fw = settings.firmware
+    n = len(moves)
+    k_cur = settings.k_s
+    st_cur = settings.smooth_time_s
+    at: list[int] = [0]
+    ks: list[float] = [k_cur]
+    sts: list[float] = [st_cur]
+    warnings: list[str] = []
+    ignored: dict[str, int] = {}
+    applied = 0
+    tool = 0 if settings.tool is None else settings.tool
+    src = moves.source
+    pa_codes = {"M900", "M572", "SET_PRESSURE_ADVANCE"}
+    own = {Firmware.KLIPPER: "SET_PRESSURE_ADVANCE", Firmware.MARLIN: "M900",
+           Firmware.RRF: "M572", Firmware.PRUSA: "M572"}[fw]
+    for ev in moves.events if settings.use_gcode else []:
+        if ev.code not in pa_codes:
+            continue
+        if ev.code != own:
+            ignored[ev.code] = ignored.get(ev.code, 0) + 1
+            continue
+        new_k = k_cur
+        new_st = st_cur
+        if fw is Firmware.KLIPPER:
+            name = ev.params.get("EXTRUDER")
+            if name is not None and str(name) != ("extruder" if tool == 0 else f"extruder{tool}"):
+                continue
+            adv = _num(ev, "ADVANCE", warnings, src)
+            smooth = _num(ev, "SMOOTH_TIME", warnings, src)
+            if adv is not None:
+                if adv < 0.0:
+                    warnings.append(f"{src}:{ev.line}: ADVANCE={adv} < 0 rejected by Klipper")
+                else:
+                    new_k = adv
+            if smooth is not None:
+                if not (0.0 <= smooth <= _MAX_SMOOTH_TIME_S):
+                    warnings.append(f"{src}:{ev.line}: SMOOTH_TIME={smooth} outside 0-0.2 s "
+                                    "rejected by Klipper")
+                else:
+                    new_st = smooth
+        elif fw is Firmware.MARLIN:
+            t_sel = _num(ev, "T", warnings, src)
+            if t_sel is not None and int(t_sel) != tool:
+                continue
+            k = _num(ev, "K", warnings, src)
+            if k is None:
+                continue  # M900 without K reports only
+            if not (0.0 <= k <= 10.0):
+                warnings.append(f"{src}:{ev.line}: M900 K{k} out of range 0-10; ignored")
+                continue
+            new_k = k
+        else:
+            d_sel = ev.params.get("D")
+            if d_sel is not None and fw is Firmware.RRF:
+                wanted = {int(float(p)) for p in str(d_sel).split(":") if p.strip()}
+                if tool not in wanted:
+                    continue
+            s_val = _num(ev, "S", warnings, src)
+            if fw is Firmware.RRF:
+                if s_val is not None and s_val >= 0.0:
+                    new_k = s_val
+            else:
+                w_val = _num(ev, "W", warnings, src)
+                if s_val is not None:
+                    if 0.0 <= s_val <= 10.0:
+                        new_k = s_val
+                    else:
+                        warnings.append(f"{src}:{ev.line}: M572 S{s_val} out of range 0-10; "
+                                        "ignored")
+                if w_val is not None:
+                    if 0.0 <= w_val <= _MAX_SMOOTH_TIME_S:
+                        new_st = w_val
+                    else:
+                        warnings.append(f"{src}:{ev.line}: M572 W{w_val} out of range "
+                                        "0-0.2; ignored")
+        k_cur, st_cur = new_k, new_st
+        at.append(ev.move_index)
+        ks.append(k_cur)
+        sts.append(st_cur)
+        applied += 1
+    for code, count in sorted(ignored.items()):
+        warnings.append(f"{code} ignored {count}x: not a {fw.value} pressure-advance command")
+    idx = np.searchsorted(np.asarray(at), np.arange(n), side="right") - 1
+    return AdvanceSchedule(k_s=np.asarray(ks)[idx], smooth_time_s=np.asarray(sts)[idx],
+                           eligible=advance_eligible(moves, fw), applied=applied,
+                           warnings=tuple(warnings))
+
+
+def apply_advance(feed: CommandedFeed, moves: MoveTable,
+                  settings: AdvanceSettings) -> CommandedFeed:
+    """Shape a nominal feed with the firmware's pressure advance.
+
+    Parameters
+    ----------
+    feed
+        Nominal feed from :func:`~flowtwin.dynamics.feed.nominal_feed` (piecewise linear,
+        with planner phases).
+    moves
+        The move table the feed was built from (events, kinds, positions).
+    settings
+        Firmware and profile values.
+
+    Returns
+    -------
+    CommandedFeed
+        The feed as the firmware commands it (``advance`` names the firmware).
+
+    Raises
+    ------
+    ProfileError
+        The feed was built from another move table, or already carries advance.
+    """
+    if feed.n_moves != len(moves):
+        raise ProfileError("feed and move table differ", field="moves", value=len(moves),
+                           allowed=f"{feed.n_moves} moves")
+    if feed.advance != "none" or np.any(feed.phase == PHASE_MIXED):
+        raise ProfileError("feed already carries pressure advance", field="feed.advance",
+                           value=feed.advance, allowed="a nominal feed")
+    sched = advance_schedule(moves, settings)
+    fw = settings.firmware
+    if fw in (Firmware.KLIPPER, Firmware.PRUSA):
+        out = _smoothed(feed, sched)
+    elif fw is Firmware.MARLIN:
+        out = _marlin(feed, sched)
+    else:
+        out = _rrf(feed, sched)
+    return CommandedFeed(t0_s=out[0], dt_s=out[1], coef=out[2], e0_mm=out[3], move=out[4],
+                         gap=out[5], phase=out[6], move_t0_s=feed.move_t0_s,
+                         move_t1_s=feed.move_t1_s, move_de_mm=feed.move_de_mm,
+                         e_start_mm=feed.e_start_mm, advance=fw.value,
+                         warnings=feed.warnings + sched.warnings)
+
+
+_Arrays = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64],
+                npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.bool_],
+                npt.NDArray[np.int8]]
+
+
+def _seg_k(feed: CommandedFeed, k_move: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Per-segment advance: the move's value on move segments, 0 on stops."""
+    k = np.zeros(feed.n_segments)
+    own = ~feed.gap & (feed.move >= 0)
+    k[own] = k_move[feed.move[own]]
+    return k
+
+
+def _rrf(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
+    k = _seg_k(feed, sched.k_eff_s)
+    extra_v = k * feed.coef[:, 1]
+    coef = feed.coef.copy()
+    coef[:, 0] += extra_v
+    adv_inc = extra_v * feed.dt_s
+    adv_before = np.concatenate(([0.0], np.cumsum(adv_inc)[:-1]))
+    return (feed.t0_s, feed.dt_s, coef, feed.e0_mm + adv_before, feed.move, feed.gap,
+            feed.phase)
+
+
+def _marlin(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
+    n = feed.n_moves
+    k = sched.k_eff_s
+    # per-move E speeds and acceleration from the nominal feed's phases
+    v_cruise = np.zeros(n)
+    v_end = np.zeros(n)
+    a_e = np.zeros(n)
+    mv = ~feed.gap & (feed.move >= 0)
+    idx = feed.move[mv]
+    ph = feed.phase[mv]
+    v0 = feed.coef[mv, 0]
+    a = feed.coef[mv, 1]
+    dt = feed.dt_s[mv]
+    cru = ph == 1
+    v_cruise[idx[cru]] = v0[cru]
+    acc_ph = ph == 0
+    v_cruise[idx[acc_ph]] = np.maximum(v_cruise[idx[acc_ph]], v0[acc_ph] + a[acc_ph] * dt[acc_ph])
+    a_e[idx[acc_ph]] = np.abs(a[acc_ph])
+    dec = ph == 2
+    v_cruise[idx[dec]] = np.maximum(v_cruise[idx[dec]], v0[dec])
+    v_end[idx[dec]] = v0[dec] + a[dec] * dt[dec]
+    a_e[idx[dec]] = np.maximum(a_e[idx[dec]], np.abs(a[dec]))
+    no_dec = np.ones(n, dtype=bool)
+    no_dec[idx[dec]] = False
+    v_end[no_dec] = v_cruise[no_dec]
+    rate = k * a_e
+    nb = feed.n_segments
+    o = [np.empty(2 * nb) for _ in range(5)]
+    src = np.empty(2 * nb, dtype=np.int64)
+    cnt = marlin_track(feed.t0_s, feed.dt_s, np.ascontiguousarray(feed.coef[:, 0]),
+                       np.ascontiguousarray(feed.coef[:, 1]), feed.e0_mm, feed.move, feed.gap,
+                       feed.phase, k * v_cruise, k * v_end, rate, o[0], o[1], o[2], o[3],
+                       o[4], src)
+    coef = np.zeros((cnt, 4))
+    coef[:, 0] = o[2][:cnt]
+    coef[:, 1] = o[3][:cnt]
+    s = src[:cnt]
+    return (o[0][:cnt], o[1][:cnt], coef, o[4][:cnt], feed.move[s], feed.gap[s], feed.phase[s])
+
+
+def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
+    n = feed.n_moves
+    h_move = np.where(sched.k_s > 0.0, 0.5 * sched.smooth_time_s, 0.0)
+    h_max = float(np.max(h_move)) if n else 0.0
+    pad = 2.0 * h_max
+    # base segments, padded with rest before and after (extended to infinity by the kernel)
+    rest = np.zeros((1, 4))
+    t0 = np.concatenate(([feed.t_begin_s - pad], feed.t0_s, [feed.t_end_s]))
+    dt = np.concatenate(([pad], feed.dt_s, [pad]))
+    coef = np.vstack([rest, feed.coef, rest])
+    e0 = np.concatenate(([feed.e_start_mm], feed.e0_mm, [feed.e_end_mm()]))
+    k_seg = np.concatenate(([0.0], _seg_k(feed, sched.k_eff_s), [0.0]))
+    bounds = np.concatenate((t0, [t0[-1] + dt[-1]]))
+    t_lo, t_hi = float(bounds[0]), float(bounds[-1])
+    # regimes of constant window half width, switching at the start of a move
+    if n:
+        change = np.flatnonzero(np.diff(h_move) != 0.0) + 1
+        starts = np.concatenate(([t_lo], feed.move_t0_s[change], [t_hi]))
+        h_reg = np.concatenate(([h_move[0]], h_move[change]))
+    else:
+        starts = np.array([t_lo, t_hi])
+        h_reg = np.zeros(1)
+    pieces: list[npt.NDArray[np.float64]] = []
+    widths: list[npt.NDArray[np.float64]] = []
+    for r, h in enumerate(h_reg):
+        lo = max(float(starts[r]), t_lo)
+        hi = min(float(starts[r + 1]), t_hi)
+        if hi <= lo:
+            continue
+        a = int(np.searchsorted(bounds, lo - h, side="left"))
+        b = int(np.searchsorted(bounds, hi + h, side="right"))
+        u = merge_breakpoints(np.ascontiguousarray(bounds[a:b]), float(h), lo, hi)
+        pieces.append(u[:-1])
+        widths.append(np.full(u.shape[0] - 1, float(h)))
+    u_all = np.concatenate([*pieces, [t_hi]])
+    hp = np.concatenate(widths)
+    m = hp.shape[0]
+    out_coef = np.zeros((m, 4))
+    out_e0 = np.zeros(m)
+    klipper_smooth(t0, dt, np.ascontiguousarray(coef[:, 0]), np.ascontiguousarray(coef[:, 1]),
+                   e0, k_seg, u_all, hp, out_coef, out_e0)
+    p_t0 = u_all[:-1]
+    p_dt = np.diff(u_all)
+    mid = p_t0 + 0.5 * p_dt
+    owner = np.searchsorted(feed.move_t0_s, mid, side="right") - 1
+    inside = owner >= 0
+    inside[inside] = mid[inside] < feed.move_t1_s[owner[inside]]
+    phase = np.where(inside, PHASE_MIXED, PHASE_GAP).astype(np.int8)
+    return (p_t0, p_dt, out_coef, out_e0, owner.astype(np.int64), ~inside, phase)

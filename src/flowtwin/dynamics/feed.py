@@ -1,0 +1,309 @@
+"""The commanded extruder motion: piecewise-polynomial filament speed against time.
+
+The planner gives every move three phases of constant acceleration along its path
+(:class:`~flowtwin.planner.timeline.Timeline`). The extruder follows the toolhead: during
+a move it turns ``de · flow`` (M221 included) over the move's path length ``L``, so its
+speed is ``v_E(t) = r · v_path(t)`` with ``r = de · flow / L`` — piecewise linear in time,
+with the same breakpoints as the toolhead (extrude-only moves have their own trapezoid,
+whose "path" is the E distance). ``L`` is taken from the phases themselves
+(``(v0 + v1)/2 · t`` per phase), so the E motion of each move integrates exactly to
+``de · flow`` whatever length convention the planner used.
+
+:class:`CommandedFeed` stores that motion as segments with a cubic speed
+``v(τ) = c0 + c1 τ + c2 τ² + c3 τ³`` in local time ``τ ∈ [0, dt]`` (cubic because
+Klipper's smoothed pressure advance is cubic, :mod:`flowtwin.dynamics.advance`), the
+commanded position at each segment start, and which move (or which stop between moves)
+each segment belongs to. Stops between moves (dwells, forced stops) are segments with
+``v = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.errors import DataError
+from flowtwin.gcode.moves import MoveTable
+from flowtwin.planner.timeline import Timeline
+
+__all__ = ["PHASE_ACCEL", "PHASE_CRUISE", "PHASE_DECEL", "PHASE_GAP", "PHASE_MIXED",
+           "CommandedFeed", "nominal_feed"]
+
+PHASE_ACCEL = 0
+PHASE_CRUISE = 1
+PHASE_DECEL = 2
+PHASE_GAP = 3
+PHASE_MIXED = -1  # segment made by pressure-advance smoothing (spans phases)
+
+#: Relative time tolerance when checking that moves do not overlap on the timeline.
+_OVERLAP_TOL_S = 1e-9
+#: Negative phase times down to this are rounding residue of the planner, taken as 0.
+_PHASE_RESIDUE_S = 1e-12
+
+
+@dataclass(frozen=True, slots=True)
+class CommandedFeed:
+    """Commanded filament motion of one extruder (filament mm, after M221).
+
+    Attributes
+    ----------
+    t0_s
+        Segment start times, s, shape ``(n,)``, increasing; segments are contiguous
+        (``t0_s[i] + dt_s[i] == t0_s[i + 1]`` up to rounding).
+    dt_s
+        Segment durations, s, shape ``(n,)``, ``> 0``.
+    coef
+        Speed polynomial per segment, shape ``(n, 4)``: ``v(τ) = c0 + c1 τ + c2 τ² + c3 τ³``
+        in mm/s, mm/s², mm/s³, mm/s⁴.
+    e0_mm
+        Commanded extruder position at each segment start, mm, shape ``(n,)``.
+    move
+        Owning move index per segment, shape ``(n,)``; for stop segments the index of the
+        move before the stop (``-1`` before the first move).
+    gap
+        ``True`` for segments between moves (stops, dwells, lead-in and tail), shape ``(n,)``.
+    phase
+        Planner phase of the segment (``PHASE_*``), shape ``(n,)``.
+    move_t0_s, move_t1_s
+        Start and end time of every move, shape ``(n_moves,)``.
+    move_de_mm
+        Filament commanded by each move as written (``de · flow``), shape ``(n_moves,)``.
+    e_start_mm
+        Extruder position before the first segment.
+    advance
+        Which pressure advance shaped the feed (``"none"``, ``"klipper"``, ``"marlin"``,
+        ``"rrf"``, ``"prusa"``).
+    warnings
+        Non-fatal notes.
+    """
+
+    t0_s: npt.NDArray[np.float64]
+    dt_s: npt.NDArray[np.float64]
+    coef: npt.NDArray[np.float64]
+    e0_mm: npt.NDArray[np.float64]
+    move: npt.NDArray[np.int64]
+    gap: npt.NDArray[np.bool_]
+    phase: npt.NDArray[np.int8]
+    move_t0_s: npt.NDArray[np.float64]
+    move_t1_s: npt.NDArray[np.float64]
+    move_de_mm: npt.NDArray[np.float64]
+    e_start_mm: float = 0.0
+    advance: str = "none"
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        n = self.t0_s.shape[0]
+        shapes = {"dt_s": self.dt_s.shape, "e0_mm": self.e0_mm.shape, "move": self.move.shape,
+                  "gap": self.gap.shape, "phase": self.phase.shape}
+        for name, shape in shapes.items():
+            if shape != (n,):
+                raise DataError("commanded feed arrays differ in length", field=name,
+                                value=shape, allowed=f"({n},)")
+        if self.coef.shape != (n, 4):
+            raise DataError("commanded feed coefficients must be (n, 4)", field="coef",
+                            value=self.coef.shape, allowed=f"({n}, 4)")
+        m = self.move_t0_s.shape[0]
+        if self.move_t1_s.shape != (m,) or self.move_de_mm.shape != (m,):
+            raise DataError("per-move arrays differ in length", field="move_t1_s",
+                            value=(self.move_t1_s.shape, self.move_de_mm.shape),
+                            allowed=f"({m},)")
+
+    @property
+    def n_segments(self) -> int:
+        """Number of segments."""
+        return int(self.t0_s.shape[0])
+
+    @property
+    def n_moves(self) -> int:
+        """Number of moves of the move table the feed was built from."""
+        return int(self.move_t0_s.shape[0])
+
+    @property
+    def t_begin_s(self) -> float:
+        """Start of the first segment, s."""
+        return float(self.t0_s[0]) if self.n_segments else 0.0
+
+    @property
+    def t_end_s(self) -> float:
+        """End of the last segment, s."""
+        return float(self.t0_s[-1] + self.dt_s[-1]) if self.n_segments else 0.0
+
+    def segment_mm(self) -> npt.NDArray[np.float64]:
+        """Filament commanded per segment, ``∫ v dτ``, mm, shape ``(n,)``."""
+        t = self.dt_s
+        c = self.coef
+        return t * (c[:, 0] + t * (0.5 * c[:, 1] + t * (c[:, 2] / 3.0 + t * 0.25 * c[:, 3])))
+
+    def e_end_mm(self) -> float:
+        """Commanded position at the end of the feed, mm."""
+        if not self.n_segments:
+            return self.e_start_mm
+        return float(self.e0_mm[-1] + self.segment_mm()[-1])
+
+    def _locate(self, t_s: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        t = np.asarray(t_s, dtype=np.float64)
+        idx = np.searchsorted(self.t0_s, t, side="right") - 1
+        idx = np.clip(idx, 0, self.n_segments - 1)
+        tau = np.clip(t - self.t0_s[idx], 0.0, self.dt_s[idx])
+        return idx, tau
+
+    def velocity_at(self, t_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Commanded filament speed at times ``t_s`` (right-continuous), mm/s.
+
+        Outside the feed the extruder is at rest (0).
+        """
+        t = np.asarray(t_s, dtype=np.float64)
+        idx, tau = self._locate(t)
+        c = self.coef[idx]
+        v = c[..., 0] + tau * (c[..., 1] + tau * (c[..., 2] + tau * c[..., 3]))
+        return np.where((t < self.t_begin_s) | (t >= self.t_end_s), 0.0, v)
+
+    def position_at(self, t_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Commanded extruder position at times ``t_s``, mm (held outside the feed)."""
+        t = np.asarray(t_s, dtype=np.float64)
+        idx, tau = self._locate(np.clip(t, self.t_begin_s, self.t_end_s))
+        c = self.coef[idx]
+        e = self.e0_mm[idx] + tau * (c[..., 0] + tau * (0.5 * c[..., 1] + tau * (
+            c[..., 2] / 3.0 + tau * 0.25 * c[..., 3])))
+        return np.where(t < self.t_begin_s, self.e_start_mm, e)
+
+
+def _clamp_residue(t: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    return np.where((t < 0.0) & (t >= -_PHASE_RESIDUE_S), 0.0, t)
+
+
+def _e_ratio(moves: MoveTable, timeline: Timeline, *, tool: int | None
+             ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """E distance per path distance ``r`` and ``de · flow`` per move (checked)."""
+    mv = moves.moves
+    ph = timeline.phases
+    de = np.asarray(mv["de"], dtype=np.float64) * np.asarray(mv["flow"], dtype=np.float64)
+    if tool is not None:
+        de = np.where(mv["tool"] == tool, de, 0.0)
+    ta, tc, td = (_clamp_residue(np.asarray(ph[f], dtype=np.float64))
+                  for f in ("accel_t", "cruise_t", "decel_t"))
+    sv = np.asarray(ph["start_v"], dtype=np.float64)
+    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
+    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    length = 0.5 * (sv + cv) * ta + cv * tc + 0.5 * (cv + ev) * td
+    bad = (de != 0.0) & ~(length > 0.0)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError("move extrudes but the planner gives it no motion (zero path length "
+                        "or zero duration)", source=moves.source, line=int(mv["line"][i]),
+                        field="timeline.phases", value=float(de[i]),
+                        allowed="moves with de != 0 need a duration > 0")
+    r = np.zeros_like(de)
+    np.divide(de, length, out=r, where=length > 0.0)
+    return r, de
+
+
+def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = None,
+                 e_start_mm: float = 0.0, lead_s: float = 0.0, tail_s: float = 0.0
+                 ) -> CommandedFeed:
+    """Commanded extruder motion of a planned move table, without pressure advance.
+
+    Parameters
+    ----------
+    moves
+        Move table, ``n_moves`` rows.
+    timeline
+        Planner output aligned with ``moves`` (``phases`` of shape ``(n_moves,)``).
+    tool
+        Only moves of this tool drive the extruder (others count as travels for it);
+        ``None``: every move's E drives it (single extruder; pseudo-tools included).
+    e_start_mm
+        Extruder position before the first move, mm.
+    lead_s, tail_s
+        Extra rest time before the first and after the last move, s (``>= 0``).
+
+    Returns
+    -------
+    CommandedFeed
+        Piecewise-linear speed (``coef[:, 2:] == 0``), one segment per non-empty phase
+        and per stop between moves.
+
+    Raises
+    ------
+    DataError
+        Tables of different length, negative or non-finite phase times, overlapping
+        moves, or a move with ``de != 0`` but no motion.
+    """
+    n = len(moves)
+    ph = timeline.phases
+    if ph.shape != (n,):
+        raise DataError("timeline does not match the move table", source=moves.source,
+                        field="timeline.phases", value=ph.shape, allowed=f"({n},)")
+    if lead_s < 0.0 or tail_s < 0.0 or not np.isfinite(lead_s + tail_s):
+        raise DataError("lead/tail time must be finite and >= 0", field="lead_s/tail_s",
+                        value=(lead_s, tail_s), allowed=">= 0")
+    # planners leave rounding residue like -2e-18 s in phase times: clamp it to 0
+    ta, tc, td = (_clamp_residue(np.asarray(ph[f], dtype=np.float64))
+                  for f in ("accel_t", "cruise_t", "decel_t"))
+    ts = np.asarray(ph["t_start"], dtype=np.float64)
+    times = np.stack([ta, tc, td, ts])
+    if not np.all(np.isfinite(times)) or np.any(times[:3] < 0.0):
+        i = int(np.flatnonzero(~np.all(np.isfinite(times), axis=0) | np.any(times[:3] < 0.0,
+                                                                               axis=0))[0])
+        raise DataError("phase times must be finite and >= 0", source=moves.source,
+                        line=int(moves.moves["line"][i]), field="timeline.phases",
+                        value=tuple(float(v) for v in times[:, i]), allowed=">= 0")
+    dur = ta + tc + td
+    te = ts + dur
+    if n > 1:
+        overlap = te[:-1] - ts[1:]
+        tol = _OVERLAP_TOL_S * np.maximum(1.0, np.abs(ts[1:]))
+        if np.any(overlap > tol):
+            i = int(np.flatnonzero(overlap > tol)[0]) + 1
+            raise DataError("move starts before the previous one ends", source=moves.source,
+                            line=int(moves.moves["line"][i]), field="timeline.t_start",
+                            value=float(ts[i]), allowed=f">= {float(te[i - 1])!r}")
+    r, de = _e_ratio(moves, timeline, tool=tool)
+    sv = np.asarray(ph["start_v"], dtype=np.float64) * r
+    cv = np.asarray(ph["cruise_v"], dtype=np.float64) * r
+    ev = np.asarray(ph["end_v"], dtype=np.float64) * r
+    e_move = e_start_mm + np.concatenate(([0.0], np.cumsum(de)[:-1])) if n else np.zeros(0)
+
+    # (n, 4) grid: accel, cruise, decel, stop after the move; flattened row-major = time order
+    gap_after = np.empty(n)
+    if n:
+        gap_after[:-1] = np.maximum(ts[1:] - te[:-1], 0.0)
+        gap_after[-1] = tail_s
+    seg_dt = np.stack([ta, tc, td, gap_after], axis=1)
+    seg_t0 = np.stack([ts, ts + ta, ts + ta + tc, te], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        acc_a = np.where(ta > 0.0, (cv - sv) / np.where(ta > 0.0, ta, 1.0), 0.0)
+        acc_d = np.where(td > 0.0, (ev - cv) / np.where(td > 0.0, td, 1.0), 0.0)
+    zeros = np.zeros(n)
+    v0 = np.stack([sv, cv, cv, zeros], axis=1)
+    a = np.stack([acc_a, zeros, acc_d, zeros], axis=1)
+    e_acc = 0.5 * (sv + cv) * ta
+    e_cru = e_acc + cv * tc
+    e0 = np.stack([e_move, e_move + e_acc, e_move + e_cru, e_move + de], axis=1)
+    idx = np.broadcast_to(np.arange(n)[:, None], (n, 4))
+    phase = np.broadcast_to(np.array([PHASE_ACCEL, PHASE_CRUISE, PHASE_DECEL, PHASE_GAP],
+                                     dtype=np.int8), (n, 4))
+    keep = seg_dt > 0.0
+    t0_s = seg_t0[keep]
+    dt_s = seg_dt[keep]
+    coef = np.zeros((t0_s.shape[0], 4))
+    coef[:, 0] = v0[keep]
+    coef[:, 1] = a[keep]
+    e0_mm = e0[keep]
+    move = idx[keep].astype(np.int64)
+    phase_k = phase[keep].astype(np.int8)
+    gap = phase_k == PHASE_GAP
+    if lead_s > 0.0:
+        first_t = float(ts[0]) if n else 0.0
+        t0_s = np.concatenate(([first_t - lead_s], t0_s))
+        dt_s = np.concatenate(([lead_s], dt_s))
+        coef = np.concatenate((np.zeros((1, 4)), coef))
+        e0_mm = np.concatenate(([e_start_mm], e0_mm))
+        move = np.concatenate(([-1], move))
+        gap = np.concatenate(([True], gap))
+        phase_k = np.concatenate((np.array([PHASE_GAP], dtype=np.int8), phase_k))
+    return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
+                         phase=phase_k, move_t0_s=ts.copy(), move_t1_s=te,
+                         move_de_mm=de, e_start_mm=float(e_start_mm))

@@ -1,0 +1,255 @@
+"""Integrate the extrusion state equation over a commanded feed (SPEC §3.4).
+
+State ``Δl`` (mm of column compression) [001 Eq. 5]::
+
+    dΔl/dt = v_in − v*_out,        v*_out = max(Δl, 0) / K,       F_f = max(Δl, 0) / k
+    v_in   = v_nom · (1 − s)       for v_nom > 0 and not grinding,  s = k_p + s'(v_nom) · F_f
+    v_in   = v_nom                 for v_nom ≤ 0 (retraction feeds without slip)
+    v_in   = 0                     while grinding (v_nom > 0)
+
+``v_nom`` is the commanded filament speed (pressure advance and M221 included,
+:mod:`flowtwin.dynamics.feed`), ``K`` the lag factor [001 Eq. 15], ``k`` the column
+compliance [001 Eq. 2], ``s'(v) = a + b·exp(−c·v)`` the slip gradient [000 Eq. 8]
+(Eq. 6 with ``b = 0``), evaluated at the nominal speed — [000] fits it against the
+measured feed speed, which differs by the factor ``1 − s``; using ``v_nom`` keeps the
+equation linear in ``Δl``.
+
+* **No backflow** [001 Fig. 8]: ``Q_out = A_fil · v*_out ≥ 0`` always.
+* **Retraction** pulls the column back; ``Δl < 0`` means the filament end has been pulled
+  away from the melt (a gap of ``−Δl`` mm in the feed direction): no force, no output,
+  and the next forward feed first closes the gap, then builds pressure.
+* **Grinding**: when ``F_f`` reaches ``max_feed_force_n`` the roller eats into the filament
+  [000 §4, 003] and feeding stops; it resumes when ``F_f`` has fallen below
+  ``(1 − grind_release_fraction) · max_feed_force_n`` (hysteresis, default 20 %: the seeds
+  give no release level; a ground filament needs the load well below the failure force to
+  be gripped again). Commanded filament while grinding is lost.
+
+Without slip the solution is the exact exponential integrator (no internal step); with
+slip, 6-stage Gauss collocation on substeps with ``β·h ≤ stiffness`` (``_expint``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.dynamics._expint import gauss_legendre_collocation
+from flowtwin.dynamics._lag_kernel import (
+    A_CMD,
+    A_FED,
+    A_FMAX,
+    A_FWD,
+    A_GRIND,
+    A_GTIME,
+    A_OUT,
+    A_QMAX,
+    A_QMIN,
+    A_SLIP,
+    A_TIME,
+    N_ACC,
+    N_SER,
+    S_E,
+    S_F,
+    S_Q,
+    S_SLIP,
+    S_T,
+    S_VCMD,
+    S_VFIL,
+    S_X,
+    integrate_kernel,
+)
+from flowtwin.dynamics.feed import CommandedFeed
+from flowtwin.dynamics.params import ExtrusionParams
+from flowtwin.dynamics.result import (
+    MOVE_RESULT_DTYPE,
+    SERIES_DTYPE,
+    DynamicsResult,
+    DynamicsSummary,
+)
+from flowtwin.errors import DataError, ProfileError
+
+__all__ = ["MAX_SERIES_SAMPLES", "integrate"]
+
+#: Largest time series :func:`integrate` will allocate (8 columns of float64 each).
+MAX_SERIES_SAMPLES = 20_000_000
+
+_GL_C, _GL_B, _GL_A = gauss_legendre_collocation(6)
+
+
+def _series_times(feed: CommandedFeed, t_end: float, dt_s: float,
+                  window_s: tuple[float, float] | None) -> npt.NDArray[np.float64]:
+    if not (dt_s > 0.0 and math.isfinite(dt_s)):
+        raise DataError("series sample interval must be > 0", field="series_dt_s",
+                        value=dt_s, allowed="> 0 s")
+    t_a, t_b = (feed.t_begin_s, t_end) if window_s is None else window_s
+    if not (t_b >= t_a):
+        raise DataError("series window must have start <= end", field="series_window_s",
+                        value=window_s, allowed="(t_start, t_end) with t_start <= t_end")
+    n = int(math.floor((t_b - t_a) / dt_s)) + 1
+    if n > MAX_SERIES_SAMPLES:
+        raise DataError("time series too long", field="series_dt_s", value=dt_s,
+                        allowed=f"at most {MAX_SERIES_SAMPLES} samples: use a larger interval "
+                                f"or a window (this feed spans {t_b - t_a:.1f} s)")
+    return t_a + dt_s * np.arange(n, dtype=np.float64)
+
+
+def integrate(feed: CommandedFeed, params: ExtrusionParams, *,
+              initial_compression_mm: float = 0.0, initially_grinding: bool = False,
+              tail_s: float = 0.0, series_dt_s: float | None = None,
+              series_window_s: tuple[float, float] | None = None,
+              stiffness: float = 1.0) -> DynamicsResult:
+    """Predict the delivered melt of a commanded feed.
+
+    Parameters
+    ----------
+    feed
+        Commanded extruder motion (:func:`~flowtwin.dynamics.feed.nominal_feed`, optionally
+        shaped by :func:`~flowtwin.dynamics.advance.apply_advance`).
+    params
+        Per-move parameters, ``params.n_moves == feed.n_moves``.
+    initial_compression_mm
+        ``Δl`` before the first segment, mm (0: relaxed column touching the melt).
+    initially_grinding
+        Whether the drive is grinding at the start.
+    tail_s
+        Rest time appended after the feed, s (lets the column relax: the final ooze).
+    series_dt_s
+        Sample interval of the optional time series, s (``None``: no series).
+    series_window_s
+        ``(t_start, t_end)`` of the series, s; default the whole feed (with tail).
+    stiffness
+        Largest ``β·h`` of a collocation substep in the slip regime (``β = 1/K + v s'/k``);
+        halving it halves the substeps (convergence check). Unused without slip.
+
+    Returns
+    -------
+    DynamicsResult
+        Per-move figures, summary, optional series.
+
+    Raises
+    ------
+    ProfileError
+        Parameters for a different number of moves, or a bad ``stiffness``.
+    DataError
+        Empty feed, bad tail or series settings.
+    """
+    n = feed.n_moves
+    if params.n_moves != n:
+        raise ProfileError("parameters are for a different number of moves",
+                           field="params.n_moves", value=params.n_moves, allowed=f"{n}")
+    if feed.n_segments == 0:
+        raise DataError("the commanded feed is empty (no moves with duration)", field="feed",
+                        value=0, allowed="at least one segment")
+    if not (0.0 < stiffness <= 4.0):
+        raise ProfileError("collocation step bound out of range", field="stiffness",
+                           value=stiffness, allowed="0 < stiffness <= 4")
+    if not (tail_s >= 0.0 and math.isfinite(tail_s)):
+        raise DataError("tail must be >= 0 s", field="tail_s", value=tail_s, allowed=">= 0")
+    if not math.isfinite(initial_compression_mm):
+        raise DataError("initial compression must be finite", field="initial_compression_mm",
+                        value=initial_compression_mm, allowed="finite mm")
+    t0, dt, coef, e0 = feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm
+    move, gap = feed.move, feed.gap
+    if tail_s > 0.0:
+        t0 = np.append(t0, feed.t_end_s)
+        dt = np.append(dt, tail_s)
+        coef = np.vstack([coef, np.zeros((1, 4))])
+        e0 = np.append(e0, feed.e_end_mm())
+        move = np.append(move, n - 1)
+        gap = np.append(gap, True)
+    seg_param = np.clip(move, 0, n - 1).astype(np.int64)
+    seg_slot = np.where(gap, n + 1 + move, move).astype(np.int64)
+    acc = np.zeros((2 * n + 1, N_ACC))
+    acc[:, A_QMIN] = np.inf
+    t_end = float(t0[-1] + dt[-1])
+    sample_t = (np.zeros(0) if series_dt_s is None
+                else _series_times(feed, t_end, series_dt_s, series_window_s))
+    samples = np.zeros((sample_t.shape[0], N_SER))
+    p = params
+    x_end, grind_end, n_events = integrate_kernel(
+        np.ascontiguousarray(t0, dtype=np.float64), np.ascontiguousarray(dt, dtype=np.float64),
+        np.ascontiguousarray(coef, dtype=np.float64), np.ascontiguousarray(e0, dtype=np.float64),
+        seg_param, seg_slot, p.lag_k_s, p.compliance_mm_per_n, p.slip_offset,
+        p.slip_gradient_per_n, p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm,
+        p.max_feed_force_n, float(p.grind_release_fraction), float(initial_compression_mm),
+        bool(initially_grinding), float(stiffness), _GL_C, _GL_B, _GL_A, sample_t, samples, acc)
+    area = p.filament_area_mm2
+    moves = _per_move(feed, acc, area)
+    before = np.zeros(1, dtype=MOVE_RESULT_DTYPE)
+    pre = acc[n]
+    before["cmd_mm3"] = 0.0
+    before["fed_cmd_mm3"] = area * pre[A_CMD]
+    before["fed_mm3"] = area * pre[A_FED]
+    before["stop_out_mm3"] = area * pre[A_OUT]
+    before["ooze_mm3"] = area * pre[A_OUT]
+    before["peak_force_n"] = pre[A_FMAX]
+    before["duration_s"] = pre[A_TIME]
+    before["grinding"] = pre[A_GTIME] > 0.0
+    fed = area * float(np.sum(acc[:, A_FED]))
+    out = area * float(np.sum(acc[:, A_OUT]))
+    summary = DynamicsSummary(
+        cmd_mm3=area * float(np.sum(feed.move_de_mm)),
+        fed_cmd_mm3=area * float(np.sum(acc[:, A_CMD])),
+        fed_mm3=fed,
+        out_mm3=out,
+        stored_start_mm3=area * float(initial_compression_mm),
+        stored_end_mm3=area * float(x_end),
+        mass_balance_error_mm3=fed - out - area * (float(x_end) - float(initial_compression_mm)),
+        slip_loss_mm3=area * float(np.sum(acc[:, A_SLIP])),
+        grind_loss_mm3=area * float(np.sum(acc[:, A_GRIND])),
+        ooze_mm3=float(np.sum(moves["ooze_mm3"])) + area * float(pre[A_OUT]),
+        peak_force_n=float(np.max(acc[:, A_FMAX])),
+        grinding_moves=int(np.count_nonzero(moves["grinding"])),
+        duration_s=t_end - float(t0[0]),
+        n_segments=int(t0.shape[0]),
+        n_events=int(n_events),
+        advance=feed.advance,
+    )
+    series = None
+    if series_dt_s is not None:
+        series = np.zeros(sample_t.shape[0], dtype=SERIES_DTYPE)
+        series["t_s"] = samples[:, S_T]
+        series["e_cmd_mm"] = samples[:, S_E]
+        series["v_cmd_mm_s"] = samples[:, S_VCMD]
+        series["v_fil_mm_s"] = samples[:, S_VFIL]
+        series["q_out_mm3_s"] = area * samples[:, S_Q]
+        series["feed_force_n"] = samples[:, S_F]
+        series["slip"] = samples[:, S_SLIP]
+        series["compression_mm"] = samples[:, S_X]
+    return DynamicsResult(moves=moves, summary=summary, series=series,
+                          before_first_move=before, final_compression_mm=float(x_end),
+                          final_grinding=bool(grind_end), feed=feed, warnings=feed.warnings)
+
+
+def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64],
+              area: float) -> npt.NDArray[np.void]:
+    n = feed.n_moves
+    mv = acc[:n]
+    stop = acc[n + 1:]
+    res = np.zeros(n, dtype=MOVE_RESULT_DTYPE)
+    duration = feed.move_t1_s - feed.move_t0_s
+    res["duration_s"] = duration
+    res["cmd_mm3"] = area * feed.move_de_mm
+    res["fed_cmd_mm3"] = area * mv[:, A_CMD]
+    res["fed_mm3"] = area * mv[:, A_FED]
+    out = area * mv[:, A_OUT]
+    res["out_mm3"] = out
+    stop_out = area * stop[:, A_OUT]
+    res["stop_out_mm3"] = stop_out
+    res["ooze_mm3"] = np.where(feed.move_de_mm > 0.0, 0.0, out) + stop_out
+    covered = mv[:, A_TIME] > 0.0
+    q_mean = np.zeros(n)
+    np.divide(out, duration, out=q_mean, where=duration > 0.0)
+    res["q_mean_mm3_s"] = q_mean
+    res["q_min_mm3_s"] = np.where(covered, area * mv[:, A_QMIN], 0.0)
+    res["q_max_mm3_s"] = area * mv[:, A_QMAX]
+    res["peak_force_n"] = mv[:, A_FMAX]
+    slip = np.zeros(n)
+    np.divide(mv[:, A_SLIP], mv[:, A_FWD], out=slip, where=mv[:, A_FWD] > 0.0)
+    res["slip"] = slip
+    res["slip_loss_mm3"] = area * mv[:, A_SLIP]
+    res["grind_loss_mm3"] = area * mv[:, A_GRIND]
+    res["grinding"] = (mv[:, A_GTIME] > 0.0) | (stop[:, A_GTIME] > 0.0)
+    return res
