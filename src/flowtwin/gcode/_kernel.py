@@ -402,9 +402,11 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                 state[S_LINE] = line
                 return ST_PYTHON, start, n_out, n_other
             cw = code_num == 2.0
-            if has[8] or has[9]:  # I, J
-                cx = x0 + (val[8] * unit if has[8] else 0.0)
-                cy = y0 + (val[9] * unit if has[9] else 0.0)
+            if has[8] or has[9]:  # I, J: the radius vector is exactly (-I, -J)
+                r_p = -(val[8] * unit) if has[8] else 0.0
+                r_q = -(val[9] * unit) if has[9] else 0.0
+                cx = x0 - r_p
+                cy = y0 - r_q
             elif has[17]:  # R
                 r = val[17] * unit
                 dx = x1 - x0
@@ -423,29 +425,36 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                 my = (y0 + y1) / 2.0
                 cx = mx + sgn * h * dy / chord
                 cy = my - sgn * h * dx / chord
+                r_p = x0 - cx
+                r_q = y0 - cy
             else:
                 state[S_ERR_LINE] = lineno
                 state[S_ERR_CODE] = ERR_ARC
                 state[S_LINE] = line
                 return ST_ERROR, start, n_out, n_other
-            rx0 = x0 - cx
-            ry0 = y0 - cy
-            rx1 = x1 - cx
-            ry1 = y1 - cy
-            radius = math.sqrt(rx0 * rx0 + ry0 * ry0)
-            a0 = math.atan2(ry0, rx0)
-            a1 = math.atan2(ry1, rx1)
-            sweep = a1 - a0
+            # Angle as firmware computes it (Klipper gcode_arcs, Marlin plan_arc): the
+            # signed angle between the radius vectors to start and target, in [0, 2π)
+            # counter-clockwise, minus 2π clockwise; a full circle only when that angle
+            # is zero and the target is the start (exactly for Klipper, within 1e-9 mm
+            # and 1e-9 rad in chord mode, as Marlin's NEAR tests).
+            rt_a = x1 - cx
+            rt_b = y1 - cy
+            sweep = math.atan2(r_p * rt_b - r_q * rt_a, r_p * rt_a + r_q * rt_b)
+            if sweep < 0.0:
+                sweep += 2.0 * math.pi
             if cw:
-                if sweep >= -1e-12:
-                    sweep -= 2.0 * math.pi
-            else:
-                if sweep <= 1e-12:
-                    sweep += 2.0 * math.pi
+                sweep -= 2.0 * math.pi
+            klipper = state[S_ARC_MODE] == 0.0
+            if klipper:
+                if sweep == 0.0 and x0 == x1 and y0 == y1:
+                    sweep = 2.0 * math.pi
+            elif abs(sweep) < 1e-9 and abs(x0 - x1) < 1e-9 and abs(y0 - y1) < 1e-9:
+                sweep = 2.0 * math.pi
+            radius = math.sqrt(r_p * r_p + r_q * r_q)
             planar = abs(sweep) * radius
             dz = z1 - z0
             length = math.sqrt(planar * planar + dz * dz)
-            if state[S_ARC_MODE] == 0.0:
+            if klipper:
                 nseg = int(math.floor(length / state[S_ARC_PARAM]))
             else:
                 tol = state[S_ARC_PARAM]
@@ -458,10 +467,13 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                 nseg = 1
             if n_out + nseg > cap:
                 state[S_LINE] = line
-                # undo the E / feed side effects: Python will re-run this line
+                # undo the E side effect: the kernel re-reads this line after growing
                 if has[4]:
                     state[S_EGC] = state[S_EGC] - de
                 return ST_MOVES_FULL, start, n_out, n_other
+            theta_seg = sweep / nseg
+            z_seg = dz / nseg
+            dseg = de / nseg
             px = x0
             py = y0
             pz = z0
@@ -471,12 +483,13 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                     qy = y1
                     qz = z1
                 else:
-                    frac = s / nseg
-                    ang = a0 + sweep * frac
-                    qx = cx + radius * math.cos(ang)
-                    qy = cy + radius * math.sin(ang)
-                    qz = z0 + dz * frac
-                dseg = de / nseg
+                    th = s * theta_seg
+                    cos_t = math.cos(th)
+                    sin_t = math.sin(th)
+                    # the start radius vector rotated by th
+                    qx = cx + r_p * cos_t - r_q * sin_t
+                    qy = cy + r_p * sin_t + r_q * cos_t
+                    qz = z0 + s * z_seg
                 kind = _row_kind(qx - px, qy - py, qz - pz, dseg, True, False)
                 _emit(out, n_out, lineno, tool,
                       qx, qy, qz, dseg, feed, flow, kind)
