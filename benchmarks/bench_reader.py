@@ -91,13 +91,15 @@ def _peers(path: Path) -> dict[str, Callable[[], object]]:
     return peers
 
 
-def _plan_fn(path: Path) -> Callable[[], object] | None:
-    try:
-        from flowtwin.planner.klipper import KlipperSettings, plan_klipper
-    except ImportError:
-        return None
-    settings = KlipperSettings()
-    return lambda: plan_klipper(read_gcode(path), settings)
+def _plan_fn(path: Path) -> Callable[[], object]:
+    from flowtwin.planner.from_profile import klipper_settings
+    from flowtwin.planner.klipper import plan_klipper
+    from flowtwin.planner.klipper_config import klipper_read_options
+    from flowtwin.planning import load_printer
+
+    settings = klipper_settings(load_printer("generic-klipper"))
+    opts = klipper_read_options(settings)
+    return lambda: plan_klipper(read_gcode(path, options=opts), settings)
 
 
 def _memory(path: Path) -> tuple[float, int]:
@@ -139,11 +141,10 @@ def run(quick: bool = False) -> dict[str, object]:
         row: dict[str, object] = {"lines": n_lines, "read_s": t_read,
                                   "read_lines_per_s": n_lines / t_read}
         plan = _plan_fn(path)
-        if plan is not None:
-            plan()
-            t_plan = _best_of(plan, repeat)
-            row["read_plan_s"] = t_plan
-            row["read_plan_lines_per_s"] = n_lines / t_plan
+        plan()
+        t_plan = _best_of(plan, repeat)
+        row["read_plan_s"] = t_plan
+        row["read_plan_lines_per_s"] = n_lines / t_plan
         bytes_per_move, moves = _memory(path)
         row["moves"] = moves
         row["peak_bytes_per_move"] = bytes_per_move

@@ -66,6 +66,35 @@ ERR_VALUE = 5       # non-finite or absurd coordinate
 K_TRAVEL, K_EXTRUDE, K_RETRACT, K_XY, K_Z, K_ARC, K_FW, K_RAPID = 1, 2, 4, 8, 16, 32, 64, 128
 
 _POW10 = np.array([10.0 ** i for i in range(23)])
+
+#: Comment prefixes that carry nothing the reader uses (per-line widths and heights, wipe
+#: and timing marks: the nominal width of a move follows from its E and the bead model
+#: [001 Eq. 7]). The kernel skips these lines instead of handing them to Python; they are
+#: by far the most frequent comments (PrusaSlicer writes a ``;WIDTH:`` per extrusion).
+_SKIP_COMMENTS = (b";WIDTH:", b"; LINE_WIDTH:", b";HEIGHT:", b";WIPE_START", b";WIPE_END",
+                  b"; WIPE_START", b"; WIPE_END", b";TIME_ELAPSED:", b";PRINTING_TIME:",
+                  b";REMAINING_TIME:")
+_SKIP_LEN = np.array([len(p) for p in _SKIP_COMMENTS], dtype=np.int64)
+_SKIP_BYTES = np.zeros((len(_SKIP_COMMENTS), int(_SKIP_LEN.max())), dtype=np.uint8)
+for _k, _p in enumerate(_SKIP_COMMENTS):
+    _SKIP_BYTES[_k, : len(_p)] = np.frombuffer(_p, dtype=np.uint8)
+
+
+@njit(cache=True)
+def _skippable_comment(buf, i, eol):  # type: ignore[no-untyped-def]
+    """True if the comment at ``buf[i]`` starts with one of :data:`_SKIP_COMMENTS`."""
+    for k in range(_SKIP_LEN.shape[0]):
+        n = _SKIP_LEN[k]
+        if i + n > eol:
+            continue
+        same = True
+        for j in range(n):
+            if buf[i + j] != _SKIP_BYTES[k, j]:
+                same = False
+                break
+        if same:
+            return True
+    return False
 #: Largest coordinate accepted (mm); beyond this a number is an error, not a position.
 MAX_ABS_VALUE = 1.0e9
 
@@ -258,7 +287,11 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                 pos = nxt
                 continue
             c0 = _upper(buf[i])
-        if c0 == 59:  # comment-only line -> Python (metadata)
+        if c0 == 59:  # comment-only line -> Python (metadata), unless known to be inert
+            if _skippable_comment(buf, i, eol):
+                line = lineno
+                pos = nxt
+                continue
             other[n_other, 0] = lineno
             other[n_other, 1] = start
             other[n_other, 2] = eol

@@ -20,7 +20,7 @@ __all__ = ["ParsedLine", "parse_line"]
 
 _CLASSIC = re.compile(r"([A-Z])([0-9]+(?:\.[0-9]+)?)")
 _WORD = re.compile(r"([A-Z])\s*([^A-Z\s]*)")
-_NUMBER = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)")
+_ALL_WORDS = re.compile(r"(?:\s*[A-Z]\s*[^A-Z\s]*)*\s*")
 _EXTENDED = re.compile(r"[A-Z_][A-Z0-9_]*")
 _NLINE = re.compile(r"N\s*[0-9]+\s*")
 
@@ -50,9 +50,13 @@ class ParsedLine:
 
 
 def _number(text: str) -> float | None:
-    if not _NUMBER.fullmatch(text):
+    """A finite decimal number (no exponent, no ``_``), or ``None``."""
+    if "_" in text:
         return None
-    value = float(text)
+    try:
+        value = float(text)
+    except ValueError:
+        return None
     if not math.isfinite(value) or abs(value) > MAX_ABS_VALUE:
         return None
     return value
@@ -98,24 +102,19 @@ def parse_line(text: str, *, source: str = "<input>", line: int | None = None,
                     or upper[classic.end()].isalpha()):
         code = classic.group(1) + classic.group(2)
         rest = upper[classic.end():]
-        # Klipper: words are a letter followed by everything up to the next letter/space
-        pos = 0
-        while pos < len(rest):
-            ch = rest[pos]
-            if ch.isspace():
-                pos += 1
-                continue
-            wm = _WORD.match(rest, pos)
-            if wm is None and numeric is None:
+        # Klipper: a word is a letter followed by everything up to the next letter/space
+        if _ALL_WORDS.fullmatch(rest) is None:
+            if numeric is None:
                 # an unknown vendor syntax (``M1002 set_gcode_claim_speed_level : 5``):
                 # keep the text, the command has no effect on the twin
-                params["_"] = rest[pos:].strip()
-                break
-            if wm is None:
-                raise GcodeError(f"unexpected character {ch!r} in {code} parameters",
-                                 source=source, line=line, value=text.strip(),
-                                 allowed="letter/number words such as X10.5")
-            letter, raw = wm.group(1), wm.group(2)
+                params["_"] = rest.strip()
+                return ParsedLine(code, params, comment.strip() if sep else "")
+            bad = _ALL_WORDS.match(rest)
+            at = bad.end() if bad else 0
+            raise GcodeError(f"unexpected character {rest[at:at + 1]!r} in {code} parameters",
+                             source=source, line=line, value=text.strip(),
+                             allowed="letter/number words such as X10.5")
+        for letter, raw in _WORD.findall(rest):
             value = _number(raw) if raw else None
             if value is None:
                 if numeric is not None and letter in numeric:
@@ -125,7 +124,6 @@ def parse_line(text: str, *, source: str = "<input>", line: int | None = None,
                 params[letter] = raw
             else:
                 params[letter] = value
-            pos = wm.end()
         return ParsedLine(code, params, comment.strip() if sep else "")
     em = _EXTENDED.match(upper)
     if em is None:
