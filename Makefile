@@ -23,7 +23,12 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist loadgroup
 
-bench: $(STAMP)
+$(VENV)/.peers-stamp: $(STAMP) benchmarks/peers.txt
+	$(PY) -m pip install -q --no-deps -r benchmarks/peers.txt
+	$(PY) -m pip install -q six euclid3 pyyaml
+	touch $@
+
+bench: $(VENV)/.peers-stamp
 	$(PY) -m benchmarks
 
 lint: $(STAMP)
