@@ -1,0 +1,91 @@
+"""Scale-out: many G-code files (``batch``) or many profile variants (``sweep``) on dask.
+
+Quick start::
+
+    from flowtwin.batch import read_results, run_batch, run_sweep
+
+    run_batch(["prints/"], out="farm.parquet", profile="tronvoll2019")
+    run_sweep("part.gcode", ["setup.temperature_c=190:230:5", "drive.pinch_force_n=60,80,100"],
+              out="sweep.parquet")
+    table = read_results("sweep.parquet")        # pyarrow.Table, also of an interrupted run
+
+By default a local cluster of worker processes (one per CPU) runs the jobs; ``scheduler=``
+uses an existing dask cluster. See docs/batch.md.
+"""
+
+from flowtwin.batch.api import GCODE_SUFFIXES, RunSummary, expand_inputs, run_batch, run_sweep
+from flowtwin.batch.cluster import (
+    DEFAULT_RETRIES,
+    ClusterError,
+    Progress,
+    RunStats,
+    dask_client,
+    default_workers,
+    run_jobs,
+)
+from flowtwin.batch.jobs import (
+    DEFAULT_ENGINE,
+    ENGINES,
+    Engine,
+    Job,
+    JobResult,
+    error_row,
+    evaluate,
+    flatten_summary,
+    machine_fingerprint,
+    row_identity,
+    run_job,
+)
+from flowtwin.batch.overrides import (
+    DEFAULT_SETUP,
+    MachineBuilder,
+    check_axes,
+    count_points,
+    grid_points,
+    load_base,
+    sample_points,
+)
+from flowtwin.batch.params import ALIASES, PARTS, Axis, describe_path, parse_axis, resolve_path
+from flowtwin.batch.store import ResultWriter, parts_dir, read_results
+
+__all__ = [
+    "ALIASES",
+    "DEFAULT_ENGINE",
+    "DEFAULT_RETRIES",
+    "DEFAULT_SETUP",
+    "ENGINES",
+    "GCODE_SUFFIXES",
+    "PARTS",
+    "Axis",
+    "ClusterError",
+    "Engine",
+    "Job",
+    "JobResult",
+    "MachineBuilder",
+    "Progress",
+    "ResultWriter",
+    "RunStats",
+    "RunSummary",
+    "check_axes",
+    "count_points",
+    "dask_client",
+    "default_workers",
+    "describe_path",
+    "error_row",
+    "evaluate",
+    "expand_inputs",
+    "flatten_summary",
+    "grid_points",
+    "load_base",
+    "machine_fingerprint",
+    "parse_axis",
+    "parts_dir",
+    "read_results",
+    "resolve_path",
+    "row_identity",
+    "run_batch",
+    "run_job",
+    "run_jobs",
+    "run_sweep",
+    "sample_points",
+]
