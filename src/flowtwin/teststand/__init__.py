@@ -1,0 +1,101 @@
+"""Virtual filament-drive test stand and the evaluation of test-stand records [000 §3–4].
+
+SPEC §3.8. The stand runs the measurement procedure of Nienhaus et al. [000 §3] on a drive
+model (:mod:`~flowtwin.teststand.model`, :mod:`~flowtwin.teststand.simulate`) and writes
+records in a CSV schema a real stand can also produce (:mod:`~flowtwin.teststand.records`,
+docs/teststand.md). The evaluation (:mod:`~flowtwin.teststand.analysis`,
+:mod:`~flowtwin.teststand.fits`, :mod:`~flowtwin.teststand.report`) turns records —
+simulated or real — into the maximum feed force per record, the slip gradient with its
+``R²``, ``k_s`` and ``k_∞`` [000 Eq. 6], ``a, b, c`` [000 Eq. 8], ``F_p,min`` [000 Eq. 9]
+and the 2nd-order maximum-force fit [000 Figs. 4–8], each with its uncertainty.
+
+Quick start::
+
+    from flowtwin.profiles import load_rollers
+    from flowtwin.teststand import (DriveUnderTest, SlipLaw, simulate_campaign,
+                                    analyse_records, analyse_campaign, compare_with_roller)
+
+    roller = load_rollers()[3]
+    drive = DriveUnderTest.from_roller(roller, law=SlipLaw.PINCH, k_p=0.0063)
+    records = simulate_campaign(drive, seed=1)           # 15 × 6 × 3 = 270 records
+    analysis = analyse_campaign(analyse_records(records))
+    for check in compare_with_roller(analysis, roller):
+        print(check.name, check.published, check.recovered, check.passed)
+"""
+
+from flowtwin.teststand.analysis import (
+    RecordResult,
+    SlipRegression,
+    analyse_record,
+    analyse_records,
+    loading_phase,
+    slip_regression,
+)
+from flowtwin.teststand.fits import (
+    MaxForceFit,
+    PinchLawFit,
+    VelocityLawFit,
+    fit_max_feed_force,
+    fit_pinch_law,
+    fit_velocity_law,
+    r_squared_histogram,
+)
+from flowtwin.teststand.model import (
+    PAPER_PINCH_FORCES_N,
+    PAPER_SPEEDS_MM_S,
+    DriveUnderTest,
+    Instrument,
+    Procedure,
+    SlipLaw,
+)
+from flowtwin.teststand.records import (
+    COLUMNS,
+    SCHEMA_VERSION,
+    ColumnSpec,
+    Record,
+    RecordKey,
+    read_records_csv,
+    write_records_csv,
+)
+from flowtwin.teststand.report import (
+    CampaignAnalysis,
+    ParameterCheck,
+    analyse_campaign,
+    compare_with_roller,
+)
+from flowtwin.teststand.simulate import simulate_campaign, simulate_record
+
+__all__ = [
+    "COLUMNS",
+    "PAPER_PINCH_FORCES_N",
+    "PAPER_SPEEDS_MM_S",
+    "SCHEMA_VERSION",
+    "CampaignAnalysis",
+    "ColumnSpec",
+    "DriveUnderTest",
+    "Instrument",
+    "MaxForceFit",
+    "ParameterCheck",
+    "PinchLawFit",
+    "Procedure",
+    "Record",
+    "RecordKey",
+    "RecordResult",
+    "SlipLaw",
+    "SlipRegression",
+    "VelocityLawFit",
+    "analyse_campaign",
+    "analyse_record",
+    "analyse_records",
+    "compare_with_roller",
+    "fit_max_feed_force",
+    "fit_pinch_law",
+    "fit_velocity_law",
+    "loading_phase",
+    "r_squared_histogram",
+    "read_records_csv",
+    "simulate_campaign",
+    "simulate_record",
+    "slip_regression",
+    "write_records_csv",
+]
