@@ -59,8 +59,11 @@ def open_printer(url: str, *, api_key: ApiKey | None = None, clock: Clock | None
     ProfileError
         Unknown scheme, missing host or key, credentials in the URL, unknown parameter.
     """
-    parts = urlsplit(url.strip())
-    scheme = parts.scheme.lower() or ("twin" if url.strip() == "twin" else "")
+    text = url.strip()
+    if text == "twin" or text.startswith("twin?"):
+        text = "twin://" + text[4:]
+    parts = urlsplit(text)
+    scheme = parts.scheme.lower()
     if scheme not in SCHEMES:
         raise ProfileError("unknown printer URL scheme", field="--printer", value=url,
                            allowed=", ".join(f"{s}://" for s in SCHEMES))

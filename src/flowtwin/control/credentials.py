@@ -103,10 +103,11 @@ def _from_file(path: Path) -> ApiKey:
         raise ProfileError("API key file not found", source=path) from None
     except OSError as exc:
         raise ProfileError(f"cannot open API key file ({exc.strerror})", source=path) from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise ProfileError("API key file is not a regular file", source=path)
     with os.fdopen(fd, "r", encoding="utf-8") as fh:
-        st = os.fstat(fh.fileno())
-        if not stat.S_ISREG(st.st_mode):
-            raise ProfileError("API key file is not a regular file", source=path)
         if hasattr(os, "getuid") and st.st_uid != os.getuid():
             raise ProfileError("API key file belongs to another user", source=path,
                                value=f"uid {st.st_uid}", allowed=f"uid {os.getuid()}")

@@ -219,6 +219,7 @@ class SerialPrinter:
         replies: list[str] = []
         resend_from: int | None = None
         resends = 0
+        pending = 1  # oks still owed: one per line in flight
         limit = deadline if deadline is not None else time.monotonic() + self.command_timeout_s
         while True:
             line = self._readline(limit)
@@ -235,7 +236,10 @@ class SerialPrinter:
                 resend_from = reply.line_no
             elif reply.kind == "ok":
                 if resend_from is None:
-                    return replies
+                    pending -= 1
+                    if pending <= 0:
+                        return replies
+                    continue
                 # This ok acknowledges the error; now resend from the requested line.
                 resends += 1
                 if resends > self.max_resends:
@@ -247,6 +251,7 @@ class SerialPrinter:
                     raise CommandRejected("firmware asked to resend a line never sent",
                                           source=self.port, value=resend_from) from None
                 resend_from = None
+                pending = len(frames)  # the firmware dropped everything after the bad line
                 for data in frames:
                     self._write(data)
                 limit = time.monotonic() + self.command_timeout_s

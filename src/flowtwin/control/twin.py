@@ -81,6 +81,8 @@ class TwinPrinter:
         #: Every command received, as ``(time_s, gcode)``.
         self.received: list[tuple[float, str]] = []
         self.connects = 0
+        #: Connection attempts still to refuse (a host that is down for a while).
+        self.refuse_connects = 0
         self._connected = False
         self._tracker = FactorTracker(firmware)
         self._schedules = {Channel.SPEED: _Schedule(), Channel.FLOW: _Schedule()}
@@ -89,7 +91,11 @@ class TwinPrinter:
 
     # -- connection -----------------------------------------------------------------
     def connect(self) -> None:
-        """Open the (simulated) connection."""
+        """Open the (simulated) connection (refused while ``refuse_connects`` > 0)."""
+        if self.refuse_connects > 0:
+            self.refuse_connects -= 1
+            raise ConnectionLost("twin printer refused the connection",
+                                 source=self.description)
         if self.reset_on_connect:
             self._apply(Channel.SPEED, 100.0)
             self._apply(Channel.FLOW, 100.0)
@@ -151,6 +157,10 @@ class TwinPrinter:
     def read_factors(self) -> Factors:
         """The multipliers the firmware holds now (reported by the twin itself)."""
         self.check()
+        return Factors(self._speed_pct, self._flow_pct, "printer")
+
+    def held_factors(self) -> Factors:
+        """What the (simulated) board holds, readable without a connection (for tests)."""
         return Factors(self._speed_pct, self._flow_pct, "printer")
 
     def factors_at(self, t_s: float) -> Factors:
