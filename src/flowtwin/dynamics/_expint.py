@@ -187,29 +187,16 @@ def colloc_step(x0: float, c: npt.NDArray[np.float64], tau0: float, h: float,
             acc += hij * alp[j]
         mat[i, i] += 1.0
         rhs[i] = x0 + acc
-    # Gaussian elimination with partial pivoting (s × s, well conditioned for βh ≤ ~2).
+    # Gaussian elimination without pivoting: I + hβA is a small perturbation of the
+    # identity for |β h| <= stiffness <= 4 (the poles of the (6,6) Padé stability function
+    # lie further out), so the pivots stay near 1.
     for col in range(s):
-        piv = col
-        best = abs(mat[col, col])
-        for r in range(col + 1, s):
-            if abs(mat[r, col]) > best:
-                best = abs(mat[r, col])
-                piv = r
-        if piv != col:
-            for q in range(s):
-                tmp = mat[col, q]
-                mat[col, q] = mat[piv, q]
-                mat[piv, q] = tmp
-            tmp = rhs[col]
-            rhs[col] = rhs[piv]
-            rhs[piv] = tmp
         inv = 1.0 / mat[col, col]
         for r in range(col + 1, s):
             f = mat[r, col] * inv
-            if f != 0.0:
-                for q in range(col, s):
-                    mat[r, q] -= f * mat[col, q]
-                rhs[r] -= f * rhs[col]
+            for q in range(col + 1, s):
+                mat[r, q] -= f * mat[col, q]
+            rhs[r] -= f * rhs[col]
     for r in range(s - 1, -1, -1):
         acc = rhs[r]
         for q in range(r + 1, s):

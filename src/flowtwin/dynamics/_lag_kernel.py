@@ -49,7 +49,7 @@ from flowtwin.dynamics._expint import (
 __all__ = [
     "A_CMD", "A_FED", "A_FMAX", "A_FWD", "A_GRIND", "A_GTIME", "A_OUT", "A_QMAX", "A_QMIN",
     "A_SLIP", "A_TIME", "N_ACC", "N_SER", "S_E", "S_F", "S_Q", "S_SLIP", "S_T", "S_VCMD",
-    "S_VFIL", "S_X", "integrate_kernel",
+    "S_VFIL", "S_X", "fill_move_results", "integrate_kernel",
 ]
 
 # Accumulator columns (per move, per stop): filament lengths in mm, times in s.
@@ -84,9 +84,15 @@ _EV_RELEASE = 3    # force fell to the release level
 
 
 @njit(cache=True)
-def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float64]) -> int:
-    """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted; returns the count."""
+def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float64],
+            ends: npt.NDArray[np.float64]) -> int:
+    """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted; returns the count.
+
+    ``ends`` is scratch of length >= 4.
+    """
     n = 0
+    if abs(c[0]) > t_len * (abs(c[1]) + t_len * (abs(c[2]) + t_len * abs(c[3]))):
+        return 0  # |v(0)| exceeds any change over the segment: no sign change
     if c[2] == 0.0 and c[3] == 0.0:
         if c[1] != 0.0:
             r = -c[0] / c[1]
@@ -95,19 +101,16 @@ def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float6
                 n = 1
         return n
     # split at the turning points of v (roots of v' = c1 + 2 c2 t + 3 c3 t²)
-    cuts = np.empty(4)
-    nc = 0
-    cuts[nc] = 0.0
-    nc += 1
+    nc = 1
+    ends[0] = 0.0
     qa = 3.0 * c[3]
     qb = 2.0 * c[2]
     qc = c[1]
     if qa == 0.0:
-        if qb != 0.0:
-            r = -qc / qb
-            if 0.0 < r < t_len:
-                cuts[nc] = r
-                nc += 1
+        r = -qc / qb
+        if 0.0 < r < t_len:
+            ends[nc] = r
+            nc += 1
     else:
         disc = qb * qb - 4.0 * qa * qc
         if disc > 0.0:
@@ -118,14 +121,11 @@ def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float6
             lo = min(r1, r2)
             hi = max(r1, r2)
             if 0.0 < lo < t_len:
-                cuts[nc] = lo
+                ends[nc] = lo
                 nc += 1
             if 0.0 < hi < t_len and hi != lo:
-                cuts[nc] = hi
+                ends[nc] = hi
                 nc += 1
-    ends = np.empty(nc + 1)
-    for q in range(nc):
-        ends[q] = cuts[q]
     ends[nc] = t_len
     for q in range(nc):
         a = ends[q]
@@ -160,7 +160,7 @@ def _advance(regime: int, x0: float, c: npt.NDArray[np.float64], ta: float, tb: 
              ) -> tuple[float, float, float]:
     """``x(tb)``, ``∫x`` and ``∫γx`` from ``x(ta) = x0`` in one regime."""
     length = tb - ta
-    if length <= 0.0:
+    if length == 0.0 or (length < 0.0 and regime != SLIP):
         return x0, 0.0, 0.0
     if regime == FREE:
         shift(c, ta, ascale, b)
@@ -170,10 +170,12 @@ def _advance(regime: int, x0: float, c: npt.NDArray[np.float64], ta: float, tb: 
         shift(c, ta, ascale, b)
         xe, ix = lag_step(x0, b, k_s, length, phi)
         return xe, ix, 0.0
-    shift(c, ta, 1.0, b)
-    vbound = abs(b[0]) + length * (abs(b[1]) + length * (abs(b[2]) + length * abs(b[3])))
+    # collocation substeps (backwards too, for the root search: |β h| stays small)
+    shift(c, min(ta, tb), 1.0, b)
+    span = abs(length)
+    vbound = abs(b[0]) + span * (abs(b[1]) + span * (abs(b[2]) + span * abs(b[3])))
     beta_max = 1.0 / k_s + vbound * (sa + sb) / kc
-    n = int(math.ceil(length * beta_max / stiffness))
+    n = int(math.ceil(span * beta_max / stiffness))
     if n < 1:
         n = 1
     h = length / n
@@ -222,27 +224,37 @@ def _turn_x(regime: int, c: npt.NDArray[np.float64], tau: float, ascale: float, 
 
 @njit(cache=True)
 def _root(which: int, regime: int, x0: float, c: npt.NDArray[np.float64], ta: float,
-          lo: float, hi: float, level: float, ascale: float, k_s: float, kc: float,
-          sa: float, sb: float, sc: float, stiffness: float, b: npt.NDArray[np.float64],
-          phi: npt.NDArray[np.float64], gl_c: npt.NDArray[np.float64],
-          gl_b: npt.NDArray[np.float64], gl_a: npt.NDArray[np.float64],
-          mat: npt.NDArray[np.float64], rhs: npt.NDArray[np.float64],
-          beta: npt.NDArray[np.float64], gam: npt.NDArray[np.float64],
-          alp: npt.NDArray[np.float64]) -> float:
-    """Root in ``[lo, hi]`` of ``x - level`` (``which = 0``) or of ``x'`` (``which = 1``).
+          lo: float, hi: float, glo: float, ghi: float, level: float, tol: float,
+          ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
+          stiffness: float, b: npt.NDArray[np.float64], phi: npt.NDArray[np.float64],
+          gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
+          gl_a: npt.NDArray[np.float64], mat: npt.NDArray[np.float64],
+          rhs: npt.NDArray[np.float64], beta: npt.NDArray[np.float64],
+          gam: npt.NDArray[np.float64], alp: npt.NDArray[np.float64]) -> float:
+    """Root in ``[lo, hi]`` of ``g = x - level`` (``which = 0``) or ``g = x'`` (``which = 1``).
 
-    The function must change sign on the bracket. Safeguarded Newton: a Newton step that
-    leaves the bracket is replaced by bisection, so it converges to rounding.
+    ``glo``, ``ghi`` are ``g`` at the bracket ends (opposite signs); ``x(ta) = x0``.
+    Safeguarded Newton from the regula-falsi point: a step leaving the bracket is replaced
+    by bisection. Stops when a step is below ``tol`` times the bracket (a turning point
+    needs little: ``x`` is stationary there, an error δτ changes it by O(δτ²)).
     """
-    xl = _advance(regime, x0, c, ta, lo, ascale, k_s, kc, sa, sb, sc, stiffness, b, phi,
-                  gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
-    yl = _slope(regime, c, lo, xl, ascale, k_s, kc, sa, sb, sc)[0]
-    glo = xl - level if which == 0 else yl
-    tau = 0.5 * (lo + hi)
+    if glo == 0.0:
+        return lo
+    if ghi == 0.0:
+        return hi
     span = hi - lo
+    tau = lo + span * glo / (glo - ghi)
+    if not (lo < tau < hi):
+        tau = 0.5 * (lo + hi)
+    # closed forms are evaluated from ta; collocation steps from the previous iterate
+    t_cur = ta
+    x_cur = x0
     for _ in range(200):
-        x = _advance(regime, x0, c, ta, tau, ascale, k_s, kc, sa, sb, sc, stiffness, b,
-                     phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
+        x = _advance(regime, x_cur, c, t_cur, tau, ascale, k_s, kc, sa, sb, sc, stiffness,
+                     b, phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
+        if regime == SLIP:
+            t_cur = tau
+            x_cur = x
         y, dy = _slope(regime, c, tau, x, ascale, k_s, kc, sa, sb, sc)
         if which == 0:
             g = x - level
@@ -263,7 +275,7 @@ def _root(which: int, regime: int, x0: float, c: npt.NDArray[np.float64], ta: fl
         if dg != 0.0:
             nt = tau - g / dg
             if lo < nt < hi:
-                if abs(nt - tau) <= 1e-15 * max(abs(tau), span):
+                if abs(nt - tau) <= tol * span:
                     return nt
                 tau = nt
                 step_ok = True
@@ -298,6 +310,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     b = np.empty(4)
     phi = np.empty(6)
     roots = np.empty(8)
+    ends = np.empty(4)
     x = x_init
     grinding = grind_init
     n_events = 0
@@ -328,7 +341,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         has_slip = saa != 0.0 or sbb != 0.0
         thr = kcc * fmax[p]
         rel = (1.0 - release) * thr
-        nr = _vroots(c, seg_len, roots)
+        nr = _vroots(c, seg_len, roots, ends)
         pa = 0.0
         for q in range(nr + 1):
             pb = roots[q] if q < nr else seg_len
@@ -363,6 +376,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                                        stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs, beta,
                                        gam, alp)
                 tend = pb
+                x_hi_end = xe  # x at the end of the bracket of an event
                 event = _EV_NONE
                 level = 0.0
                 turn_t = -1.0
@@ -398,9 +412,9 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                             if 0.0 < ratio < 1.0:
                                 turn_t = min(max(tau - kk * math.log(ratio), tau), pb)
                         if turn_t < 0.0:
-                            turn_t = _root(1, regime, x, c, tau, tau, pb, 0.0, ascale, kk,
-                                           kcc, saa, sbb, scc, stiffness, b, phi, gl_c, gl_b,
-                                           gl_a, mat, rhs, beta, gam, alp)
+                            turn_t = _root(1, regime, x, c, tau, tau, pb, ya, yb, 0.0, 1e-6,
+                                           ascale, kk, kcc, saa, sbb, scc, stiffness, b, phi,
+                                           gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
                     if thr < math.inf:
                         if xe >= thr:
                             event = _EV_THRESHOLD
@@ -411,10 +425,11 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                                 event = _EV_THRESHOLD
                                 level = thr
                                 tend = turn_t
+                                x_hi_end = xt
                 if event != _EV_NONE and regime != GRIND:
-                    tend = _root(0, regime, x, c, tau, tau, tend, level, ascale, kk, kcc, saa,
-                                 sbb, scc, stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs,
-                                 beta, gam, alp)
+                    tend = _root(0, regime, x, c, tau, tau, tend, x - level, x_hi_end - level,
+                                 level, 1e-15, ascale, kk, kcc, saa, sbb, scc, stiffness, b,
+                                 phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
                 if event != _EV_NONE:
                     n_events += 1
                     xe, ix, igx = _advance(regime, x, c, tau, tend, ascale, kk, kcc, saa, sbb,
@@ -503,3 +518,37 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         row_s[S_X] = x
         js += 1
     return x, grinding, n_events
+
+
+@njit(cache=True)
+def fill_move_results(acc: npt.NDArray[np.float64], area: float,
+                      move_de: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
+                      move_t1: npt.NDArray[np.float64], out: npt.NDArray[np.void]) -> None:
+    """Per-move result records (``result.MOVE_RESULT_DTYPE``) from the accumulators.
+
+    Row ``i`` of ``acc`` is move ``i``; row ``n + 1 + i`` the stop after it. One pass,
+    record by record (filling a wide structured array column by column is memory bound).
+    """
+    n = move_de.shape[0]
+    for i in range(n):
+        mv = acc[i]
+        stop = acc[n + 1 + i]
+        r = out[i]
+        duration = move_t1[i] - move_t0[i]
+        out_mm3 = area * mv[A_OUT]
+        stop_out = area * stop[A_OUT]
+        r.cmd_mm3 = area * move_de[i]
+        r.fed_cmd_mm3 = area * mv[A_CMD]
+        r.fed_mm3 = area * mv[A_FED]
+        r.out_mm3 = out_mm3
+        r.stop_out_mm3 = stop_out
+        r.ooze_mm3 = stop_out if move_de[i] > 0.0 else out_mm3 + stop_out
+        r.q_mean_mm3_s = out_mm3 / duration if duration > 0.0 else 0.0
+        r.q_min_mm3_s = area * mv[A_QMIN] if mv[A_TIME] > 0.0 else 0.0
+        r.q_max_mm3_s = area * mv[A_QMAX]
+        r.peak_force_n = mv[A_FMAX]
+        r.slip = mv[A_SLIP] / mv[A_FWD] if mv[A_FWD] > 0.0 else 0.0
+        r.slip_loss_mm3 = area * mv[A_SLIP]
+        r.grind_loss_mm3 = area * mv[A_GRIND]
+        r.grinding = mv[A_GTIME] > 0.0 or stop[A_GTIME] > 0.0
+        r.duration_s = duration

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.dynamics._feed_kernel import build_segments
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveTable
 from flowtwin.planner.timeline import Timeline
@@ -243,14 +244,14 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
     ta, tc, td = (_clamp_residue(np.asarray(ph[f], dtype=np.float64))
                   for f in ("accel_t", "cruise_t", "decel_t"))
     ts = np.asarray(ph["t_start"], dtype=np.float64)
-    times = np.stack([ta, tc, td, ts])
-    if not np.all(np.isfinite(times)) or np.any(times[:3] < 0.0):
-        i = int(np.flatnonzero(~np.all(np.isfinite(times), axis=0) | np.any(times[:3] < 0.0,
-                                                                               axis=0))[0])
+    dur = ta + tc + td
+    bad_t = ~np.isfinite(dur + ts) | (ta < 0.0) | (tc < 0.0) | (td < 0.0)
+    if np.any(bad_t):
+        i = int(np.flatnonzero(bad_t)[0])
         raise DataError("phase times must be finite and >= 0", source=moves.source,
                         line=int(moves.moves["line"][i]), field="timeline.phases",
-                        value=tuple(float(v) for v in times[:, i]), allowed=">= 0")
-    dur = ta + tc + td
+                        value=(float(ta[i]), float(tc[i]), float(td[i]), float(ts[i])),
+                        allowed=">= 0")
     te = ts + dur
     if n > 1:
         overlap = te[:-1] - ts[1:]
@@ -264,46 +265,9 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
     sv = np.asarray(ph["start_v"], dtype=np.float64) * r
     cv = np.asarray(ph["cruise_v"], dtype=np.float64) * r
     ev = np.asarray(ph["end_v"], dtype=np.float64) * r
-    e_move = e_start_mm + np.concatenate(([0.0], np.cumsum(de)[:-1])) if n else np.zeros(0)
-
-    # (n, 4) grid: accel, cruise, decel, stop after the move; flattened row-major = time order
-    gap_after = np.empty(n)
-    if n:
-        gap_after[:-1] = np.maximum(ts[1:] - te[:-1], 0.0)
-        gap_after[-1] = tail_s
-    seg_dt = np.stack([ta, tc, td, gap_after], axis=1)
-    seg_t0 = np.stack([ts, ts + ta, ts + ta + tc, te], axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        acc_a = np.where(ta > 0.0, (cv - sv) / np.where(ta > 0.0, ta, 1.0), 0.0)
-        acc_d = np.where(td > 0.0, (ev - cv) / np.where(td > 0.0, td, 1.0), 0.0)
-    zeros = np.zeros(n)
-    v0 = np.stack([sv, cv, cv, zeros], axis=1)
-    a = np.stack([acc_a, zeros, acc_d, zeros], axis=1)
-    e_acc = 0.5 * (sv + cv) * ta
-    e_cru = e_acc + cv * tc
-    e0 = np.stack([e_move, e_move + e_acc, e_move + e_cru, e_move + de], axis=1)
-    idx = np.broadcast_to(np.arange(n)[:, None], (n, 4))
-    phase = np.broadcast_to(np.array([PHASE_ACCEL, PHASE_CRUISE, PHASE_DECEL, PHASE_GAP],
-                                     dtype=np.int8), (n, 4))
-    keep = seg_dt > 0.0
-    t0_s = seg_t0[keep]
-    dt_s = seg_dt[keep]
-    coef = np.zeros((t0_s.shape[0], 4))
-    coef[:, 0] = v0[keep]
-    coef[:, 1] = a[keep]
-    e0_mm = e0[keep]
-    move = idx[keep].astype(np.int64)
-    phase_k = phase[keep].astype(np.int8)
+    t0_s, dt_s, coef, e0_mm, move, phase_k = build_segments(
+        ts, ta, tc, td, sv, cv, ev, de, float(e_start_mm), float(lead_s), float(tail_s))
     gap = phase_k == PHASE_GAP
-    if lead_s > 0.0:
-        first_t = float(ts[0]) if n else 0.0
-        t0_s = np.concatenate(([first_t - lead_s], t0_s))
-        dt_s = np.concatenate(([lead_s], dt_s))
-        coef = np.concatenate((np.zeros((1, 4)), coef))
-        e0_mm = np.concatenate(([e_start_mm], e0_mm))
-        move = np.concatenate(([-1], move))
-        gap = np.concatenate(([True], gap))
-        phase_k = np.concatenate((np.array([PHASE_GAP], dtype=np.int8), phase_k))
     return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
                          phase=phase_k, move_t0_s=ts.copy(), move_t1_s=te,
                          move_de_mm=de, e_start_mm=float(e_start_mm))

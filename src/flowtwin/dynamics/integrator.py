@@ -40,11 +40,9 @@ from flowtwin.dynamics._lag_kernel import (
     A_CMD,
     A_FED,
     A_FMAX,
-    A_FWD,
     A_GRIND,
     A_GTIME,
     A_OUT,
-    A_QMAX,
     A_QMIN,
     A_SLIP,
     A_TIME,
@@ -58,6 +56,7 @@ from flowtwin.dynamics._lag_kernel import (
     S_VCMD,
     S_VFIL,
     S_X,
+    fill_move_results,
     integrate_kernel,
 )
 from flowtwin.dynamics.feed import CommandedFeed
@@ -225,31 +224,8 @@ def integrate(feed: CommandedFeed, params: ExtrusionParams, *,
 
 def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64],
               area: float) -> npt.NDArray[np.void]:
-    n = feed.n_moves
-    mv = acc[:n]
-    stop = acc[n + 1:]
-    res = np.zeros(n, dtype=MOVE_RESULT_DTYPE)
-    duration = feed.move_t1_s - feed.move_t0_s
-    res["duration_s"] = duration
-    res["cmd_mm3"] = area * feed.move_de_mm
-    res["fed_cmd_mm3"] = area * mv[:, A_CMD]
-    res["fed_mm3"] = area * mv[:, A_FED]
-    out = area * mv[:, A_OUT]
-    res["out_mm3"] = out
-    stop_out = area * stop[:, A_OUT]
-    res["stop_out_mm3"] = stop_out
-    res["ooze_mm3"] = np.where(feed.move_de_mm > 0.0, 0.0, out) + stop_out
-    covered = mv[:, A_TIME] > 0.0
-    q_mean = np.zeros(n)
-    np.divide(out, duration, out=q_mean, where=duration > 0.0)
-    res["q_mean_mm3_s"] = q_mean
-    res["q_min_mm3_s"] = np.where(covered, area * mv[:, A_QMIN], 0.0)
-    res["q_max_mm3_s"] = area * mv[:, A_QMAX]
-    res["peak_force_n"] = mv[:, A_FMAX]
-    slip = np.zeros(n)
-    np.divide(mv[:, A_SLIP], mv[:, A_FWD], out=slip, where=mv[:, A_FWD] > 0.0)
-    res["slip"] = slip
-    res["slip_loss_mm3"] = area * mv[:, A_SLIP]
-    res["grind_loss_mm3"] = area * mv[:, A_GRIND]
-    res["grinding"] = (mv[:, A_GTIME] > 0.0) | (stop[:, A_GTIME] > 0.0)
+    res = np.zeros(feed.n_moves, dtype=MOVE_RESULT_DTYPE)
+    fill_move_results(acc, float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
+                      np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
+                      np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), res)
     return res
