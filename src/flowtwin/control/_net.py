@@ -79,10 +79,12 @@ class PushSocket:
         self._closed_reason: str | None = None
         self._closing = False
         try:
-            self._ws: ClientConnection = ws_connect(
+            # legacy=True: a plain connection we close ourselves (no auto-reconnect; the
+            # supervisor decides when to reconnect).
+            self._ws: ClientConnection = ws_connect(  # type: ignore[assignment]
                 url, proxy=None, additional_headers=dict(headers or {}),
                 open_timeout=open_timeout_s, ping_interval=5.0, ping_timeout=5.0,
-                close_timeout=1.0, max_size=2**22)
+                close_timeout=1.0, max_size=2**22, legacy=True)
         except (OSError, TimeoutError) as exc:
             raise ConnectionLost(f"cannot open push socket ({type(exc).__name__}: {exc})",
                                  source=url) from None
