@@ -2,9 +2,9 @@
 
 Quick start::
 
-    from flowtwin.calibration import PrintSettings, generate_pattern, verify_pattern
+    from flowtwin.calibration import Firmware, PrintSettings, generate_pattern, verify_pattern
 
-    pattern = generate_pattern("kline", PrintSettings(firmware="marlin"),
+    pattern = generate_pattern("kline", PrintSettings(firmware=Firmware.MARLIN),
                                {"k_start": 0.0, "k_end": 0.1, "k_step": 0.01})
     check = verify_pattern(pattern, printer="generic-marlin")   # read back and plan
     assert check.ok                                             # test speeds reached

@@ -104,7 +104,8 @@ def hermite_slopes(x: npt.ArrayLike, y: npt.ArrayLike) -> FloatArray:
         h0, h1 = h[:-1], h[1:]
         w1, w2 = 2.0 * h1 + h0, h1 + 2.0 * h0
         same = d0 * d1 > 0.0
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # where a secant is 0 (or tiny) the mean is 0 (or tiny) and unused if signs differ
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             mean = (w1 + w2) / (w1 / d0 + w2 / d1)
         d[1:-1] = np.where(same, mean, 0.0)
     return d

@@ -111,6 +111,7 @@ class PrintSettings:
     z_hop_mm: float = 0.0
 
     def __post_init__(self) -> None:
+        # a firmware name ("marlin", "rrf") is accepted too and turned into the enum
         object.__setattr__(self, "firmware", parse_firmware(self.firmware))
         n = self.nozzle_diameter_mm
         check_param("nozzle_diameter_mm", n, 0.05 <= n <= 3.0, "0.05 .. 3 mm")
@@ -402,6 +403,7 @@ class PatternWriter:
     def travel(self, x: float, y: float, *, retract: bool | None = None) -> None:
         """Travel to ``(x, y)``; retract when the travel is long (or when told to)."""
         s = self.settings
+        x, y = round(x, 3), round(y, 3)     # as written: the next bead starts exactly here
         dist = math.hypot(x - self.x, y - self.y)
         if dist < 1e-9:
             return
@@ -438,9 +440,10 @@ class PatternWriter:
                                    field=role or "extrude", value=(x, y))
         area = s.bead_area_mm2()
         e = multiplier * area * length / s.filament_area_mm2
-        feed_mm_min = round(speed_mm_s * 60.0, 1)
+        feed_mm_min = round(speed_mm_s * 60.0, 3)
         speed_mm_s = feed_mm_min / 60.0       # the speed actually written
-        line = self.emit(f"G1 X{x:.3f} Y{y:.3f} E{self._e(e)} F{feed_mm_min:.1f}")
+        line = self.emit(f"G1 X{x:.3f} Y{y:.3f} E{self._e(e)} "
+                         f"F{format_number(feed_mm_min, 3)}")
         self.filament_mm += e
         self.bead_filament_mm += e
         b = self._bounds

@@ -19,6 +19,7 @@ from flowtwin.calibration.adaptive_pa import (
     write_orca_model,
 )
 from flowtwin.calibration.csvdata import read_table
+from flowtwin.calibration.firmware import parse_firmware
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
@@ -246,7 +247,7 @@ def _pattern_cmd(
         "multiplier-step": multiplier_step, "flow-start": flow_start, "flow-end": flow_end,
         "flow-step": flow_step, "flow": flow, "cycles": cycles, "mark-every": mark_every})
     settings = PrintSettings(
-        firmware=firmware,  # type: ignore[arg-type]  # parsed and validated by the class
+        firmware=parse_firmware(firmware),
         nozzle_diameter_mm=nozzle_diameter, filament_diameter_mm=filament_diameter,
         layer_height_mm=layer_height, line_width_mm=line_width, nozzle_temp_c=nozzle_temp,
         bed_temp_c=bed_temp, fan_percent=fan, accel_mm_s2=accel,
