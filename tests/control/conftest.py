@@ -306,3 +306,64 @@ def moonraker_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Moonr
         for p in reversed(procs):
             _stop(p)
         shutil.rmtree(sock.parent, ignore_errors=True)
+
+
+def check_moonraker_exchange(path: Path) -> None:
+    """Assert the Klipper/Moonraker facts flowtwin relies on, from a recorded exchange.
+
+    Used on the committed fixture (recorded from a real run) and on a fresh capture
+    against the live server, so the fixture cannot drift from the real behaviour.
+    """
+    import json
+
+    from flowtwin.control.firmware import Channel
+    from flowtwin.control.moonraker import factors_from_status, split_rpc_message
+
+    record = json.loads(path.read_text())
+    events = record["events"]
+    sent = {e["msg"]["id"]: e["msg"] for e in events if e["dir"] == "sent"}
+    results: dict[int, object] = {}
+    errors: dict[int, str] = {}
+    gcode_responses: list[str] = []
+    pushed: list[dict[Channel, float]] = []
+    for e in events:
+        if e["dir"] != "recv":
+            continue
+        kind, body = split_rpc_message(e["msg"])
+        if kind == "result":
+            results[body[0]] = body[1]
+        elif kind == "error":
+            errors[body[0]] = body[1]
+        elif kind == "notify" and body[0] == "notify_gcode_response":
+            gcode_responses.extend(body[1])
+        elif kind == "notify" and body[0] == "notify_status_update":
+            pushed.append(factors_from_status(body[1][0]))
+
+    def rid(script: str) -> int:
+        return next(i for i, m in sent.items()
+                    if m.get("params", {}).get("script") == script)
+
+    queries = [i for i, m in sent.items() if m["method"] == "printer.objects.query"]
+    sub = next(i for i, m in sent.items() if m["method"] == "printer.objects.subscribe")
+    assert factors_from_status(results[sub]["status"]) == {Channel.SPEED: 100.0,  # type: ignore[index]
+                                                           Channel.FLOW: 100.0}
+    assert results[rid("M221 S95.5")] == "ok" and results[rid("M220 S90")] == "ok"
+    # floats are kept; M220 S90 reads back as 0.8999999999999999 -> 90.0 after rounding
+    first = factors_from_status(results[queries[0]]["status"])  # type: ignore[index]
+    assert first == {Channel.SPEED: 90.0, Channel.FLOW: 95.5}
+    # a bare M221 on Klipper RESETS the flow to 100 % (never use it as a query)
+    after_bare = factors_from_status(results[queries[1]]["status"])  # type: ignore[index]
+    assert after_bare == {Channel.SPEED: 90.0, Channel.FLOW: 100.0}
+    assert {Channel.FLOW: 95.5} in pushed and {Channel.FLOW: 100.0} in pushed
+    assert "S must be above 0.0" in errors[rid("M221 S-5")]
+    assert '// Unknown command:"M900"' in gcode_responses     # Klipper has no M900
+    http = [e for e in events if e["dir"] == "http"]
+    assert [h["status"] for h in http] == [200, 400, 200]
+    assert "S must be above 0.0" in http[1]["response"]["error"]["message"]
+    assert factors_from_status(http[2]["response"]["result"]["status"])[Channel.FLOW] == 97.0
+
+
+@pytest.fixture
+def moonraker_exchange_check() -> Callable[[Path], None]:
+    """The checker of recorded Moonraker exchanges."""
+    return check_moonraker_exchange
