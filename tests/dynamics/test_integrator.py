@@ -275,3 +275,36 @@ def test_errors_name_the_field(make_feed):
         integrate(feed, params(), series_dt_s=0.0)
     with pytest.raises(ProfileError, match="temperature"):
         params(lag_k_s=lambda t: t)
+
+
+def test_steady_slip_matches_the_drive_model(make_feed):
+    # at constant feed the integrator must settle at s = (k_p + s'F_0)/(1 + s'F_0), F_0 = K v/k
+    # (flowtwin.physics.drive.steady_state_slip, from [000 Eq. 6] with F_f = F_0 (1 - s))
+    from flowtwin.physics.drive import steady_state_slip
+
+    v, kp, sp = 6.0, 0.015, 0.0032
+    res = integrate(make_feed([3.0], [[v]]),
+                    params(slip_offset=kp, slip_gradient_per_n=sp), series_dt_s=0.5)
+    s_expected = float(steady_state_slip(K * v / KC, sp, k_p=kp))
+    assert ser(res)["slip"][-2] == pytest.approx(s_expected, rel=1e-12)
+    assert ser(res)["v_fil_mm_s"][-2] == pytest.approx(v * (1 - s_expected), rel=1e-12)
+
+
+def test_series_follows_the_feed(make_feed, rng):
+    n = 20
+    dts = rng.uniform(0.01, 0.1, n)
+    coef = [[rng.uniform(-3, 6), rng.uniform(-50, 50), rng.uniform(-300, 300),
+             rng.uniform(-2000, 2000)] for _ in range(n)]
+    feed = make_feed(dts, coef)
+    res = integrate(feed, params(n), series_dt_s=0.003, tail_s=0.1)
+    s = ser(res)
+    inside = s["t_s"] < feed.t_end_s
+    np.testing.assert_allclose(s["e_cmd_mm"][inside], feed.position_at(s["t_s"][inside]),
+                               atol=1e-12)
+    np.testing.assert_allclose(s["v_cmd_mm_s"][inside], feed.velocity_at(s["t_s"][inside]),
+                               atol=1e-12)
+    # during the tail the column relaxes: q = A x / K
+    tail = ~inside
+    a = params().filament_area_mm2
+    np.testing.assert_allclose(s["q_out_mm3_s"][tail],
+                               a * np.maximum(s["compression_mm"][tail], 0) / K, rtol=1e-12)

@@ -94,8 +94,14 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
                    bv0: npt.NDArray[np.float64], ba: npt.NDArray[np.float64],
                    be0: npt.NDArray[np.float64], bk: npt.NDArray[np.float64],
                    u: npt.NDArray[np.float64], hp: npt.NDArray[np.float64],
-                   out_coef: npt.NDArray[np.float64], out_e0: npt.NDArray[np.float64]) -> None:
+                   move_t0: npt.NDArray[np.float64], move_t1: npt.NDArray[np.float64],
+                   out_coef: npt.NDArray[np.float64], out_e0: npt.NDArray[np.float64],
+                   out_move: npt.NDArray[np.int64], out_gap: npt.NDArray[np.bool_]) -> None:
     """Smoothed advanced speed (cubic per piece) and position at every piece start.
+
+    Also the owner of each piece: the move whose ``[move_t0, move_t1)`` holds the piece's
+    midpoint (``out_gap`` False), else the last move started before it (``out_gap`` True,
+    ``-1`` before the first move).
 
     Base segment ``j`` covers ``[bt0[j], bt0[j] + bdt[j])`` with speed ``bv0 + ba τ``,
     position ``be0`` at its start and advance ``bk`` (s); the first and last base segments
@@ -108,12 +114,18 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
     jp = 0
     ja = 0
     jb = 0
+    nm = move_t0.shape[0]
+    owner = -1
     for k in range(u.shape[0] - 1):
         t = u[k]
         h = hp[k]
         # The segments holding t - h, t and t + h throughout the piece: looked up at the
         # piece's midpoint, because t ± h may round to the wrong side of a breakpoint b ∓ h.
         tm = 0.5 * (t + u[k + 1])
+        while owner + 1 < nm and move_t0[owner + 1] <= tm:
+            owner += 1
+        out_move[k] = owner
+        out_gap[k] = owner < 0 or tm >= move_t1[owner]
         jc = _seg_of(bt0, tm, jc)
         dc = t - bt0[jc]
         if h == 0.0:

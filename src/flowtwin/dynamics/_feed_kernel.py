@@ -15,7 +15,8 @@ __all__ = ["build_segments"]
 
 
 @njit(cache=True)
-def build_segments(ts: npt.NDArray[np.float64], ta: npt.NDArray[np.float64],
+def build_segments(ts: npt.NDArray[np.float64], te: npt.NDArray[np.float64],
+                   ta: npt.NDArray[np.float64],
                    tc: npt.NDArray[np.float64], td: npt.NDArray[np.float64],
                    sv: npt.NDArray[np.float64], cv: npt.NDArray[np.float64],
                    ev: npt.NDArray[np.float64], de: npt.NDArray[np.float64],
@@ -25,6 +26,8 @@ def build_segments(ts: npt.NDArray[np.float64], ta: npt.NDArray[np.float64],
                               npt.NDArray[np.int64], npt.NDArray[np.int8]]:
     """Segments ``(t0, dt, coef (m, 4), e0, move, phase)`` of the nominal feed.
 
+    ``ts``, ``te`` are the move start and end times (the stop after move ``i`` is
+    ``[te[i], ts[i + 1])``).
     ``sv``, ``cv``, ``ev`` are the E speeds at the phase ends (path speed times the E
     ratio); the stop after the last move lasts ``tail_s``, a rest of ``lead_s`` comes
     first (move index -1). Phase codes: 0 accel, 1 cruise, 2 decel, 3 stop.
@@ -75,11 +78,10 @@ def build_segments(ts: npt.NDArray[np.float64], ta: npt.NDArray[np.float64],
             move[k] = i
             phase[k] = 2
             k += 1
-        t_end = t + ta[i] + tc[i] + td[i]
         e += de[i]
-        gap = (ts[i + 1] - t_end) if i + 1 < n else tail_s
+        gap = (ts[i + 1] - te[i]) if i + 1 < n else tail_s
         if gap > 0.0:
-            t0[k] = t_end
+            t0[k] = te[i]
             dt[k] = gap
             e0[k] = e
             move[k] = i

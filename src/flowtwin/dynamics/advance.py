@@ -406,15 +406,12 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
     u_all = np.concatenate([*pieces, [t_hi]])
     hp = np.concatenate(widths)
     m = hp.shape[0]
-    out_coef = np.zeros((m, 4))
-    out_e0 = np.zeros(m)
+    out_coef = np.empty((m, 4))
+    out_e0 = np.empty(m)
+    owner = np.empty(m, dtype=np.int64)
+    gap = np.empty(m, dtype=np.bool_)
     klipper_smooth(t0, dt, np.ascontiguousarray(coef[:, 0]), np.ascontiguousarray(coef[:, 1]),
-                   e0, k_seg, u_all, hp, out_coef, out_e0)
-    p_t0 = u_all[:-1]
-    p_dt = np.diff(u_all)
-    mid = p_t0 + 0.5 * p_dt
-    owner = np.searchsorted(feed.move_t0_s, mid, side="right") - 1
-    inside = owner >= 0
-    inside[inside] = mid[inside] < feed.move_t1_s[owner[inside]]
-    phase = np.where(inside, PHASE_MIXED, PHASE_GAP).astype(np.int8)
-    return (p_t0, p_dt, out_coef, out_e0, owner.astype(np.int64), ~inside, phase)
+                   e0, k_seg, u_all, hp, feed.move_t0_s, feed.move_t1_s, out_coef, out_e0,
+                   owner, gap)
+    phase = np.where(gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
+    return (u_all[:-1], np.diff(u_all), out_coef, out_e0, owner, gap, phase)

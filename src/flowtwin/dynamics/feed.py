@@ -266,7 +266,7 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
     cv = np.asarray(ph["cruise_v"], dtype=np.float64) * r
     ev = np.asarray(ph["end_v"], dtype=np.float64) * r
     t0_s, dt_s, coef, e0_mm, move, phase_k = build_segments(
-        ts, ta, tc, td, sv, cv, ev, de, float(e_start_mm), float(lead_s), float(tail_s))
+        ts, te, ta, tc, td, sv, cv, ev, de, float(e_start_mm), float(lead_s), float(tail_s))
     gap = phase_k == PHASE_GAP
     return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
                          phase=phase_k, move_t0_s=ts.copy(), move_t1_s=te,

@@ -11,7 +11,8 @@ first-order system with time constant ``τ`` (``heater_tau_s``; 0 = instantaneou
 * ``M109 S<T>`` / ``M109 R<T>`` change the set point and wait: the planner's timeline does
   not contain the wait, so the nozzle is taken to be at the set point when the next move
   starts.
-* ``T<n>`` addresses another tool's heater (ignored unless it is the tool asked for);
+* ``T<n>`` addresses that tool's heater (ignored unless it is the tool asked for); a
+  command without ``T`` addresses the active extruder, taken to be the one simulated.
   ``S0`` switches the heater off (set point = ``ambient_c``).
 
 A command takes effect at the start of the move that follows it.
