@@ -121,6 +121,9 @@ def expand_inputs(patterns: Sequence[str | os.PathLike[str]]) -> list[Path]:
     out: dict[str, Path] = {}
     for item in patterns:
         text = os.fspath(item)
+        if text == "-":
+            raise GcodeError("standard input cannot be part of a batch", source=text,
+                             allowed="files, folders or glob patterns")
         if glob.has_magic(text):
             found = sorted(Path(p) for p in glob.glob(text, recursive=True) if Path(p).is_file())
             if not found:
@@ -265,11 +268,12 @@ def run_batch(files: Sequence[str | os.PathLike[str]], *, out: str | os.PathLike
     done: set[str] = set()
 
     def jobs() -> Iterator[Job]:
-        for index, (path, rid) in enumerate(zip(paths, ids, strict=True)):
+        for index, (path, key, rid) in enumerate(zip(paths, keys, ids, strict=True)):
             if rid in done:
                 continue
             data = _read_bytes(path) if ship_files else None
-            yield Job(index, rid, str(path), data if data is not None else str(path), machine,
+            # Workers get the absolute path: their working directory is not ours.
+            yield Job(index, rid, str(path), data if data is not None else key, machine,
                       (), engine, reports_dir is not None)
 
     return _execute("batch", jobs(), ids, out=out, config=config, engine=engine, resume=resume,
@@ -356,7 +360,7 @@ def run_sweep(source: str | os.PathLike[str], params: Sequence[str | Axis], *,
         for index, (point, rid) in enumerate(zip(points, ids, strict=True)):
             if rid in done:
                 continue
-            yield Job(index, rid, str(path), data if data is not None else str(path),
+            yield Job(index, rid, str(path), data if data is not None else key,
                       builder.build(point), tuple(point.items()), engine,
                       reports_dir is not None)
 

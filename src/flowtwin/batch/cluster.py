@@ -105,7 +105,8 @@ def dask_client(*, scheduler: str | None = None, workers: int | None = None,
     ----------
     scheduler
         Address of a running scheduler (``tcp://HOST:PORT``); ``None`` starts a
-        ``LocalCluster`` of worker processes on 127.0.0.1 (no dashboard), closed on exit.
+        ``LocalCluster`` of worker processes on 127.0.0.1 (no dashboard; the scheduler's
+        health/metrics HTTP routes on a free port of 127.0.0.1), closed on exit.
     workers
         Worker processes of the local cluster (default :func:`default_workers`); not
         allowed with ``scheduler``.
@@ -139,9 +140,12 @@ def dask_client(*, scheduler: str | None = None, workers: int | None = None,
     if n < 1:
         raise ClusterError("a local cluster needs at least one worker", field="--workers",
                            value=n, allowed=">= 1")
+    # Everything listens on 127.0.0.1 only. The scheduler always serves its health and
+    # metrics routes over HTTP (on port 8787 unless told otherwise): a free port, and no
+    # dashboard.
     cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker,
-                           processes=True, host="127.0.0.1", dashboard_address=None,
-                           silence_logs=logging.ERROR)
+                           processes=True, host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                           scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR)
     try:
         with Client(cluster) as client:
             yield client
@@ -217,7 +221,9 @@ def run_jobs(client: object, jobs: Iterable[Job], *, writer: ResultWriter, total
     nonce = uuid.uuid4().hex[:8]
     pending: dict[str, tuple[object, Job]] = {}
     queue = iter(jobs)
-    ac = as_completed()
+    # with_results: results are fetched in the background as tasks finish, not one
+    # round trip per result here.
+    ac = as_completed(with_results=True, raise_errors=False)
     ok = failed = duplicates = 0
 
     def submit_next() -> bool:
@@ -239,15 +245,13 @@ def run_jobs(client: object, jobs: Iterable[Job], *, writer: ResultWriter, total
                 writer.tick()
                 time.sleep(_POLL_S)
                 continue
-            for future in batch:
+            for future, outcome in batch:
                 _, job = pending.pop(future.key)
                 report: Mapping[str, object] | None = None
-                if future.status == "finished":
-                    result = future.result()
-                    assert isinstance(result, JobResult)
-                    row, report = result.row, result.report
+                if future.status == "finished" and isinstance(outcome, JobResult):
+                    row, report = outcome.row, outcome.report
                 elif future.status == "error":
-                    exc = future.exception()
+                    exc = outcome[1] if isinstance(outcome, tuple) else future.exception()
                     if isinstance(exc, KilledWorker):
                         row = error_row(job, "killed", f"the task killed the workers that "
                                                        f"ran it: {exc}")

@@ -14,7 +14,8 @@ A part is renamed into place (complete) before its manifest line is appended, an
 reader ignores a torn last line and any file the manifest does not list, so a run killed at
 any instant leaves a table :func:`read_results` can read: every row in it is complete and
 none is duplicated. A finished run removes the parts folder; an interrupted one keeps it for
-``--resume``. ``.csv`` outputs keep the same Parquet parts and convert at the end.
+``--resume``. ``.csv`` outputs are converted from the same Parquet parts at the end and keep
+the parts folder (CSV holds neither the column types nor the run configuration).
 """
 
 from __future__ import annotations
@@ -241,8 +242,12 @@ class ResultWriter:
         if self.out.is_file():
             table = _read_table(self.out)
             config = _config_of(table)
-            if config is not None:
-                self._check_config(config, self.out)
+            if config is None:
+                raise DataError("the table does not say which run made it (a CSV file or a "
+                                "Parquet file from elsewhere), so it cannot be resumed",
+                                source=str(self.out), allowed=f"its {self.folder.name} "
+                                "folder beside it, or drop --resume to start afresh")
+            self._check_config(config, self.out)
             return [table]
         return []
 
@@ -307,7 +312,9 @@ class ResultWriter:
         """Write the waiting rows as a new part now."""
         if not self._buffer:
             return
-        self._write_part(pa.Table.from_pylist(self._buffer))
+        # Rows differ in columns (an error row has no results): take the union, in order.
+        columns = list(dict.fromkeys(k for row in self._buffer for k in row))
+        self._write_part(pa.table({c: [row.get(c) for row in self._buffer] for c in columns}))
         self._buffer = []
         self._first_wait = None
 
@@ -340,7 +347,9 @@ class ResultWriter:
         else:
             with atomic_open(self.out, "wb") as fh:
                 pq.write_table(table, fh)
-        if complete:
+        if complete and self.out.suffix.lower() != ".csv":
+            # A CSV file keeps neither the column types nor the run configuration: its
+            # parts folder stays beside it for read_results and --resume.
             self._remove_parts(only_ours=True)
         return table
 
