@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -10,29 +11,37 @@ import typer
 from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, print_json
 from flowtwin.cli.plan import render_plan
+from flowtwin.cli.simulate import render_simulation, run_simulation
 from flowtwin.gcode.generator import PrintSpec, write_print
-from flowtwin.planning import DEFAULT_PRINTER, plan_gcode
+from flowtwin.planning import plan_gcode
+from flowtwin.simulation import DEFAULT_MACHINE
 
 __all__ = ["register", "run_demo"]
 
 
-def run_demo(out_dir: Path, *, printer: str = DEFAULT_PRINTER) -> dict[str, object]:
-    """Generate the built-in print into ``out_dir``, plan it, write ``plan.json``.
+def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bool = False
+             ) -> dict[str, object]:
+    """Generate the built-in print into ``out_dir``, plan and simulate it, write the report.
 
-    Returns the plan summary (with the per-layer table and the written paths).
+    Writes ``demo.gcode``, ``plan.json``, ``summary.json`` and ``report.html``; returns the
+    plan and simulation summaries with the written paths.
     """
-    import json
-
     out_dir.mkdir(parents=True, exist_ok=True)
     gcode = out_dir / "demo.gcode"
     write_print(gcode, PrintSpec())
-    result = plan_gcode(gcode, printer=printer)
-    summary = result.summary()
-    summary["per_layer"] = result.per_layer()
-    summary["outputs"] = {"gcode": str(gcode), "plan": str(out_dir / "plan.json")}
-    atomic_write_text(out_dir / "plan.json", json.dumps(summary, indent=2, allow_nan=False,
-                                                        default=str) + "\n")
-    return summary
+    from flowtwin.profiles import load_machine
+
+    plan = plan_gcode(gcode, printer=load_machine(machine).printer)
+    plan_summary = plan.summary()
+    plan_summary["per_layer"] = plan.per_layer()
+    atomic_write_text(out_dir / "plan.json",
+                      json.dumps(plan_summary, indent=2, allow_nan=False, default=str) + "\n")
+    sim = run_simulation(str(gcode), machine=machine, klipper_config=None, out_dir=out_dir,
+                         series=None, pressure_advance=True, slicer_limits=False,
+                         show_progress=show_progress)
+    return {"plan": plan_summary, "simulation": sim.summary(),
+            "outputs": {name: str(out_dir / name) for name in
+                        ("demo.gcode", "plan.json", "summary.json", "report.html")}}
 
 
 def register(app: typer.Typer) -> None:
@@ -42,15 +51,19 @@ def register(app: typer.Typer) -> None:
     def demo_cmd(
         out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the outputs.")
                        ] = Path("demo-out"),
-        profile: Annotated[str, typer.Option("--profile", "-p", help="Printer profile.")
-                           ] = DEFAULT_PRINTER,
+        profile: Annotated[str, typer.Option("--profile", "-p", help="Machine set-up.")
+                           ] = DEFAULT_MACHINE,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
-        """Generate the built-in example print, plan it and write a report to OUT."""
-        summary = run_demo(out, printer=profile)
+        """Generate the built-in example print, plan and simulate it, write report.html."""
+        summary = run_demo(out, machine=profile, show_progress=not json_out)
         if json_out:
             print_json(summary)
             return
-        result = plan_gcode(out / "demo.gcode", printer=profile)
-        render_plan(result)
-        console.print(f"\nwrote {out / 'demo.gcode'} and {out / 'plan.json'}")
+        from flowtwin.profiles import load_machine
+
+        render_plan(plan_gcode(out / "demo.gcode", printer=load_machine(profile).printer))
+        from flowtwin.simulation import simulate
+
+        render_simulation(simulate(out / "demo.gcode", machine=profile))
+        console.print("\nwrote " + ", ".join(str(v) for v in summary["outputs"].values()))  # type: ignore[attr-defined]

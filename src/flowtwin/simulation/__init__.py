@@ -1,0 +1,15 @@
+"""Whole-print prediction: G-code + machine → what the printer really extrudes.
+
+``simulate(gcode, machine)`` reads and plans the file as the firmware would
+(:mod:`flowtwin.planning`), derives the per-move physics from the machine's profiles
+(:mod:`flowtwin.simulation.parameters`), integrates the extrusion state equation with the
+firmware's pressure advance (:mod:`flowtwin.dynamics`) and applies the bead model
+(:mod:`flowtwin.simulation.result`).
+"""
+
+from flowtwin.simulation.parameters import MoveParameters, layer_heights_mm, move_parameters
+from flowtwin.simulation.pipeline import DEFAULT_MACHINE, simulate
+from flowtwin.simulation.result import METRIC_DTYPE, SimulationResult
+
+__all__ = ["DEFAULT_MACHINE", "METRIC_DTYPE", "MoveParameters", "SimulationResult",
+           "layer_heights_mm", "move_parameters", "simulate"]

@@ -1,0 +1,199 @@
+"""Per-move physical parameters of the state equation from a machine's profiles.
+
+For every move: nozzle temperature (from ``M104``/``M109``, with the hot end's heater lag)
+→ viscosity by the material's law [002] → hydraulic resistance of cone, capillary and the
+layer-height dependent back-pressure under the tip [002, 001 Eq. 4] → lag factor
+``K = k·R_hyd·A²`` (SPEC §3.4) with the column compliance ``k`` [002, 001 Eq. 2]; the slip
+law of the drive's roller at its pinch force [000 Eqs. 6, 8] and its maximum feed force
+[000 Figs. 4–8].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.dynamics import ExtrusionParams, move_temperatures
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
+from flowtwin.physics.lag import lag_factor_s
+from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
+from flowtwin.physics.units import pa_s_to_mpa_s
+from flowtwin.physics.viscosity import (
+    viscosity_arrhenius_pa_s,
+    viscosity_exponential_pa_s,
+    viscosity_wlf_pa_s,
+)
+from flowtwin.planner.timeline import Timeline
+from flowtwin.profiles.machine import Machine
+from flowtwin.profiles.material import (
+    ArrheniusViscosity,
+    ExponentialViscosity,
+    MaterialProfile,
+    WlfViscosity,
+)
+
+__all__ = ["MoveParameters", "layer_heights_mm", "move_parameters", "viscosity_pa_s"]
+
+#: Eq. 8 of [000] holds for pinch forces of 80–130 N only [000 §4.2].
+_EQ8_PINCH_RANGE_N = (80.0, 130.0)
+
+
+@dataclass(frozen=True, slots=True)
+class MoveParameters:
+    """Everything the integrator and the deposition model need, per move.
+
+    Attributes
+    ----------
+    params
+        The state-equation parameters (lag, compliance, slip, max force).
+    temperature_c
+        Nozzle temperature during each move, °C, shape ``(n,)``.
+    layer_height_mm
+        Layer height of each move, mm, shape ``(n,)``.
+    viscosity_pa_s
+        Melt viscosity during each move, Pa·s, shape ``(n,)``.
+    slip_law
+        ``"eq6"`` or ``"eq8"``: which law of [000] gives the slip gradient.
+    warnings
+        Extrapolations and substitutions, each said once (never silent).
+    """
+
+    params: ExtrusionParams
+    temperature_c: npt.NDArray[np.float64]
+    layer_height_mm: npt.NDArray[np.float64]
+    viscosity_pa_s: npt.NDArray[np.float64]
+    slip_law: str
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def viscosity_pa_s(material: MaterialProfile, temp_c: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Melt viscosity by the material's law (exponential [002], Arrhenius or WLF), Pa·s."""
+    law = material.viscosity
+    t = np.asarray(temp_c, dtype=np.float64)
+    if isinstance(law, ExponentialViscosity):
+        return viscosity_exponential_pa_s(t, law.mu0_pa_s, law.b_per_c)
+    if isinstance(law, ArrheniusViscosity):
+        return viscosity_arrhenius_pa_s(t, law.mu_ref_pa_s, law.t_ref_c,
+                                        law.activation_energy_j_mol)
+    assert isinstance(law, WlfViscosity)
+    return viscosity_wlf_pa_s(t, law.mu_ref_pa_s, law.t_ref_c, law.c1, law.c2_k)
+
+
+def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
+                     ) -> npt.NDArray[np.float64]:
+    """Layer height of every move, mm: the rise of its layer over the layer below.
+
+    Layers whose Z is unknown take the Z of their first extrusion; moves before the first
+    layer, and heights outside ``(0, max_mm]``, take ``default_mm``.
+    """
+    m = table.moves
+    n = len(m)
+    layer = m["layer"].astype(np.int64)
+    n_layers = int(layer.max()) + 1 if n else 0
+    z = np.full(n_layers, np.nan)
+    z[: min(n_layers, len(table.layer_z))] = table.layer_z[:n_layers]
+    extruding = (m["kind"] & MoveKind.EXTRUDE) != 0
+    missing = np.flatnonzero(np.isnan(z))
+    if missing.size:
+        sel = extruding & (layer >= 0)
+        first: dict[int, float] = {}
+        for lay, zz in zip(layer[sel].tolist(), m["z"][sel].tolist(), strict=True):
+            first.setdefault(lay, zz)
+        for k in missing.tolist():
+            z[k] = first.get(k, np.nan)
+    h_layer = np.diff(np.concatenate(([0.0], z)))
+    ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm)
+    h_layer = np.where(ok, h_layer, default_mm)
+    out = np.full(n, default_mm)
+    inside = layer >= 0
+    out[inside] = h_layer[layer[inside]]
+    return out
+
+
+def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
+                    temperature_c: float | None = None) -> MoveParameters:
+    """Per-move parameters of the extrusion state equation for ``machine``.
+
+    Parameters
+    ----------
+    machine
+        The resolved set-up (printer, drive, hot end, material, filament).
+    table, timeline
+        The read and planned G-code.
+    temperature_c
+        Nozzle temperature before the G-code sets one, °C (default: the set-up's).
+
+    Returns
+    -------
+    MoveParameters
+    """
+    n = len(table)
+    warnings: list[str] = []
+    hot = machine.hotend
+    mat = machine.material
+    area = machine.filament.area_mm2
+    initial = machine.temperature_c if temperature_c is None else temperature_c
+    temps = move_temperatures(table, timeline, initial_c=initial,
+                              heater_tau_s=hot.heater_time_constant_s or 0.0)
+    lo, hi = mat.viscosity.t_min_c, mat.viscosity.t_max_c
+    outside = (temps < lo) | (temps > hi)
+    extruding = (table.moves["kind"] & MoveKind.EXTRUDE) != 0
+    if np.any(outside & extruding):
+        k = int(np.flatnonzero(outside & extruding)[0])
+        warnings.append(
+            f"{int(np.count_nonzero(outside & extruding))} extruding moves at a nozzle "
+            f"temperature outside the viscosity law's range {lo:g}–{hi:g} °C (first: line "
+            f"{int(table.moves['line'][k])}, {temps[k]:.1f} °C); the law is evaluated at the "
+            "nearest end of its range there (extrapolation refused)")
+    t_eval = np.clip(temps, lo, hi)
+    visc_pa_s = viscosity_pa_s(mat, t_eval)
+    default_h = machine.setup.layer_height_mm or float(
+        table.metadata.get("layer_height_mm", 0.2) or 0.2)  # type: ignore[arg-type]
+    h = layer_heights_mm(table, default_mm=default_h, max_mm=hot.nozzle_diameter_mm)
+    resistance = hydraulic_resistance_mpa_s_per_mm3(
+        pa_s_to_mpa_s(visc_pa_s), capillary_length_mm=hot.land_length_mm,
+        nozzle_radius_mm=hot.nozzle_diameter_mm / 2.0,
+        bore_radius_mm=hot.bore_diameter_mm / 2.0, cone_half_angle_deg=hot.cone_half_angle_deg,
+        layer_height_mm=h, back_pressure_length_mm=hot.back_pressure_length_mm,
+        back_pressure_exponent=hot.back_pressure_exponent)
+    k_col = float(compliance_mm_per_n(area, hot.l_rt_mm, mat.e_rt_mpa, hot.l_hot_mm,
+                                      mat.e_hot_mpa))
+    if hot.bowden is not None:
+        tube = hot.bowden
+        k_col += float(bowden_compliance_mm_per_n(
+            tube.length_mm, tube.outer_diameter_mm, tube.inner_diameter_mm, tube.modulus_mpa,
+            machine.filament.diameter_mm, mat.e_rt_mpa))
+    lag = lag_factor_s(k_col, resistance, area)
+
+    roller = machine.roller
+    fp = machine.drive.pinch_force_n
+    use_eq8 = (roller.velocity_dependent
+               and _EQ8_PINCH_RANGE_N[0] <= fp <= _EQ8_PINCH_RANGE_N[1])
+    if use_eq8:
+        grad = float(roller.a_per_n)  # type: ignore[arg-type]
+        gain = float(roller.b_per_n)  # type: ignore[arg-type]
+        decay = float(roller.c_s_per_mm)  # type: ignore[arg-type]
+    else:
+        grad = roller.k_s_n / fp ** 2 + roller.k_inf_per_n
+        gain, decay = 0.0, 0.0
+        if roller.velocity_dependent:
+            warnings.append(f"pinch force {fp:g} N is outside 80–130 N where the velocity "
+                            "law [000 Eq. 8] holds; using Eq. 6 without velocity dependence")
+    fit = roller.max_feed_force_fit
+    max_force = fit.max_feed_force_n(fp) if fit is not None else math.inf
+    if fit is None:
+        warnings.append(f"roller {roller.name} has no maximum feed force fit: grinding is "
+                        "not predicted")
+    params = ExtrusionParams.build(
+        n, lag_k_s=lag,
+        compliance_mm_per_n=k_col, filament_diameter_mm=machine.filament.diameter_mm,
+        slip_offset=machine.drive.k_p, slip_gradient_per_n=grad,
+        slip_velocity_gain_per_n=gain, slip_velocity_decay_s_per_mm=decay,
+        max_feed_force_n=max_force)
+    return MoveParameters(params=params, temperature_c=temps, layer_height_mm=h,
+                          viscosity_pa_s=visc_pa_s, slip_law="eq8" if use_eq8 else "eq6",
+                          warnings=tuple(warnings))

@@ -1,0 +1,245 @@
+"""What a whole-print simulation returns: per move, per layer, per feature, whole print."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.atomic import atomic_open
+from flowtwin.dynamics import DynamicsResult
+from flowtwin.errors import DataError
+from flowtwin.gcode.moves import MoveKind
+from flowtwin.planning import PlanResult
+from flowtwin.simulation.parameters import MoveParameters
+
+__all__ = ["METRIC_DTYPE", "SimulationResult"]
+
+#: Deposition metrics per move (widths in mm; NaN where the move lays no bead).
+METRIC_DTYPE = np.dtype([
+    ("width_nominal_mm", np.float64),   # what the slicer meant: its E over the path [001 Eq. 7]
+    ("width_mean_mm", np.float64),      # from the melt delivered over the path
+    ("width_min_mm", np.float64),       # from the lowest / highest flow over the mean speed
+    ("width_max_mm", np.float64),
+    ("flow_error", np.float64),         # delivered / commanded - 1 (extruding moves)
+    ("force_margin_n", np.float64),     # max feed force of the roller - peak feed force
+    ("narrow", np.bool_),               # predicted width below the layer height (w < h)
+], align=True)
+
+_BEAD = 1.0 - math.pi / 4.0
+
+
+@dataclass(slots=True)
+class SimulationResult:
+    """A G-code simulated on a machine.
+
+    Attributes
+    ----------
+    plan
+        The read and planned G-code (:class:`~flowtwin.planning.PlanResult`).
+    machine_name
+        Name of the set-up.
+    parameters
+        Per-move physical parameters used.
+    dynamics
+        The integrator's per-move results, totals and optional time series.
+    metrics
+        Deposition metrics per move (:data:`METRIC_DTYPE`).
+    advance
+        Pressure advance the prediction includes (e.g. ``"klipper K=0.04 s"`` or ``"off"``).
+    warnings
+        Everything the user must know (extrapolations, ignored commands).
+    """
+
+    plan: PlanResult
+    machine_name: str
+    parameters: MoveParameters
+    dynamics: DynamicsResult
+    metrics: npt.NDArray[np.void]
+    advance: str
+    warnings: list[str] = field(default_factory=list)
+
+    # ---- aggregates -----------------------------------------------------------------------
+    def _extruding(self) -> npt.NDArray[np.bool_]:
+        m = self.plan.table.moves
+        cmd = self.dynamics.moves["cmd_mm3"]
+        return ((m["kind"] & MoveKind.EXTRUDE) != 0) & ((m["kind"] & MoveKind.XY) != 0) & (cmd > 0)
+
+    def _rms(self, sel: npt.NDArray[np.bool_]) -> float:
+        """Volume-weighted RMS of the per-move flow error over ``sel``."""
+        w = self.dynamics.moves["cmd_mm3"][sel]
+        err = self.metrics["flow_error"][sel]
+        if w.size == 0 or float(w.sum()) <= 0.0:
+            return 0.0
+        return float(np.sqrt(np.sum(w * err * err) / np.sum(w)))
+
+    def summary(self) -> dict[str, object]:
+        """Whole-print figures as plain JSON-able values."""
+        d = self.dynamics.moves
+        met = self.metrics
+        ext = self._extruding()
+        grinding = d["grinding"].astype(np.int8)
+        events = int(np.count_nonzero(np.diff(np.concatenate(([0], grinding))) == 1))
+        margin = met["force_margin_n"]
+        finite_margin = margin[np.isfinite(margin)]
+        width_dev = (met["width_mean_mm"] - met["width_nominal_mm"])[ext]
+        plan = self.plan.summary()
+        return {
+            "file": plan["file"], "machine": self.machine_name, "printer": plan["printer"],
+            "firmware": plan["firmware"], "pressure_advance": self.advance,
+            "total_time_s": plan["total_time_s"], "moves": plan["moves"],
+            "layers": plan["layers"],
+            "commanded_volume_mm3": float(np.sum(d["cmd_mm3"])),
+            "delivered_volume_mm3": float(np.sum(d["out_mm3"] + d["stop_out_mm3"])),
+            "delivered_in_beads_mm3": float(np.sum(d["out_mm3"][ext])),
+            "volume_error": _ratio(float(np.sum(d["out_mm3"] + d["stop_out_mm3"])),
+                                   float(np.sum(d["cmd_mm3"]))),
+            "rms_flow_error": self._rms(ext),
+            "peak_overextrusion": float(np.max(met["flow_error"][ext], initial=0.0)),
+            "peak_underextrusion": float(-np.min(met["flow_error"][ext], initial=0.0)),
+            "worst_width_error_mm": float(np.max(np.abs(width_dev), initial=0.0)),
+            "mean_slip": _share(float(np.sum(d["slip_loss_mm3"])),
+                                float(np.sum(np.maximum(d["fed_cmd_mm3"], 0.0)))),
+            "max_feed_force_n": float(np.max(d["peak_force_n"], initial=0.0)),
+            "min_force_margin_n": float(np.min(finite_margin)) if finite_margin.size else None,
+            "grinding_events": events,
+            "grinding_moves": int(np.count_nonzero(grinding)),
+            "ooze_volume_mm3": float(np.sum(d["ooze_mm3"])),
+            "narrow_beads": int(np.count_nonzero(met["narrow"] & ext)),
+            "net_filament_mm": plan["net_filament_mm"],
+            "warnings": list(self.warnings),
+        }
+
+    def per_layer(self) -> list[dict[str, float | int]]:
+        """Commanded and delivered volume, RMS flow error, worst width error per layer."""
+        return self._grouped(self.plan.table.moves["layer"].astype(np.int64), "layer")
+
+    def per_feature(self) -> list[dict[str, float | int | str]]:
+        """The same as :meth:`per_layer`, per feature type."""
+        rows = self._grouped(self.plan.table.moves["feature"].astype(np.int64), "feature")
+        names = self.plan.table.features
+        out: list[dict[str, float | int | str]] = []
+        for r in rows:
+            k = int(r["feature"])
+            out.append({**r, "feature": names[k] if 0 <= k < len(names) else "unknown"})
+        return out
+
+    def _grouped(self, key: npt.NDArray[np.int64], name: str) -> list[dict[str, float | int]]:
+        d = self.dynamics.moves
+        ext = self._extruding()
+        dev = np.abs(self.metrics["width_mean_mm"] - self.metrics["width_nominal_mm"])
+        rows: list[dict[str, float | int]] = []
+        for k in np.unique(key).tolist():
+            sel = key == k
+            rows.append({
+                name: int(k),
+                "time_s": float(np.sum(d["duration_s"][sel])),
+                "commanded_mm3": float(np.sum(d["cmd_mm3"][sel])),
+                "delivered_mm3": float(np.sum(d["out_mm3"][sel] + d["stop_out_mm3"][sel])),
+                "rms_flow_error": self._rms(sel & ext),
+                "worst_width_error_mm": float(np.max(dev[sel & ext], initial=0.0)),
+                "max_feed_force_n": float(np.max(d["peak_force_n"][sel], initial=0.0)),
+                "grinding_moves": int(np.count_nonzero(d["grinding"][sel])),
+                "ooze_mm3": float(np.sum(d["ooze_mm3"][sel])),
+            })
+        return rows
+
+    def worst_moves(self, by: str = "width", count: int = 10) -> list[dict[str, float | int]]:
+        """The ``count`` worst extruding moves by width error (``"width"``) or by the
+        smallest force margin (``"force"``), with their source lines."""
+        m = self.plan.table.moves
+        met = self.metrics
+        ext = self._extruding()
+        idx = np.flatnonzero(ext)
+        if by == "width":
+            score = np.abs(met["width_mean_mm"] - met["width_nominal_mm"])[idx]
+            order = idx[np.argsort(-score, kind="stable")]
+        elif by == "force":
+            order = np.flatnonzero(np.isfinite(met["force_margin_n"]))
+            order = order[np.argsort(met["force_margin_n"][order], kind="stable")]
+        else:
+            raise DataError("unknown ranking", field="by", value=by, allowed="width, force")
+        rows = []
+        for i in order[:count].tolist():
+            rows.append({"move": i, "line": int(m["line"][i]), "layer": int(m["layer"][i]),
+                         "width_nominal_mm": float(met["width_nominal_mm"][i]),
+                         "width_mean_mm": float(met["width_mean_mm"][i]),
+                         "flow_error": float(met["flow_error"][i]),
+                         "peak_force_n": float(self.dynamics.moves["peak_force_n"][i]),
+                         "force_margin_n": float(met["force_margin_n"][i])})
+        return rows
+
+    # ---- output ---------------------------------------------------------------------------
+    def write_series(self, path: str | os.PathLike[str]) -> Path:
+        """Write the time series to Parquet (``.parquet``) or CSV (``.csv``), atomically."""
+        series = self.dynamics.series
+        if series is None:
+            raise DataError("this simulation has no time series; simulate with series_dt_s",
+                            field="series_dt_s")
+        out = Path(path)
+        suffix = out.suffix.lower()
+        names = list(series.dtype.names or ())
+        if suffix == ".parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            table = pa.table({n: np.ascontiguousarray(series[n]) for n in names})
+            with atomic_open(out, "wb") as fh:
+                pq.write_table(table, fh)
+        elif suffix == ".csv":
+            with atomic_open(out, "w") as fh:
+                fh.write(",".join(names) + "\n")
+                cols = np.column_stack([series[n] for n in names])
+                np.savetxt(fh, cols, delimiter=",", fmt="%.9g")
+        else:
+            raise DataError("unknown series format", field="path", value=str(out),
+                            allowed=".parquet or .csv")
+        return out
+
+
+def _share(part: float, whole: float) -> float:
+    return part / whole if whole > 0 else 0.0
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b - 1.0 if b > 0 else 0.0
+
+
+def deposition_metrics(plan: PlanResult, dyn: DynamicsResult, params: MoveParameters
+                       ) -> npt.NDArray[np.void]:
+    """Nominal and predicted bead widths, flow error and force margin per move.
+
+    Widths follow the slicer bead model ``A = w·h − (1 − π/4)·h²`` [001 Eq. 7], i.e.
+    ``w = A/h + (1 − π/4)·h``, with ``A`` the melt volume per path length: the G-code's for
+    the nominal width, the delivered melt for the predicted mean width, and the lowest and
+    highest flow of the move over its mean speed for the predicted extremes.
+    """
+    m = plan.table.moves
+    n = len(m)
+    out = np.zeros(n, METRIC_DTYPE)
+    start = np.empty((n, 3))
+    if n:
+        start[0] = plan.table.start_xyze[:3]
+        start[1:, 0], start[1:, 1], start[1:, 2] = m["x"][:-1], m["y"][:-1], m["z"][:-1]
+    length = np.hypot(m["x"] - start[:, 0], m["y"] - start[:, 1])
+    h = params.layer_height_mm
+    d = dyn.moves
+    duration = d["duration_s"]
+    bead = ((m["kind"] & MoveKind.EXTRUDE) != 0) & (length > 1e-9) & (duration > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        area_nom = np.where(bead, d["cmd_mm3"] / length, np.nan)
+        area_out = np.where(bead, d["out_mm3"] / length, np.nan)
+        speed = np.where(bead, length / duration, np.nan)
+        out["width_nominal_mm"] = area_nom / h + _BEAD * h
+        out["width_mean_mm"] = area_out / h + _BEAD * h
+        out["width_min_mm"] = d["q_min_mm3_s"] / (h * speed) + _BEAD * h
+        out["width_max_mm"] = d["q_max_mm3_s"] / (h * speed) + _BEAD * h
+        out["flow_error"] = np.where(bead & (d["cmd_mm3"] > 0),
+                                     d["out_mm3"] / d["cmd_mm3"] - 1.0, 0.0)
+    out["force_margin_n"] = params.params.max_feed_force_n - d["peak_force_n"]
+    out["narrow"] = bead & (out["width_mean_mm"] < h)
+    return out
