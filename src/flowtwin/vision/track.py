@@ -1,0 +1,501 @@
+"""Feature tracking in one ROI: Shi–Tomasi features, pyramidal Lucas–Kanade [003 §2.2].
+
+Per frame pair the tracker returns one robust displacement: along the filament axis
+(translation, px) or about the gear axis (rotation, rad). The steps, after [003 §2.2] and
+the OpenCV example it cites [003 ref. 24]:
+
+1. The ROI, padded by the motion allowed between two frames, is cut out and normalised to
+   zero mean and fixed contrast, so illumination/exposure changes do not read as motion.
+2. Features are detected with ``goodFeaturesToTrack`` on the raw image of a keyframe
+   (:func:`detect_features`); a feature is kept only if its smaller structure-tensor
+   eigenvalue (Shi–Tomasi score) stands clear of what the image noise alone gives.
+   Edges (one large eigenvalue, the aperture problem) and noise do not qualify, so a
+   texture-less ROI yields no features and is *flagged*, never guessed. Each feature is
+   followed from the keyframe (not from frame to frame, so position errors do not add
+   up as a random walk); a new keyframe is taken after ``redetect_interval`` frames, when
+   half the features have left the ROI or failed, or after a failed step.
+3. Pyramidal LK forward, then backward; tracks whose round trip misses by more than
+   ``fb_max_px`` are dropped. The last displacement (scaled by the time step) is the
+   initial guess, so large steady motions stay inside the LK window.
+4. Tracks moving sideways (across the filament, or radially on the gear) are rejected.
+5. The displacement is the mean of the tracks within 3 robust standard deviations
+   (1.4826·MAD) of their median; the sample is valid with at least ``min_tracks`` such
+   tracks, at least half of the candidates, and a standard error below ``max_se_px``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.vision.config import TrackingParams
+from flowtwin.vision.roi import Roi
+
+__all__ = ["RoiTracker", "StepEstimate", "detect_features", "min_eigenvalue_map",
+           "noise_sigma_dn", "robust_mean"]
+
+U8 = npt.NDArray[np.uint8]
+F32 = npt.NDArray[np.float32]
+TrackMode = Literal["translation", "rotation"]
+
+#: Contrast of the normalised crops: one standard deviation maps to this many grey levels.
+_NORM_CONTRAST = 40.0
+#: Immerkaer's noise kernel (difference of two Laplacians).
+_IMMERKAER = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float32)
+#: Block size of the Shi–Tomasi structure tensor, px.
+_BLOCK = 7
+#: Largest gear rotation against the keyframe before new features are taken, rad (the
+#: current crop is turned back by the expected rotation before LK, see ``_derotate``).
+_MAX_KEY_ROTATION = 0.5
+#: Smallest rotation that is undone by warping before LK, rad. OpenCV warps quantise
+#: source coordinates to 1/32 px, which biases tiny rotations (a 0.0017 rad turn reads
+#: 17 % large with cubic interpolation); below this LK on the unwarped patch is better.
+_MIN_DEROTATION = 0.02
+#: Interpolation of the derotation warp.
+_DEROTATE_INTERP = cv2.INTER_LINEAR
+#: Lucas–Kanade stopping rule: iterations and the smallest update, px.
+_LK_ITERATIONS = 30
+_LK_EPS_PX = 0.003
+#: Seed of the sub-pixel jitter of new features (results are reproducible).
+_JITTER_SEED = 20170101
+
+
+@dataclass(frozen=True, slots=True)
+class StepEstimate:
+    """Robust displacement of one ROI between two frames.
+
+    Attributes
+    ----------
+    value
+        Mean displacement along the axis (px, translation) or rotation angle (rad);
+        NaN if the sample is not valid.
+    n_tracks
+        Tracks that agreed (inliers).
+    n_candidates
+        Tracks that passed the forward–backward and sideways checks.
+    spread_px
+        Standard deviation of the inliers about the mean, px.
+    se_px
+        Standard error of the mean, px.
+    low_texture
+        No usable features (texture below ``min_texture_eig``).
+    valid
+        The value can be used.
+    """
+
+    value: float
+    n_tracks: int
+    n_candidates: int
+    spread_px: float
+    se_px: float
+    low_texture: bool
+    valid: bool
+
+
+def robust_mean(values: npt.NDArray[np.float64], scale: npt.NDArray[np.float64] | None = None,
+                *, floor: float = 0.1, k: float = 3.0
+                ) -> tuple[float, npt.NDArray[np.bool_]]:
+    """Mean of the values within ``k`` robust standard deviations of their median.
+
+    Parameters
+    ----------
+    values
+        Samples, shape ``(N,)``.
+    scale
+        Per-sample factor converting a deviation into px (the lever arm for angles),
+        shape ``(N,)``; default 1.
+    floor
+        Smallest acceptance half-width, px (tracks agreeing to better than this are
+        never rejected).
+    k
+        Acceptance in robust standard deviations (``1.4826·MAD``).
+
+    Returns
+    -------
+    mean : float
+        Weighted (by ``scale²``) mean of the inliers; NaN if there are none.
+    inliers : numpy.ndarray of bool
+        Which samples were used, shape ``(N,)``.
+    """
+    if values.size == 0:
+        return math.nan, np.zeros(0, dtype=bool)
+    lever = np.ones_like(values) if scale is None else scale
+    med = float(np.median(values))
+    dev = (values - med) * lever
+    mad = float(np.median(np.abs(dev)))
+    inl = np.abs(dev) <= max(k * 1.4826 * mad, floor)
+    w = lever[inl] ** 2
+    return float(np.sum(values[inl] * w) / np.sum(w)), inl
+
+
+def min_eigenvalue_map(gray: U8, *, block: int = _BLOCK) -> F32:
+    """Shi–Tomasi score: smaller eigenvalue of the local structure tensor, (DN/px)².
+
+    Gradients are 3×3 Sobel derivatives divided by 8 (grey levels per pixel), their
+    products averaged over a ``block × block`` window.
+
+    Parameters
+    ----------
+    gray
+        Image, shape ``(H, W)``, uint8.
+    block
+        Averaging window side, px.
+
+    Returns
+    -------
+    numpy.ndarray
+        Score map, shape ``(H, W)``, float32.
+    """
+    img = gray.astype(np.float32)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    a = cv2.boxFilter(gx * gx, -1, (block, block))
+    b = cv2.boxFilter(gx * gy, -1, (block, block))
+    c = cv2.boxFilter(gy * gy, -1, (block, block))
+    half = 0.5 * (a - c)
+    return np.asarray(0.5 * (a + c) - np.sqrt(half * half + b * b), dtype=np.float32)
+
+
+def noise_sigma_dn(gray: U8) -> float:
+    """Standard deviation of the pixel noise of an image, DN (Immerkaer's estimator).
+
+    The image is filtered with the difference of two Laplacians
+    ``[[1, −2, 1], [−2, 4, −2], [1, −2, 1]]``, which cancels smooth image structure;
+    ``σ = sqrt(π/2)·Σ|I * N| / (6·(W − 2)·(H − 2))`` (J. Immerkaer, "Fast noise variance
+    estimation", CVIU 64 (1996) 300–302).
+
+    Parameters
+    ----------
+    gray
+        Image, shape ``(H, W)`` with ``H, W >= 3``, uint8.
+
+    Returns
+    -------
+    float
+        Noise standard deviation, DN.
+    """
+    h, w = gray.shape[:2]
+    if h < 3 or w < 3:
+        return 0.0
+    r = cv2.filter2D(gray.astype(np.float32), -1, _IMMERKAER)[1:-1, 1:-1]
+    return float(math.sqrt(math.pi / 2.0) * np.abs(r).sum() / (6.0 * (w - 2) * (h - 2)))
+
+
+def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
+                    min_distance_px: int | None = None) -> npt.NDArray[np.float64]:
+    """Shi–Tomasi features that stand out of the noise enough to track [003 §2.2].
+
+    ``goodFeaturesToTrack`` picks up to ``max_tracks`` corners. A corner is kept only if
+    its smaller structure-tensor eigenvalue ``λ`` (:func:`min_eigenvalue_map`) reaches
+    both ``min_texture_eig`` and ``min_texture_snr`` times the value pure noise gives,
+    ``0.1875·σ²`` (the variance of a 3×3 Sobel/8 derivative of white noise of
+    ``σ`` = :func:`noise_sigma_dn`). Edges (one large eigenvalue: the aperture problem)
+    and noise therefore give no features, and a texture-less region is flagged, not
+    tracked.
+
+    Parameters
+    ----------
+    gray
+        Raw (not normalised) grey image, shape ``(H, W)``, uint8.
+    params
+        Tracking parameters (``max_tracks``, ``min_texture_eig``, ``min_texture_snr``).
+    mask
+        Where features may be, shape ``(H, W)``, uint8 (non-zero = allowed).
+    min_distance_px
+        Smallest distance between features (default ``win_px // 4``), px.
+
+    Returns
+    -------
+    numpy.ndarray
+        Feature positions ``(x, y)``, shape ``(N, 2)``, px.
+    """
+    dist = max(3, params.win_px // 4) if min_distance_px is None else min_distance_px
+    pts = cv2.goodFeaturesToTrack(gray, maxCorners=params.max_tracks, qualityLevel=0.01,
+                                  minDistance=dist, mask=mask, blockSize=_BLOCK)
+    if pts is None:
+        return np.zeros((0, 2), np.float64)
+    xy = pts[:, 0, :].astype(np.float64)
+    region = gray
+    if mask is not None:
+        ys, xs = np.nonzero(mask)
+        region = gray[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+    sigma = noise_sigma_dn(region)
+    floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
+    eig = min_eigenvalue_map(gray)
+    ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, gray.shape[1] - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, gray.shape[0] - 1)
+    return xy[eig[iy, ix] >= floor]
+
+
+class RoiTracker:
+    """Tracks features inside one ROI from frame to frame.
+
+    Parameters
+    ----------
+    roi
+        Where features are detected and measured.
+    frame_size
+        ``(width, height)`` of the frames, px.
+    params
+        Tracking parameters.
+    mode
+        ``"translation"`` (displacement along ``axis``) or ``"rotation"`` (about
+        ``center_px``).
+    axis
+        Unit vector of the positive direction for translation, ``(dx, dy)``.
+    center_px
+        Rotation axis ``(x, y)`` in frame pixels (rotation mode).
+    inset_px
+        Features are detected at least this far inside the ROI's left and right sides
+        (keeps LK windows off the filament edges), px.
+    """
+
+    def __init__(self, roi: Roi, frame_size: tuple[int, int], params: TrackingParams, *,
+                 mode: TrackMode = "translation", axis: tuple[float, float] = (0.0, 1.0),
+                 center_px: tuple[float, float] | None = None, inset_px: int = 0) -> None:
+        if mode == "rotation" and center_px is None:
+            raise ValueError("rotation mode needs center_px")
+        self.roi = roi
+        self.params = params
+        self.mode = mode
+        self.axis = np.asarray(axis, dtype=np.float64) / math.hypot(*axis)
+        w, h = frame_size
+        x0, y0, x1, y1 = roi.padded(params.pad_px, w, h)
+        if mode == "translation":
+            # pad only along the motion: static background beside the filament would
+            # otherwise dominate the coarse pyramid levels and pull LK to zero
+            if abs(self.axis[0]) < 1e-9:
+                x0, x1 = roi.x, roi.x1
+            elif abs(self.axis[1]) < 1e-9:
+                y0, y1 = roi.y, roi.y1
+        self.x0, self.y0, self.x1, self.y1 = x0, y0, x1, y1
+        self.center = None if center_px is None else np.array(
+            [center_px[0] - self.x0, center_px[1] - self.y0], dtype=np.float64)
+        # ROI inside the crop
+        self._rx0, self._ry0 = roi.x - self.x0, roi.y - self.y0
+        self._rx1, self._ry1 = self._rx0 + roi.w, self._ry0 + roi.h
+        self._mask = np.zeros((self.y1 - self.y0, self.x1 - self.x0), np.uint8)
+        ins = min(inset_px, roi.w // 4)
+        self._mask[self._ry0:self._ry1, self._rx0 + ins:self._rx1 - ins] = 255
+        self._win = (params.win_px, params.win_px)
+        self._criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, _LK_ITERATIONS,
+                          _LK_EPS_PX)
+        self._min_dist = max(3, params.win_px // 4)
+        self._rng = np.random.default_rng(_JITTER_SEED)
+        crop_h, crop_w = self.y1 - self.y0, self.x1 - self.x0
+        # coarsest level still at least one window wide
+        fit = int(math.floor(math.log2(max(min(crop_h, crop_w) / params.win_px, 1.0))))
+        self._levels = max(0, min(params.pyramid_levels, fit))
+        # phase correlation (motion guess) on a crop reduced to <= ~128 px
+        self._pc_factor = max(1, math.ceil(max(crop_h, crop_w) / 128))
+        small = (max(8, crop_w // self._pc_factor), max(8, crop_h // self._pc_factor))
+        self._pc_size = small
+        self._pc_window = cv2.createHanningWindow(small, cv2.CV_32F)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the keyframe (after a blank or unusable frame)."""
+        self._ref: U8 | None = None
+        self._ref_pts = np.zeros((0, 2), np.float64)
+        self._cur_pts = np.zeros((0, 2), np.float64)
+        self._alive = np.zeros(0, dtype=bool)
+        self._age = 0
+        self._total = 0.0
+        self._low_texture = False
+        self._last_value = 0.0
+        self._last_valid = False
+        self._last_dt: float | None = None
+        self._prev_small: F32 | None = None
+
+    # --- helpers --------------------------------------------------------------------
+    def _crop(self, gray: U8) -> U8:
+        return gray[self.y0:self.y1, self.x0:self.x1]
+
+    @staticmethod
+    def _normalise(crop: U8) -> U8:
+        """Zero mean, fixed contrast: gain and offset changes of the exposure cancel."""
+        mean, std = cv2.meanStdDev(crop)
+        s = max(float(std[0, 0]), 1e-3)
+        alpha = _NORM_CONTRAST / s
+        return np.asarray(cv2.addWeighted(crop, alpha, crop, 0.0,
+                                          128.0 - alpha * float(mean[0, 0]), dtype=cv2.CV_8U))
+
+    def _keyframe(self, crop: U8, norm: U8) -> None:
+        """Make this frame the reference and detect fresh features on it."""
+        p = self.params
+        self._ref = norm
+        self._age = 0
+        self._total = 0.0
+        pts = detect_features(crop, p, mask=self._mask, min_distance_px=self._min_dist)
+        # spread the features over sub-pixel phases: LK's interpolation error depends on
+        # the sub-pixel part of the displacement, and with every feature on the integer
+        # grid those errors would add up coherently instead of averaging out
+        jitter = self._rng.uniform(-0.5, 0.5, size=(len(pts), 2))
+        self._ref_pts = pts + jitter
+        self._cur_pts = self._ref_pts.copy()
+        self._alive = np.ones(len(self._ref_pts), dtype=bool)
+        self._low_texture = len(self._ref_pts) < p.min_tracks
+
+    def _predict(self, pts: npt.NDArray[np.float64], step: float) -> npt.NDArray[np.float64]:
+        if self.mode == "translation":
+            return pts + self.axis[None, :] * step
+        assert self.center is not None
+        co, si = math.cos(step), math.sin(step)
+        r = pts - self.center
+        return np.stack([co * r[:, 0] - si * r[:, 1], si * r[:, 0] + co * r[:, 1]],
+                        axis=1) + self.center
+
+    # --- one frame ------------------------------------------------------------------
+    def update(self, gray: U8, dt_s: float | None = None) -> StepEstimate | None:
+        """Process the next frame.
+
+        Parameters
+        ----------
+        gray
+            Whole grey frame, shape ``(H, W)``, uint8.
+        dt_s
+            Time since the previous frame processed by this tracker, s (scales the
+            motion prediction).
+
+        Returns
+        -------
+        StepEstimate or None
+            ``None`` for the first frame (nothing to compare with).
+        """
+        crop = self._crop(gray)
+        norm = self._normalise(crop)
+        small: F32 | None = None
+        if self.mode == "translation":
+            small = cv2.resize(norm, self._pc_size,
+                               interpolation=cv2.INTER_AREA).astype(np.float32)
+        prev_small, self._prev_small = self._prev_small, small
+        if self._ref is None:
+            self._keyframe(crop, norm)
+            return None
+        result = self._step(norm, dt_s, self._guess(prev_small, small, dt_s))
+        self._age += 1
+        n_alive = int(self._alive.sum())
+        if (not result.valid or self._age >= self.params.redetect_interval
+                or n_alive < max(2 * self.params.min_tracks, len(self._alive) // 2)
+                or (self.mode == "rotation" and abs(self._total) > _MAX_KEY_ROTATION)):
+            self._keyframe(crop, norm)
+        return result
+
+    def _derotate(self, img: U8, theta: float) -> U8:
+        """``img`` turned by ``-theta`` about the gear axis (bilinear interpolation)."""
+        assert self.center is not None
+        co, si = math.cos(theta), math.sin(theta)
+        cx, cy = self.center
+        # destination q -> source c + R(theta)(q - c)
+        m = np.array([[co, -si, cx - co * cx + si * cy],
+                      [si, co, cy - si * cx - co * cy]], dtype=np.float64)
+        return np.asarray(cv2.warpAffine(img, m, (img.shape[1], img.shape[0]),
+                                         flags=_DEROTATE_INTERP | cv2.WARP_INVERSE_MAP,
+                                         borderMode=cv2.BORDER_REPLICATE))
+
+    def _guess(self, prev_small: F32 | None, small: F32 | None, dt_s: float | None) -> float:
+        """Expected step: the last step scaled by the time step; for translation the
+        phase correlation of the reduced crops (robust to sudden speed changes)."""
+        scale = 1.0
+        if dt_s is not None and self._last_dt:
+            scale = dt_s / self._last_dt
+        predicted = self._last_value * scale
+        if self.mode == "rotation" or prev_small is None or small is None:
+            # a rotation about an axis inside the crop has no single shift to correlate
+            return predicted
+        (sx, sy), response = cv2.phaseCorrelate(prev_small, small, self._pc_window)
+        if response < 0.05:
+            return predicted
+        return float(np.array([sx, sy]) @ self.axis) * self._pc_factor
+
+    def _invalid(self, *, low_texture: bool, n_candidates: int = 0) -> StepEstimate:
+        return StepEstimate(math.nan, 0, n_candidates, math.nan, math.nan, low_texture, False)
+
+    def _step(self, cur: U8, dt_s: float | None, step_guess: float) -> StepEstimate:
+        p = self.params
+        if dt_s is not None:
+            self._last_dt = dt_s
+        if self._low_texture:
+            self._last_valid = False
+            return self._invalid(low_texture=True)
+        idx = np.flatnonzero(self._alive)
+        ref_pts, prev_pts = self._ref_pts[idx], self._cur_pts[idx]
+        ref = self._ref
+        assert ref is not None
+        if self.mode == "rotation" and abs(self._total + step_guess) >= _MIN_DEROTATION:
+            # undo the expected rotation since the keyframe, so LK only sees a small
+            # residual motion of an unrotated patch (a translation model cannot follow
+            # a patch that turns by several degrees without bias)
+            theta = self._total + step_guess
+            target = self._derotate(cur, theta)
+            guess = self._predict(prev_pts, -self._total)
+        else:
+            theta = 0.0
+            target = cur
+            guess = self._predict(prev_pts, step_guess)
+        p0 = np.ascontiguousarray(ref_pts[:, None, :], dtype=np.float32)
+        flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(
+            ref, target, p0, np.ascontiguousarray(guess[:, None, :], dtype=np.float32),
+            winSize=self._win, maxLevel=self._levels, criteria=self._criteria,
+            flags=flags)
+        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(target, ref, p1, p0.copy(), winSize=self._win,
+                                               maxLevel=self._levels,
+                                               criteria=self._criteria, flags=flags)
+        b = p1[:, 0, :].astype(np.float64)
+        fb = np.hypot(*(p0r[:, 0, :].astype(np.float64) - ref_pts).T)
+        if theta != 0.0:
+            b = self._predict(b, theta)
+        half = p.win_px // 2
+        h, w = cur.shape[:2]
+        inside = ((b[:, 0] >= half) & (b[:, 0] < w - half) & (b[:, 1] >= half)
+                  & (b[:, 1] < h - half))
+        good = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < p.fb_max_px) & inside
+        if self.mode == "translation":
+            perp = np.array([-self.axis[1], self.axis[0]])
+            total = b - ref_pts
+            step = (b - prev_pts) @ self.axis
+            good &= (np.abs(total @ perp)
+                     <= p.side_max_px + p.side_frac * np.abs(total @ self.axis))
+            values, lever = step[good], np.ones(int(good.sum()))
+        else:
+            assert self.center is not None
+            r_ref, r_prev, r_new = ref_pts - self.center, prev_pts - self.center, \
+                b - self.center
+            n_ref, n_new = np.hypot(*r_ref.T), np.hypot(*r_new.T)
+            ang_new = np.arctan2(r_ref[:, 0] * r_new[:, 1] - r_ref[:, 1] * r_new[:, 0],
+                                 np.sum(r_ref * r_new, axis=1))
+            ang_prev = np.arctan2(r_ref[:, 0] * r_prev[:, 1] - r_ref[:, 1] * r_prev[:, 0],
+                                  np.sum(r_ref * r_prev, axis=1))
+            good &= n_ref >= 2 * p.win_px
+            good &= np.abs(n_new - n_ref) <= p.side_max_px + p.side_frac * np.abs(
+                ang_new * n_ref)
+            values, lever = (ang_new - ang_prev)[good], n_ref[good]
+        in_roi = ((b[:, 0] >= self._rx0) & (b[:, 0] < self._rx1) & (b[:, 1] >= self._ry0)
+                  & (b[:, 1] < self._ry1))
+        self._cur_pts[idx] = b
+        self._alive[idx] = good & in_roi
+        n_cand = int(values.size)
+        self._last_valid = False
+        if n_cand < p.min_tracks:
+            return self._invalid(low_texture=False, n_candidates=n_cand)
+        mean, inl = robust_mean(values, lever)
+        n_in = int(inl.sum())
+        res_px = (values[inl] - mean) * lever[inl]
+        spread = float(np.sqrt(np.mean(res_px ** 2))) if n_in > 1 else math.inf
+        se = spread / math.sqrt(max(n_in - 1, 1))
+        valid = n_in >= p.min_tracks and n_in >= 0.5 * n_cand and se <= p.max_se_px
+        if valid:
+            self._last_value = mean
+            self._last_valid = True
+            self._total += mean
+        # outliers of this step do not continue
+        keep = np.zeros(len(idx), dtype=bool)
+        keep[np.flatnonzero(good)[inl]] = True
+        self._alive[idx] &= keep
+        return StepEstimate(mean if valid else math.nan, n_in, n_cand, spread, se, False, valid)
