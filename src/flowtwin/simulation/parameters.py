@@ -36,7 +36,8 @@ from flowtwin.profiles.material import (
     WlfViscosity,
 )
 
-__all__ = ["MoveParameters", "layer_heights_mm", "move_parameters", "viscosity_pa_s"]
+__all__ = ["MoveParameters", "OperatingPoint", "layer_heights_mm", "move_parameters",
+           "operating_point", "viscosity_pa_s"]
 
 #: Eq. 8 of [000] holds for pinch forces of 80–130 N only [000 §4.2].
 _EQ8_PINCH_RANGE_N = (80.0, 130.0)
@@ -197,3 +198,69 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
     return MoveParameters(params=params, temperature_c=temps, layer_height_mm=h,
                           viscosity_pa_s=visc_pa_s, slip_law="eq8" if use_eq8 else "eq6",
                           warnings=tuple(warnings))
+
+
+@dataclass(frozen=True, slots=True)
+class OperatingPoint:
+    """Steady extrusion of one machine at one feed (SPEC §3.3–3.4).
+
+    Attributes
+    ----------
+    lag_k_s
+        Lag factor ``K = k·R_hyd·A²``, s.
+    compliance_mm_per_n
+        Column compliance ``k``, mm/N.
+    resistance_mpa_s_per_mm3
+        Hydraulic resistance of the hot end, MPa·s/mm³.
+    nominal_force_n
+        Feed force the nominal feed would need, ``F_0 = R_hyd·Q·A``, N.
+    slip
+        Steady slip ``(k_p + s'F_0)/(1 + s'F_0)`` [000 Eq. 6 with F ∝ flow], fraction.
+    max_feed_force_n
+        The roller's maximum feed force at the drive's pinch force, N.
+    """
+
+    lag_k_s: float
+    compliance_mm_per_n: float
+    resistance_mpa_s_per_mm3: float
+    nominal_force_n: float
+    slip: float
+    max_feed_force_n: float
+
+
+def operating_point(machine: Machine, *, feed_mm_s: float, temperature_c: float | None = None,
+                    layer_height_mm: float | None = None) -> OperatingPoint:
+    """The machine extruding steadily at ``feed_mm_s`` of filament.
+
+    ``layer_height_mm=None`` is free extrusion into air (no back-pressure under the tip),
+    as in the slip measurements of [003].
+    """
+    from flowtwin.physics.drive import slip_gradient_velocity, steady_state_slip
+
+    hot = machine.hotend
+    mat = machine.material
+    area = machine.filament.area_mm2
+    temp = machine.temperature_c if temperature_c is None else temperature_c
+    visc = float(viscosity_pa_s(mat, temp))
+    r_hyd = float(hydraulic_resistance_mpa_s_per_mm3(
+        pa_s_to_mpa_s(visc), capillary_length_mm=hot.land_length_mm,
+        nozzle_radius_mm=hot.nozzle_diameter_mm / 2.0,
+        bore_radius_mm=hot.bore_diameter_mm / 2.0, cone_half_angle_deg=hot.cone_half_angle_deg,
+        layer_height_mm=layer_height_mm, back_pressure_length_mm=hot.back_pressure_length_mm,
+        back_pressure_exponent=hot.back_pressure_exponent))
+    k_col = float(compliance_mm_per_n(area, hot.l_rt_mm, mat.e_rt_mpa, hot.l_hot_mm,
+                                      mat.e_hot_mpa))
+    force0 = r_hyd * feed_mm_s * area * area
+    roller = machine.roller
+    fp = machine.drive.pinch_force_n
+    if roller.velocity_dependent and _EQ8_PINCH_RANGE_N[0] <= fp <= _EQ8_PINCH_RANGE_N[1]:
+        grad = float(slip_gradient_velocity(feed_mm_s, roller.a_per_n, roller.b_per_n,
+                                            roller.c_s_per_mm))
+    else:
+        grad = roller.k_s_n / fp ** 2 + roller.k_inf_per_n
+    fit = roller.max_feed_force_fit
+    return OperatingPoint(
+        lag_k_s=float(lag_factor_s(k_col, r_hyd, area)), compliance_mm_per_n=k_col,
+        resistance_mpa_s_per_mm3=r_hyd, nominal_force_n=force0,
+        slip=float(steady_state_slip(force0, grad, k_p=machine.drive.k_p)),
+        max_feed_force_n=fit.max_feed_force_n(fp) if fit is not None else math.inf)
