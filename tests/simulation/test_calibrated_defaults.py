@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -46,8 +47,8 @@ def test_greeff_slip_rises_as_temperature_falls_and_feed_rises() -> None:
     m = load_machine("greeff2017")
     temps = [235.0, 225.0, 215.0, 205.0, 195.0]
     by_temp = [operating_point(m, feed_mm_s=2.0, temperature_c=t).slip for t in temps]
-    assert all(b > a for a, b in zip(by_temp, by_temp[1:], strict=False))
+    assert all(b > a for a, b in itertools.pairwise(by_temp))
     feeds = [0.5, 1.0, 2.0, 3.0]
     by_feed = [operating_point(m, feed_mm_s=f, temperature_c=215.0).slip for f in feeds]
-    assert all(b > a for a, b in zip(by_feed, by_feed[1:], strict=False))
+    assert all(b > a for a, b in itertools.pairwise(by_feed))
     assert all(0.0 < s < 1.0 and math.isfinite(s) for s in by_temp + by_feed)

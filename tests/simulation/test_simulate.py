@@ -88,7 +88,7 @@ def test_series_written_as_parquet_and_csv(demo_gcode: Path, tmp_path: Path) -> 
     header = (tmp_path / "s.csv")
     result.write_series(header)
     assert cols <= set(header.read_text().splitlines()[0].split(","))
-    with pytest.raises(DataError, match="parquet or .csv"):
+    with pytest.raises(DataError, match=r"parquet or \.csv"):
         result.write_series(tmp_path / "s.xlsx")
 
 
