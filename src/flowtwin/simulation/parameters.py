@@ -100,12 +100,11 @@ def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
     extruding = (m["kind"] & MoveKind.EXTRUDE) != 0
     missing = np.flatnonzero(np.isnan(z))
     if missing.size:
-        sel = extruding & (layer >= 0)
-        first: dict[int, float] = {}
-        for lay, zz in zip(layer[sel].tolist(), m["z"][sel].tolist(), strict=True):
-            first.setdefault(lay, zz)
-        for k in missing.tolist():
-            z[k] = first.get(k, np.nan)
+        sel = np.flatnonzero(extruding & (layer >= 0))
+        lays, first = np.unique(layer[sel], return_index=True)  # first extrusion per layer
+        z_first = np.full(n_layers, np.nan)
+        z_first[lays] = m["z"][sel[first]]
+        z[missing] = z_first[missing]
     h_layer = np.diff(np.concatenate(([0.0], z)))
     ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm)
     h_layer = np.where(ok, h_layer, default_mm)
