@@ -76,19 +76,19 @@ def test_slip_of_the_papers_fig9a_set_point() -> None:
 
 
 def test_short_or_flat_records_raise_with_the_reason() -> None:
-    t = np.arange(5) * 0.02
+    t = np.arange(5, dtype=np.float64) * 0.02
     short = Record(RecordKey("t", 80.0, 1.0, 0), t, np.ones(5), 4.0 * t, np.full(5, 80.0),
                    source="stand.csv", first_line=17)
     with pytest.raises(CalibrationError, match="too short") as info:
         analyse_record(short)
     assert info.value.source == "stand.csv" and info.value.line == 17
-    t = np.arange(50) * 0.02
+    t = np.arange(50, dtype=np.float64) * 0.02
     flat = Record(RecordKey("t", 80.0, 1.0, 0), t, np.ones(50), np.full(50, 3.0),
                   np.full(50, 80.0))
     with pytest.raises(CalibrationError, match="does not vary"):
         slip_regression(flat, 49)
-    noisy = Record(RecordKey("t", 10.0, 1.0, 0), t, np.ones(50),
-                   np.random.default_rng(1).normal(size=50) + np.linspace(0, 0.5, 50),
+    force = np.random.default_rng(1).normal(size=50) + np.linspace(0.0, 0.5, 50)
+    noisy = Record(RecordKey("t", 10.0, 1.0, 0), t, np.ones(50), force.astype(np.float64),
                    np.full(50, 10.0))
     with pytest.raises(CalibrationError, match="too small next to the load-cell noise"):
         analyse_record(noisy)

@@ -57,6 +57,7 @@ def test_velocity_law_is_eq8(number: int) -> None:
     v = np.array(PAPER_SPEEDS_MM_S)
     b = roller.b_per_n or 0.0
     c = roller.c_s_per_mm or 0.0
+    assert roller.a_per_n is not None
     expected = slip_gradient_velocity(v, roller.a_per_n, b, c)
     np.testing.assert_allclose(drive.slip_gradient_per_n(100.0, v), expected, rtol=1e-15)
     # no pinch dependence in this law
@@ -75,8 +76,9 @@ def test_combined_law_averages_to_eq6_over_the_paper_speeds(number: int) -> None
                                      rel=1e-12)
     # the velocity shape is Eq. 8's: differences between speeds equal b·Δexp(−c·v)
     g = drive.slip_gradient_per_n(100.0, v)
-    np.testing.assert_allclose(g - g[-1], roller.b_per_n * (np.exp(-roller.c_s_per_mm * v)
-                                                            - np.exp(-roller.c_s_per_mm * 15.0)),
+    b, c = roller.b_per_n, roller.c_s_per_mm
+    assert b is not None and c is not None
+    np.testing.assert_allclose(g - g[-1], b * (np.exp(-c * v) - np.exp(-c * 15.0)),
                                rtol=1e-12, atol=1e-15)
 
 

@@ -98,4 +98,5 @@ def test_combined_law_recovers_eq6_and_shape_of_eq8() -> None:
     # 4 standard errors of the fitted a: the comparison is statistical
     assert vl.a_per_n == pytest.approx(expected_a, abs=4 * vl.a_err_per_n)
     # and that a differs from Table 3's by more than its published uncertainty (0.01 %/N)
+    assert roller.a_pct_per_N is not None
     assert abs(100 * vl.a_per_n - roller.a_pct_per_N) > 0.01
