@@ -20,7 +20,8 @@ from flowtwin.errors import FlowtwinError
 __all__ = ["app", "main"]
 
 #: Modules under ``flowtwin.cli`` that contribute commands (each has ``register(app)``).
-COMMAND_MODULES = ("plan", "simulate", "demo", "profiles", "calibrate", "control", "vision")
+COMMAND_MODULES = ("plan", "simulate", "demo", "profiles", "calibrate", "teststand",
+                   "reproduce", "control", "vision")
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
@@ -48,7 +49,8 @@ def main(argv: list[str] | None = None) -> None:
     """Run the CLI; user errors exit 2 with a message, internal errors exit 3."""
     err = Console(stderr=True, highlight=False)
     try:
-        app(args=argv, standalone_mode=False)
+        # standalone_mode=False returns typer.Exit codes instead of exiting with them
+        code = app(args=argv, standalone_mode=False)
     except FlowtwinError as exc:
         err.print(f"[bold red]error:[/] {escape(str(exc))}", markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
@@ -72,4 +74,4 @@ def main(argv: list[str] | None = None) -> None:
                   "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
         sys.exit(EXIT_INTERNAL_ERROR)
     else:
-        sys.exit(0)
+        sys.exit(code if isinstance(code, int) else 0)
