@@ -8,9 +8,11 @@ filament, ``F = ΔP·A_in = R_hyd·Q_out·A_in`` (linear pressure drop); hence
 
 Mass balance ``v_in − Q_out/A_in = dΔl/dt`` then gives ``v_in = K·dv*_out/dt + v*_out``
 [001 Eq. 10], the first-order low-pass ``H(s) = 1/(1 + K·s)`` [001 Eq. 15]. [002] derives the
-same filter with the time constant ``const·μ·A_noz·l_hot/E_hot`` for the nozzle velocity;
-written for ``v_seal = v_in`` it is ``R_hyd·A_in·l_hot/E_hot``, which is ``K`` for a column
-whose compliance is only its hot part, ``k = l_hot/(E_hot·A_in)``.
+same filter but prints its time constant as ``const·μ·A_noz·l_hot/E_hot``: its continuity
+step is inverted (it should carry the filament area), and the consistent form is
+``R_hyd·A_in·l_hot/E_hot`` — about 19× larger for a 0.4 mm nozzle and 1.75 mm filament —
+which is ``K`` for a column whose compliance is only its hot part, ``k = l_hot/(E_hot·A_in)``
+(a data-check row of ``flowtwin reproduce theory`` shows the difference).
 """
 
 from __future__ import annotations
