@@ -263,3 +263,15 @@ def test_klipper_random_prints_conserve_filament(make_print, Move, seed):
         kw = {"points": pts, "limit": 200, "epsabs": 1e-13, "epsrel": 1e-13}
         v = (quad(p, t, t + h, **kw)[0] - quad(p, t - h, t, **kw)[0]) / h**2
         assert float(adv.velocity_at(t)) == pytest.approx(v, abs=1e-8)
+
+
+def test_klipper_extruder_addressing(mixed_print):
+    mt, _ = mixed_print
+    mt.events.extend([Event(1, 3, "SET_PRESSURE_ADVANCE", {"ADVANCE": 0.05,
+                                                           "EXTRUDER": "extruder1"}),
+                      Event(2, 4, "SET_PRESSURE_ADVANCE", {"ADVANCE": 0.07,
+                                                           "EXTRUDER": "extruder"})])
+    t0 = advance_schedule(mt, AdvanceSettings(Firmware.KLIPPER))
+    t1 = advance_schedule(mt, AdvanceSettings(Firmware.KLIPPER, tool=1))
+    assert t0.k_s.tolist() == [0.0, 0.0] + [0.07] * 5
+    assert t1.k_s.tolist() == [0.0] + [0.05] * 6

@@ -27,7 +27,8 @@ def _phi_ref(k: int, z: float) -> float:
         return float((x.exp() - head) / x**k)
 
 
-@pytest.mark.parametrize("z", [0.0, 1e-9, 1e-3, 0.5, 1.999, 2.001, 7.0, 60.0, 800.0])
+@pytest.mark.parametrize("z", [0.0, 1e-9, 1e-3, 0.01, 0.0101, 0.2, 0.25, 0.26, 0.5, 1.999,
+                               2.0, 2.001, 7.0, 60.0, 800.0])
 def test_phi_functions_match_their_definition(z):
     out = np.empty(6)
     phi_fill(z, out)

@@ -308,3 +308,18 @@ def test_series_follows_the_feed(make_feed, rng):
     a = params().filament_area_mm2
     np.testing.assert_allclose(s["q_out_mm3_s"][tail],
                                a * np.maximum(s["compression_mm"][tail], 0) / K, rtol=1e-12)
+
+
+def test_starting_above_the_force_limit_grinds_until_released(make_feed):
+    # Δl0/k = 30 N > 20 N: no feeding until the force decays to 16 N, after K ln(30/16)
+    feed = make_feed([0.2], [[1.0]])
+    p = params(max_feed_force_n=20.0, grind_release_fraction=0.2)
+    res = integrate(feed, p, initial_compression_mm=30.0 * KC, series_dt_s=0.001)
+    s = ser(res)
+    t_release = K * math.log(30.0 / 16.0)
+    before = s["t_s"] < t_release - 1e-3
+    assert np.all(s["v_fil_mm_s"][before] == 0.0)
+    assert res.moves["grinding"][0]
+    assert res.moves["grind_loss_mm3"][0] == pytest.approx(p.filament_area_mm2 * t_release,
+                                                           rel=1e-9)
+    assert res.summary.as_dict()["grinding_moves"] == 1

@@ -79,9 +79,11 @@ def phi_fill(z: float, out: npt.NDArray[np.float64]) -> None:
     """``out[k] = φ_k(-z)`` for ``k = 0..5`` and ``z ≥ 0``."""
     x = -z
     if z <= 2.0:
-        # Σ_{i<24} x^i/(i+5)! by Horner; the first term left out is < 2^24/28! < 1e-21
-        acc = _INV_FACT_5[23]
-        for i in range(22, -1, -1):
+        # Σ_{i<m} x^i/(i+5)! by Horner; the first term left out, relative to the first
+        # (5! z^m/(m+5)!), is < 1e-17 for m = 7 (z <= 0.01), 12 (z <= 0.25), 24 (z <= 2)
+        m = 7 if z <= 0.01 else (12 if z <= 0.25 else 24)
+        acc = _INV_FACT_5[m - 1]
+        for i in range(m - 2, -1, -1):
             acc = acc * x + _INV_FACT_5[i]
         out[5] = acc
         out[4] = 1.0 / 24.0 + x * out[5]
