@@ -161,5 +161,6 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         return PlanResult(table, plan_klipper(table, ks), profile.name, ks)
     ms = marlin_settings(profile)
     if use_slicer_limits:
-        ms = marlin_settings_from_slicer_config(table.metadata, base=ms) or ms
+        # the slicer describes its machine completely (classic jerk and all): use it as is
+        ms = marlin_settings_from_slicer_config(table.metadata) or ms
     return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
