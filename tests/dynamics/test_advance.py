@@ -275,3 +275,18 @@ def test_klipper_extruder_addressing(mixed_print):
     t1 = advance_schedule(mt, AdvanceSettings(Firmware.KLIPPER, tool=1))
     assert t0.k_s.tolist() == [0.0, 0.0] + [0.07] * 5
     assert t1.k_s.tolist() == [0.0] + [0.05] * 6
+
+
+def test_smooth_time_change_while_moving_is_reported(make_print, Move):
+    # a window change in the middle of a run of extrusions steps the averaged position
+    mt, tl = make_print([Move(20, 0, de=0.8, v=60, v_end=30), Move(40, 0, de=0.8, v=60),
+                         Move(40, 10), Move(60, 10, de=0.8, v=60)], accel=3000)
+    mt.events.append(Event(1, 2, "SET_PRESSURE_ADVANCE", {"SMOOTH_TIME": 0.1}))
+    feed = nominal_feed(mt, tl)
+    adv = apply_advance(feed, mt, AdvanceSettings(Firmware.KLIPPER, k_s=0.05))
+    assert any("steps by" in w for w in adv.warnings)
+    # a change while the extruder rests (before the third extrusion) is silent
+    mt.events[-1] = Event(3, 2, "SET_PRESSURE_ADVANCE", {"SMOOTH_TIME": 0.1})
+    quiet = apply_advance(feed, mt, AdvanceSettings(Firmware.KLIPPER, k_s=0.05))
+    assert not any("steps by" in w for w in quiet.warnings)
+    assert quiet.e_end_mm() == pytest.approx(feed.e_end_mm(), abs=1e-12)

@@ -23,8 +23,10 @@ Which moves get advance (all firmwares: the advance factor ``K`` is in seconds):
   move; a jump of ``v_E`` between two moves (a change of extrusion ratio) is not advanced
   (a position step cannot be executed).
 
-The G-code commands take effect from the move that follows them. Commands the chosen
-firmware does not know are counted in the warnings, not applied.
+The G-code commands take effect from the move that follows them (a change of Klipper's or
+Prusa's window ``max(h_old, h_new)`` earlier, so that a change while the extruder rests is
+seamless; a change while it moves steps the averaged position — not fed, and reported).
+Commands the chosen firmware does not know are counted in the warnings, not applied.
 """
 
 from __future__ import annotations
@@ -292,8 +294,9 @@ def apply_advance(feed: CommandedFeed, moves: MoveTable,
                            value=feed.advance, allowed="a nominal feed")
     sched = advance_schedule(moves, settings)
     fw = settings.firmware
+    notes: list[str] = []
     if fw in (Firmware.KLIPPER, Firmware.PRUSA):
-        out = _smoothed(feed, sched)
+        out, notes = _smoothed(feed, sched)
     elif fw is Firmware.MARLIN:
         out = _marlin(feed, sched)
     else:
@@ -302,7 +305,7 @@ def apply_advance(feed: CommandedFeed, moves: MoveTable,
                          gap=out[5], phase=out[6], move_t0_s=feed.move_t0_s,
                          move_t1_s=feed.move_t1_s, move_de_mm=feed.move_de_mm,
                          e_start_mm=feed.e_start_mm, advance=fw.value,
-                         warnings=feed.warnings + sched.warnings)
+                         warnings=feed.warnings + sched.warnings + tuple(notes))
 
 
 _Arrays = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64],
@@ -369,7 +372,7 @@ def _marlin(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
     return (o[0][:cnt], o[1][:cnt], coef, o[4][:cnt], feed.move[s], feed.gap[s], feed.phase[s])
 
 
-def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
+def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, list[str]]:
     n = feed.n_moves
     h_move = np.where(sched.k_s > 0.0, 0.5 * sched.smooth_time_s, 0.0)
     h_max = float(np.max(h_move)) if n else 0.0
@@ -383,10 +386,14 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
     k_seg = np.concatenate(([0.0], _seg_k(feed, sched.k_eff_s), [0.0]))
     bounds = np.concatenate((t0, [t0[-1] + dt[-1]]))
     t_lo, t_hi = float(bounds[0]), float(bounds[-1])
-    # regimes of constant window half width, switching at the start of a move
+    # regimes of constant window half width; a change switches max(h_old, h_new) before the
+    # first move after the command, so that a change made while the extruder rests (start
+    # G-code, layer change) is seamless
     if n:
         change = np.flatnonzero(np.diff(h_move) != 0.0) + 1
-        starts = np.concatenate(([t_lo], feed.move_t0_s[change], [t_hi]))
+        switch = feed.move_t0_s[change] - np.maximum(h_move[change - 1], h_move[change])
+        switch = np.clip(np.maximum.accumulate(switch) if switch.size else switch, t_lo, t_hi)
+        starts = np.concatenate(([t_lo], switch, [t_hi]))
         h_reg = np.concatenate(([h_move[0]], h_move[change]))
     else:
         starts = np.array([t_lo, t_hi])
@@ -414,4 +421,15 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
                    e0, k_seg, u_all, hp, feed.move_t0_s, feed.move_t1_s, out_coef, out_e0,
                    owner, gap)
     phase = np.where(gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
-    return (u_all[:-1], np.diff(u_all), out_coef, out_e0, owner, gap, phase)
+    p_dt = np.diff(u_all)
+    notes: list[str] = []
+    for k in np.flatnonzero(np.diff(hp) != 0.0) + 1:
+        c = out_coef[k - 1]
+        ln = p_dt[k - 1]
+        end = out_e0[k - 1] + ln * (c[0] + ln * (0.5 * c[1] + ln * (c[2] / 3 + ln * c[3] / 4)))
+        jump = float(out_e0[k] - end)
+        if abs(jump) > 1e-9:
+            notes.append(f"smoothing window changes at t={u_all[k]:.4f} s while the extruder "
+                         f"moves: the commanded position steps by {jump:+.3e} mm, which the "
+                         "motor does not execute")
+    return (u_all[:-1], p_dt, out_coef, out_e0, owner, gap, phase), notes
