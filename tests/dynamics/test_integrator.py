@@ -323,3 +323,18 @@ def test_starting_above_the_force_limit_grinds_until_released(make_feed):
     assert res.moves["grind_loss_mm3"][0] == pytest.approx(p.filament_area_mm2 * t_release,
                                                            rel=1e-9)
     assert res.summary.as_dict()["grinding_moves"] == 1
+
+
+def test_inconsistent_inputs_are_refused_before_the_kernel(make_feed):
+    feed = make_feed([0.1, 0.1], [[1.0], [1.0]])
+    bad = type(feed)(t0_s=feed.t0_s, dt_s=feed.dt_s, coef=feed.coef, e0_mm=feed.e0_mm,
+                     move=np.array([0, 5]), gap=feed.gap, phase=feed.phase,
+                     move_t0_s=feed.move_t0_s, move_t1_s=feed.move_t1_s,
+                     move_de_mm=feed.move_de_mm)
+    with pytest.raises(DataError, match="inconsistent"):
+        integrate(bad, params(2))
+    p = params(2)
+    with pytest.raises(ProfileError, match="slip_offset"):
+        type(p)(p.lag_k_s, p.compliance_mm_per_n, p.slip_offset[:1], p.slip_gradient_per_n,
+                p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm,
+                p.max_feed_force_n, p.filament_area_mm2)

@@ -151,6 +151,12 @@ def integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                         value=initial_compression_mm, allowed="finite mm")
     t0, dt, coef, e0 = feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm
     move, gap = feed.move, feed.gap
+    if (move.max() >= n or move.min() < -1 or np.any(move[~gap] < 0)
+            or not np.all(dt > 0.0) or not np.all(np.isfinite(coef))):
+        raise DataError("commanded feed is inconsistent (move index out of range, segment "
+                        "without a move, non-positive duration or non-finite speed)",
+                        field="feed", value=feed.n_segments,
+                        allowed=f"move indices in [-1, {n}), dt > 0, finite coefficients")
     if tail_s > 0.0:
         t0 = np.append(t0, feed.t_end_s)
         dt = np.append(dt, tail_s)

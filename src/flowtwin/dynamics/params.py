@@ -121,6 +121,20 @@ class ExtrusionParams:
     filament_area_mm2: float
     grind_release_fraction: float = 0.2
 
+    def __post_init__(self) -> None:
+        n = self.lag_k_s.shape
+        for name in ("compliance_mm_per_n", "slip_offset", "slip_gradient_per_n",
+                     "slip_velocity_gain_per_n", "slip_velocity_decay_s_per_mm",
+                     "max_feed_force_n"):
+            arr = getattr(self, name)
+            if arr.shape != n or arr.dtype != np.float64:
+                raise ProfileError("per-move parameter arrays must be float64 of one shape",
+                                   field=name, value=(arr.shape, str(arr.dtype)),
+                                   allowed=f"float64 {n}")
+        if len(n) != 1 or self.lag_k_s.dtype != np.float64:
+            raise ProfileError("per-move parameters must be 1-D float64", field="lag_k_s",
+                               value=(n, str(self.lag_k_s.dtype)), allowed="float64 (n_moves,)")
+
     @property
     def n_moves(self) -> int:
         """Number of moves the parameters are given for."""
