@@ -192,8 +192,29 @@ def _row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool
     return k
 
 
+OTHER_TEXT = 0
+OTHER_NUMERIC = 1
+
+
 @njit(cache=True)
-def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untyped-def]
+def _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0, code_num, has, val):  # type: ignore[no-untyped-def]
+    other[n_other, 0] = lineno
+    other[n_other, 1] = start
+    other[n_other, 2] = eol
+    other[n_other, 3] = n_out
+    other[n_other, 4] = OTHER_NUMERIC
+    other[n_other, 5] = c0 * 1_000_000 + int(code_num)
+    mask = 0
+    for q in range(26):
+        if has[q]:
+            mask |= 1 << q
+            evals[n_other, 1 + q] = val[q]
+    evals[n_other, 0] = float(mask)
+    return n_other + 1
+
+
+@njit(cache=True)
+def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 
     Parameters
@@ -208,8 +229,14 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
         Move rows; the kernel fills x, y, z, de, feed_mm_s, line, tool, kind, flow.
     n_out : int
         Rows already filled.
-    other : int64[cap2, 4]
-        Spans of lines left to Python: line, start byte, end byte, move index.
+    other : int64[cap2, 6]
+        Lines left to Python, in order: line, start byte, end byte, move index, kind
+        (``OTHER_TEXT``: Python parses the text; ``OTHER_NUMERIC``: a command whose words
+        are all numbers, already parsed into ``evals``), command code
+        (``letter * 1_000_000 + number``).
+    evals : float64[cap2, 27]
+        For ``OTHER_NUMERIC`` rows: a bit mask of the letters present (bit 0 = A), then the
+        value of each letter A..Z.
     n_other : int
         Spans already filled.
 
@@ -296,6 +323,7 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
             other[n_other, 1] = start
             other[n_other, 2] = eol
             other[n_other, 3] = n_out
+            other[n_other, 4] = OTHER_TEXT
             n_other += 1
             line = lineno
             pos = nxt
@@ -322,6 +350,7 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
             other[n_other, 1] = start
             other[n_other, 2] = eol
             other[n_other, 3] = n_out
+            other[n_other, 4] = OTHER_TEXT
             n_other += 1
             line = lineno
             pos = nxt
@@ -367,11 +396,8 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                 state[S_LINE] = line
                 return ST_PYTHON, start, n_out, n_other
             state[S_TOOL] = code_num
-            other[n_other, 0] = lineno
-            other[n_other, 1] = start
-            other[n_other, 2] = eol
-            other[n_other, 3] = n_out
-            n_other += 1
+            n_other = _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0,
+                                      code_num, has, val)
             line = lineno
             pos = nxt
             continue
@@ -599,11 +625,8 @@ def scan(buf, pos, state, out, n_out, other, n_other):  # type: ignore[no-untype
                                                                      and not has[3]))))):
                 state[S_LINE] = line
                 return ST_PYTHON, start, n_out, n_other
-            other[n_other, 0] = lineno
-            other[n_other, 1] = start
-            other[n_other, 2] = eol
-            other[n_other, 3] = n_out
-            n_other += 1
+            n_other = _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0,
+                                      code_num, has, val)
         line = lineno
         pos = nxt
     state[S_LINE] = line

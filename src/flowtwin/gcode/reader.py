@@ -185,9 +185,12 @@ class _Rows:
     n: int = 0
     n_other: int = 0
 
+    evals: np.ndarray = field(default_factory=lambda: np.empty((0, 27)))
+
     @classmethod
     def make(cls, cap: int, cap_other: int) -> _Rows:
-        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, 4), np.int64))
+        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, 6), np.int64),
+                   evals=np.zeros((cap_other, 27)))
 
     def grow_moves(self, need: int) -> None:
         cap = max(2 * self.moves.shape[0], self.n + need + 16)
@@ -196,9 +199,13 @@ class _Rows:
         self.moves = new
 
     def grow_other(self) -> None:
-        new = np.empty((2 * self.other.shape[0] + 16, 4), np.int64)
+        cap = 2 * self.other.shape[0] + 16
+        new = np.empty((cap, 6), np.int64)
         new[: self.n_other] = self.other[: self.n_other]
         self.other = new
+        vals = np.zeros((cap, 27))
+        vals[: self.n_other] = self.evals[: self.n_other]
+        self.evals = vals
 
     def add(self, line: int, tool: int, xyz: tuple[float, float, float], de: float,
             feed: float, flow: float, kind: int) -> None:
@@ -335,12 +342,12 @@ class _Reader:
         self._record(parsed.code, p, parsed.comment, line, self.n_moves + rows.n, text)
 
     def _check_numeric(self, code: str, params: dict[str, float | str], line: int,
-                       text: str) -> None:
+                       text: str | _Span) -> None:
         need = NUMERIC_PARAMS.get(code, frozenset())
         for key, value in params.items():
             if key in need and not isinstance(value, float):
                 raise GcodeError(f"{code} parameter {key} is not a number", source=self.name,
-                                 line=line, field=key, value=value or text.strip(),
+                                 line=line, field=key, value=value or str(text).strip(),
                                  allowed="a finite decimal number")
 
     def _fw_retract(self, line: int, rows: _Rows, *, retract: bool) -> None:
@@ -375,7 +382,7 @@ class _Reader:
         self.events.append(event)
 
     def _record(self, code: str, params: dict[str, float | str], comment: str, line: int,
-                move_index: int, text: str) -> None:
+                move_index: int, text: str | _Span) -> None:
         if not code:
             self.comments.feed(comment, move_index, line)
             return
@@ -385,14 +392,27 @@ class _Reader:
         elif code not in HARMLESS_CODES:
             if self.options.strict:
                 raise GcodeError(f"unknown command {code}", source=self.name, line=line,
-                                 value=text.strip(), allowed="commands flowtwin interprets "
+                                 value=str(text).strip(), allowed="commands flowtwin interprets "
                                  "(run without --strict to count and skip unknown ones)")
             self.unknown[code] = self.unknown.get(code, 0) + 1
 
     def _other_lines(self, buf: bytes, rows: _Rows) -> None:
         feed = self.comments.feed
         base = self.n_moves
-        for lineno, start, end, move_index in rows.other[: rows.n_other].tolist():
+        n = rows.n_other
+        masks = rows.evals[:n, 0].astype(np.int64).tolist()
+        values = rows.evals[:n, 1:].tolist()
+        for k, (lineno, start, end, move_index, kind, code_id) in enumerate(
+                rows.other[:n].tolist()):
+            if kind == K.OTHER_NUMERIC:  # parsed by the kernel: no text to look at
+                code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
+                mask = masks[k]
+                vals = values[k]
+                params: dict[str, float | str] = {
+                    _LETTERS[j]: vals[j] for j in range(26) if mask >> j & 1}
+                self._record(code, params, "", lineno, base + move_index,
+                             _Span(buf, start, end))
+                continue
             text = buf[start:end].decode("utf-8", "replace")
             if "\ufffd" in text:
                 self.warnings.append(f"{self.name}:{lineno}: bytes that are not UTF-8 "
@@ -420,7 +440,7 @@ class _Reader:
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other = K.scan(
-                arr, pos, self.state, rows.moves, rows.n, rows.other, rows.n_other)
+                arr, pos, self.state, rows.moves, rows.n, rows.other, rows.evals, rows.n_other)
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
@@ -504,6 +524,21 @@ class _Reader:
         self.layer_z.extend(running[1:][rises].tolist())
         self.layer += int(np.count_nonzero(rises))
         self.max_extrude_z = float(running[-1])
+
+
+_LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+
+
+@dataclass(frozen=True, slots=True)
+class _Span:
+    """Where a kernel-parsed line is; its text is decoded only for a message."""
+
+    buf: bytes
+    start: int
+    end: int
+
+    def __str__(self) -> str:
+        return self.buf[self.start:self.end].decode("utf-8", "replace").rstrip("\r")
 
 
 def _num(params: dict[str, float | str], key: str, default: float) -> float:
