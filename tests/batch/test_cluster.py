@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import signal
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -28,14 +29,15 @@ from flowtwin.batch import (
     run_jobs,
     run_sweep,
 )
+from flowtwin.batch.jobs import Cell
 
 pytestmark = [pytest.mark.service, pytest.mark.xdist_group("batch-dask")]
 
 
-def _expected_sweep_rows(source: Path, texts: list[str]) -> dict[str, dict[str, object]]:
+def _expected_sweep_rows(source: Path, texts: list[str]) -> dict[str, dict[str, Cell]]:
     """The rows of a sweep computed here, in this process, one job after the other."""
     builder = MachineBuilder(load_base(None))
-    rows = {}
+    rows: dict[str, dict[str, Cell]] = {}
     for index, point in enumerate(grid_points([parse_axis(t) for t in texts])):
         params = tuple(point.items())
         rid = row_identity(os.path.abspath(source), params, "plan")
@@ -49,7 +51,7 @@ def test_killed_worker_tasks_are_retried_table_complete_no_duplicates(
     client = dask_cluster
     params = ["setup.temperature_c=190:236:2"]  # 24 points
     pids: dict[str, int] = client.run(os.getpid)  # type: ignore[attr-defined]
-    killed: dict[str, object] = {}
+    killed: dict[str, Any] = {}
 
     def kill_busiest_worker(event: Progress) -> None:
         if killed:
@@ -72,7 +74,7 @@ def test_killed_worker_tasks_are_retried_table_complete_no_duplicates(
     assert len(ids) == len(set(ids)) == 24
     # Every task the dead worker held has its row, and every row is the row computed
     # in-process (per-task determinism).
-    held = {str(k).split("-")[1] for k in killed["keys"]}  # type: ignore[attr-defined]
+    held = {str(k).split("-")[1] for k in killed["keys"]}
     assert held <= set(ids)
     expected = _expected_sweep_rows(prints["p600"], params)
     assert {r["row_id"]: r for r in table.to_pylist()} == expected

@@ -127,7 +127,7 @@ def test_interval_samples_stay_inside_the_interval() -> None:
             parse_axis("drive.roller_id=2:6", sampling=True),
             parse_axis("drive.pinch_force_n=60,80")]
     points = sample_points(axes, 200, seed=1)
-    temps = [p["setup.temperature_c"] for p in points]
+    temps = [float(p["setup.temperature_c"]) for p in points]
     rollers = {p["drive.roller_id"] for p in points}
     assert all(190.0 <= t <= 230.0 for t in temps)
     assert rollers == {2, 3, 4, 5, 6}  # 200 draws of 5 integers: all appear (P(miss) ~ 1e-19)

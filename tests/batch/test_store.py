@@ -8,14 +8,15 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
+from flowtwin.batch.jobs import Cell
 from flowtwin.batch.store import ResultWriter, parts_dir, read_results
 from flowtwin.errors import DataError
 
 CONFIG = {"command": "batch", "engine": "plan", "machine": "abc"}
 
 
-def _row(i: int, **extra: object) -> dict[str, object]:
-    row: dict[str, object] = {"index": i, "row_id": f"id{i:03d}", "file": f"f{i}.gcode",
+def _row(i: int, **extra: Cell) -> dict[str, Cell]:
+    row: dict[str, Cell] = {"index": i, "row_id": f"id{i:03d}", "file": f"f{i}.gcode",
                               "error": None, "error_kind": None, "total_time_s": 10.0 * i}
     row.update(extra)
     return row

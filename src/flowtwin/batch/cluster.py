@@ -28,11 +28,15 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.batch.jobs import Cell, Job, JobResult, error_row, run_job
 from flowtwin.batch.store import ResultWriter
 from flowtwin.errors import FlowtwinError
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 __all__ = [
     "DEFAULT_RETRIES",
@@ -98,7 +102,7 @@ def default_workers() -> int:
 
 @contextlib.contextmanager
 def dask_client(*, scheduler: str | None = None, workers: int | None = None,
-                threads_per_worker: int = 1) -> Iterator[object]:
+                threads_per_worker: int = 1) -> Iterator[Client]:
     """A dask ``Client``: connected to ``scheduler``, or to a new local cluster.
 
     Parameters
