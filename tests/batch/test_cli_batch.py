@@ -65,6 +65,7 @@ def test_sweep_table_and_parameter_error(dask_cluster: object, prints: dict[str,
         "-P", "drive.roller_id=1,3", "--out", str(out),
         "--scheduler", _address(dask_cluster), "--no-progress"])
     assert ok.exit_code == 0, ok.output
+    assert "Rows" in ok.stdout and "p2.gcode" in ok.stdout  # the terminal table
     table = pq.read_table(out)
     assert table.num_rows == 6
     assert table.column("setup.temperature_c").to_pylist() == [190.0, 190.0, 210.0, 210.0,

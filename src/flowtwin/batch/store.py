@@ -207,7 +207,7 @@ class ResultWriter:
         if resume:
             previous = self._load_previous()
         else:
-            self._remove_parts(only_ours=True)
+            self._remove_parts()
         self.folder.mkdir(parents=True, exist_ok=True)
         header = {"format": FORMAT, "version": VERSION, "config": self.config}
         lines = [json.dumps(header, sort_keys=True)]
@@ -251,23 +251,19 @@ class ResultWriter:
             return [table]
         return []
 
-    def _remove_parts(self, *, only_ours: bool) -> None:
+    def _remove_parts(self) -> None:
+        """Delete the manifest, the parts and their temporary files (nothing else)."""
         if not self.folder.is_dir():
             return
         for item in self.folder.iterdir():
             ours = (item.name == MANIFEST or item.name.startswith(("part-", ".part-",
                                                                     f".{MANIFEST}")))
-            if item.is_file() and (ours or not only_ours):
+            if item.is_file() and ours:
                 item.unlink()
         with contextlib.suppress(OSError):  # left in place if someone else's file is there
             self.folder.rmdir()
 
     # -- writing ----------------------------------------------------------------------
-
-    @property
-    def rows_written(self) -> int:
-        """Rows on disk (in listed parts)."""
-        return len(self._written)
 
     def _write_part(self, table: pa.Table) -> None:
         name = f"part-{len(self._entries) + 1:06d}.parquet"
@@ -350,6 +346,6 @@ class ResultWriter:
         if complete and self.out.suffix.lower() != ".csv":
             # A CSV file keeps neither the column types nor the run configuration: its
             # parts folder stays beside it for read_results and --resume.
-            self._remove_parts(only_ours=True)
+            self._remove_parts()
         return table
 

@@ -17,6 +17,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Annotated, cast
 
+import pyarrow as pa
 import typer
 from rich.progress import (
     BarColumn,
@@ -98,6 +99,14 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _param_paths(text: str) -> list[str]:
+    """Canonical column names of one ``--param`` text (empty if it does not parse)."""
+    from flowtwin.batch.params import ALIASES
+
+    names = text.split("=", 1)[0].split("+")
+    return [ALIASES.get(n.strip(), n.strip()) for n in names]
+
+
 def _engine(value: str) -> Engine:
     if value not in ENGINES:
         raise FlowtwinError("unknown engine", field="--engine", value=value,
@@ -105,9 +114,33 @@ def _engine(value: str) -> Engine:
     return cast(Engine, value)
 
 
+#: Result columns shown in the terminal when present (all are in the table).
+_SHOWN = ("total_time_s", "volume_error", "rms_flow_error", "worst_width_error_mm",
+          "min_force_margin_n", "grinding_events", "ooze_volume_mm3")
+
+
+def _fmt(value: object) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _print_rows(table: pa.Table, params: list[str], *, limit: int = 20) -> None:
+    """The first rows of the table with the parameters and the main figures."""
+    names = table.column_names
+    columns = ["file", *(p for p in params if p in names), *(c for c in _SHOWN if c in names)]
+    rows = table.select(columns).slice(0, limit).to_pylist()
+    shown = [[Path(str(r["file"])).name if c == "file" else _fmt(r[c]) for c in columns]
+             for r in rows]
+    more = f" (first {limit} of {table.num_rows})" if table.num_rows > limit else ""
+    console.print(table_from_rows(f"Rows{more}", columns, shown))
+
+
 def _run(label: str, out: Path, progress: bool, json_out: bool,
-         call: Callable[[Callable[[int, int], None], Callable[[Progress], None]], RunSummary]
-         ) -> None:
+         call: Callable[[Callable[[int, int], None], Callable[[Progress], None]], RunSummary],
+         *, params: list[str] | None = None) -> None:
     bar = _Bar(label, enabled=progress)
     try:
         with _sigterm_as_interrupt():
@@ -120,6 +153,7 @@ def _run(label: str, out: Path, progress: bool, json_out: bool,
     finally:
         bar.close()
     table = read_results(out)
+    params = [path for text in (params or []) for path in _param_paths(text)]
     failures = []
     if "error" in table.column_names:
         for row in table.select(["index", "file", "error", "error_kind"]).to_pylist():
@@ -138,6 +172,7 @@ def _run(label: str, out: Path, progress: bool, json_out: bool,
             ("time", f"{fmt_duration(summary.elapsed_s)} on {summary.threads} worker "
                      f"thread(s)"),
         ]))
+        _print_rows(table, params)
         if failures:
             console.print(table_from_rows("Rows with errors", ["#", "error"], [
                 (r["index"], r["error"]) for r in failures[:20]]))
@@ -229,4 +264,4 @@ def register(app: typer.Typer) -> None:
             gcode, param, out=out, profile=profile, sample=sample, seed=seed, engine=chosen,
             reports_dir=reports, scheduler=scheduler, workers=workers, retries=retries,
             resume=resume, ship_files=ship_files, flush_rows=flush_rows,
-            flush_s=flush_seconds, on_start=start, on_result=update))
+            flush_s=flush_seconds, on_start=start, on_result=update), params=param)
