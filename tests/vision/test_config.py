@@ -106,7 +106,7 @@ _doc = st.dictionaries(st.sampled_from(["roi", "scale", "gear", "filament", "tra
                                         "extra"]), _table, max_size=4)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                   HealthCheck.function_scoped_fixture])
 @given(doc=_doc)
 def test_any_toml_document_loads_or_raises_vision_error(tmp_path: Path, doc: dict) -> None:

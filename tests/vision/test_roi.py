@@ -61,7 +61,7 @@ _coord = st.integers(min_value=0, max_value=5000)
 _size = st.integers(min_value=MIN_ROI_PX, max_value=5000)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(name=st.sampled_from(ROI_NAMES), x=_coord, y=_coord, w=_size, h=_size,
        pad=st.sampled_from(["", " ", "  "]))
 def test_valid_rois_round_trip(name: str, x: int, y: int, w: int, h: int, pad: str) -> None:
@@ -71,7 +71,7 @@ def test_valid_rois_round_trip(name: str, x: int, y: int, w: int, h: int, pad: s
     assert parse_roi(roi.text()) == roi
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(text=st.text(alphabet=st.characters(codec="utf-8"), max_size=40)
        | st.from_regex(r"[a-z]{0,7}=[-0-9., ]{0,20}", fullmatch=True))
 def test_any_text_parses_or_raises_vision_error(text: str) -> None:

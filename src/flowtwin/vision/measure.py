@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -35,7 +35,7 @@ from flowtwin.vision.result import (
     VisionSummary,
 )
 from flowtwin.vision.source import Frame, open_source
-from flowtwin.vision.track import RoiTracker, StepEstimate
+from flowtwin.vision.track import RoiTracker, StepEstimate, is_stale
 from flowtwin.vision.width import calibration_factor, measure_width_px
 
 __all__ = ["SourceInfo", "measure", "measure_frames"]
@@ -60,9 +60,11 @@ class _Rows:
     dt: list[float]
     flags: list[int]
     gear: list[float]
+    gear_span: list[float]
     gear_n: list[int]
     gear_se: list[float]
     fil: list[float]
+    fil_span: list[float]
     fil_n: list[int]
     fil_se: list[float]
     width: list[float]
@@ -71,7 +73,7 @@ class _Rows:
 
     @classmethod
     def empty(cls) -> _Rows:
-        return cls([], [], [], [], [], [], [], [], [], [], [], [], [])
+        return cls([], [], [], [], [], [], [], [], [], [], [], [], [], [], [])
 
     def add(self, frame: int, t: float, dt: float, flags: Quality, gear: StepEstimate | None,
             fil: StepEstimate | None, width: tuple[float, float, float]) -> None:
@@ -80,9 +82,11 @@ class _Rows:
         self.dt.append(dt)
         self.flags.append(int(flags))
         self.gear.append(gear.value if gear is not None else NAN)
+        self.gear_span.append(gear.span_s if gear is not None else NAN)
         self.gear_n.append(gear.n_tracks if gear is not None else 0)
         self.gear_se.append(gear.se_px if gear is not None else NAN)
         self.fil.append(fil.value if fil is not None else NAN)
+        self.fil_span.append(fil.span_s if fil is not None else NAN)
         self.fil_n.append(fil.n_tracks if fil is not None else 0)
         self.fil_se.append(fil.se_px if fil is not None else NAN)
         self.width.append(width[0])
@@ -90,9 +94,12 @@ class _Rows:
         self.right.append(width[2])
 
 
-def _step_flags(est: StepEstimate | None, low: Quality, bad: Quality) -> Quality:
+def _step_flags(est: StepEstimate | None, low: Quality, bad: Quality, stale: Quality
+                ) -> Quality:
     if est is None or est.valid:
         return Quality(0)
+    if est.stale:
+        return stale
     return low if est.low_texture else bad
 
 
@@ -176,10 +183,15 @@ def measure_frames(frames: Iterable[Frame], config: VisionConfig, *,
         em = measure_width_px(img[before.slices], sigma_px=p.width_sigma_px,
                               min_edge_dn_px=p.min_edge_dn_px)
         flags = Quality.FIRST if dt is None else Quality(0)
-        flags |= _step_flags(g, Quality.GEAR_LOW_TEXTURE, Quality.GEAR_TRACKING)
-        flags |= _step_flags(f, Quality.FILAMENT_LOW_TEXTURE, Quality.FILAMENT_TRACKING)
-        if not em.ok:
+        flags |= _step_flags(g, Quality.GEAR_LOW_TEXTURE, Quality.GEAR_TRACKING,
+                             Quality.GEAR_STALE)
+        flags |= _step_flags(f, Quality.FILAMENT_LOW_TEXTURE, Quality.FILAMENT_TRACKING,
+                             Quality.FILAMENT_STALE)
+        before_crop = img[before.slices]
+        if not em.ok or (prev_img is not None
+                         and is_stale(before_crop, prev_img[before.slices])):
             flags |= Quality.WIDTH_INVALID
+            em = replace(em, ok=False)
         width = (em.width_px, em.left_px + before.x, em.right_px + before.x) if em.ok \
             else no_width
         rows.add(frame.index, t_rel, NAN if dt is None else dt, flags, g, f, width)
@@ -219,8 +231,10 @@ def _finish(rows: _Rows, config: VisionConfig, info: SourceInfo, elapsed: float
                               allowed="a before ROI across both filament edges")
         k_cal = calibration_factor(config.calib_width_mm, float(np.mean(width_px[w_ok])))
         scale_source = "calib_width_mm"
-    # gear surface speed
+    # gear surface speed; each step over its own span (longer after a stale ROI)
     gear_step = np.asarray(rows.gear)
+    gear_span = np.asarray(rows.gear_span)
+    fil_span = np.asarray(rows.fil_span)
     radius_mm: float | None = None
     radius_source: str | None = None
     if config.gear_center_px is not None:
@@ -241,12 +255,12 @@ def _finish(rows: _Rows, config: VisionConfig, info: SourceInfo, elapsed: float
         fil_x = config.rois.after.center[0]
         turn = (1.0 if fil_x >= cx else -1.0) * (1.0 if config.direction == "down" else -1.0)
         with np.errstate(invalid="ignore"):
-            gear = turn * gear_step * radius_mm / dt
+            gear = turn * gear_step * radius_mm / gear_span
         gear_mode = "rotation"
     else:
-        gear = speed_mm_s(gear_step, dt, k_cal)
+        gear = speed_mm_s(gear_step, gear_span, k_cal)
         gear_mode = "tangential"
-    fil = speed_mm_s(np.asarray(rows.fil), dt, k_cal)
+    fil = speed_mm_s(np.asarray(rows.fil), fil_span, k_cal)
     width_mm = width_px * k_cal
     stopped = np.isfinite(gear) & (np.abs(gear) <= p.min_gear_speed_mm_s)
     flags[stopped] |= int(Quality.GEAR_STOPPED)
@@ -265,13 +279,16 @@ def _finish(rows: _Rows, config: VisionConfig, info: SourceInfo, elapsed: float
         filament_tracks=np.asarray(rows.fil_n, dtype=np.int64),
         gear_se_px=np.asarray(rows.gear_se), filament_se_px=np.asarray(rows.fil_se),
         width_px=width_px)
-    summary = _summary(series, config, info, period=period, dropped=dropped, k_cal=k_cal,
+    summary = _summary(series, config, info, gear_span=gear_span, fil_span=fil_span,
+                       period=period, dropped=dropped, k_cal=k_cal,
                        scale_source=scale_source, gear_mode=gear_mode, radius_mm=radius_mm,
                        radius_source=radius_source, elapsed=elapsed)
     return VisionResult(series, summary)
 
 
-def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, *, period: float,
+def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, *,
+             gear_span: npt.NDArray[np.float64], fil_span: npt.NDArray[np.float64],
+             period: float,
              dropped: int, k_cal: float, scale_source: str, gear_mode: str,
              radius_mm: float | None, radius_source: str | None, elapsed: float
              ) -> VisionSummary:
@@ -280,25 +297,27 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, *, period:
     f_ok = ((fl & int(FILAMENT_INVALID)) == 0) & np.isfinite(s.filament_speed_mm_s)
     w_ok = ((fl & int(WIDTH_INVALIDATING)) == 0) & np.isfinite(s.width_mm)
     both = g_ok & f_ok
-    dt = np.where(np.isfinite(s.dt_s), s.dt_s, 0.0)
+    g_dt = np.where(np.isfinite(gear_span), gear_span, 0.0)
+    f_dt = np.where(np.isfinite(fil_span), fil_span, 0.0)
 
-    def mean_speed(v: npt.NDArray[np.float64], ok: npt.NDArray[np.bool_]) -> float:
+    def mean_speed(v: npt.NDArray[np.float64], ok: npt.NDArray[np.bool_],
+                   dt: npt.NDArray[np.float64]) -> float:
         time_s = float(np.sum(dt[ok]))
         return float(np.sum(v[ok] * dt[ok]) / time_s) if time_s > 0 else NAN
 
-    l_gear = float(np.sum(s.gear_speed_mm_s[both] * dt[both]))
-    l_fil = float(np.sum(s.filament_speed_mm_s[both] * dt[both]))
+    l_gear = float(np.sum(s.gear_speed_mm_s[both] * g_dt[both]))
+    l_fil = float(np.sum(s.filament_speed_mm_s[both] * f_dt[both]))
     slip = 1.0 - l_fil / l_gear if abs(l_gear) > 0 and both.any() else NAN
     flow_ok = f_ok & w_ok
     frames_expected = info.frames_expected
     n = len(s)
     return VisionSummary(
-        gear_speed_mm_s=mean_speed(s.gear_speed_mm_s, g_ok),
-        filament_speed_mm_s=mean_speed(s.filament_speed_mm_s, f_ok),
+        gear_speed_mm_s=mean_speed(s.gear_speed_mm_s, g_ok, g_dt),
+        filament_speed_mm_s=mean_speed(s.filament_speed_mm_s, f_ok, f_dt),
         slip=slip, slip_pct=100.0 * slip,
         width_mm=float(np.mean(s.width_mm[w_ok])) if w_ok.any() else NAN,
         width_std_mm=float(np.std(s.width_mm[w_ok])) if w_ok.any() else NAN,
-        volume_flow_mm3_s=mean_speed(s.volume_flow_mm3_s, flow_ok),
+        volume_flow_mm3_s=mean_speed(s.volume_flow_mm3_s, flow_ok, f_dt),
         frames=n, valid_frames=int(np.sum(both & w_ok)),
         gear_valid_frames=int(g_ok.sum()), filament_valid_frames=int(f_ok.sum()),
         width_valid_frames=int(w_ok.sum()), dropped_frames=dropped,

@@ -28,18 +28,29 @@ FloatArray = npt.NDArray[np.float64]
 
 
 class Quality(IntFlag):
-    """Quality flags of one row (column ``flags``)."""
+    """Quality flags of one row (column ``flags``).
+
+    ``*_STALE`` marks a region that repeats the previous frame's pixels (a damaged frame
+    the decoder concealed with old data) and the step right after it (the decoder may
+    have lost frames there, which constant-rate timestamps cannot show).
+    ``*_LOW_TEXTURE`` means no trackable texture: no feature stands out of the noise, the
+    aligned windows match no better than noise would, or the tracks scatter by more than
+    0.5 px rms (they follow noise, not the surface). ``*_TRACKING`` means the tracks
+    were too few or disagreed for another reason. Either way the value is NaN.
+    """
 
     FIRST = 1                   #: first frame: nothing to compare with, no speeds
     GAP = 2                     #: frames were dropped before this one (speeds still valid)
     DUPLICATE = 4               #: exact repeat of the previous image: skipped
     BLANK = 8                   #: blank frame (no contrast): skipped
-    GEAR_LOW_TEXTURE = 16       #: no trackable texture in the gear ROI
+    GEAR_LOW_TEXTURE = 16       #: no trackable texture in the gear ROI (see below)
     GEAR_TRACKING = 32          #: gear tracks too few or disagreeing
-    FILAMENT_LOW_TEXTURE = 64   #: no trackable texture in the after ROI
+    FILAMENT_LOW_TEXTURE = 64   #: no trackable texture in the after ROI (see below)
     FILAMENT_TRACKING = 128     #: filament tracks too few or disagreeing
     WIDTH_INVALID = 256         #: filament edges not found in the before ROI
     GEAR_STOPPED = 512          #: gear (nearly) still: slip undefined
+    GEAR_STALE = 1024           #: gear ROI repeats old pixels (damaged frame), or follows
+    FILAMENT_STALE = 2048       #: after ROI repeats old pixels (damaged frame), or follows
 
     def names(self) -> str:
         """``"GAP|WIDTH_INVALID"`` style text (empty when no flag is set)."""
@@ -48,10 +59,11 @@ class Quality(IntFlag):
 
 #: Flags that make the gear speed invalid.
 GEAR_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK | Quality.GEAR_LOW_TEXTURE
-                | Quality.GEAR_TRACKING)
+                | Quality.GEAR_TRACKING | Quality.GEAR_STALE)
 #: Flags that make the filament speed invalid.
 FILAMENT_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK
-                    | Quality.FILAMENT_LOW_TEXTURE | Quality.FILAMENT_TRACKING)
+                    | Quality.FILAMENT_LOW_TEXTURE | Quality.FILAMENT_TRACKING
+                    | Quality.FILAMENT_STALE)
 #: Flags that make the width invalid.
 WIDTH_INVALIDATING = Quality.DUPLICATE | Quality.BLANK | Quality.WIDTH_INVALID
 

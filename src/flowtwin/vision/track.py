@@ -26,7 +26,7 @@ the OpenCV example it cites [003 ref. 24]:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import cv2
@@ -36,7 +36,7 @@ import numpy.typing as npt
 from flowtwin.vision.config import TrackingParams
 from flowtwin.vision.roi import Roi
 
-__all__ = ["RoiTracker", "StepEstimate", "detect_features", "min_eigenvalue_map",
+__all__ = ["RoiTracker", "StepEstimate", "detect_features", "is_stale", "min_eigenvalue_map",
            "noise_sigma_dn", "robust_mean"]
 
 U8 = npt.NDArray[np.uint8]
@@ -61,6 +61,13 @@ _DEROTATE_INTERP = cv2.INTER_LINEAR
 #: Lucas–Kanade stopping rule: iterations and the smallest update, px.
 _LK_ITERATIONS = 30
 _LK_EPS_PX = 0.003
+#: Largest mean absolute difference of an aligned window, as a fraction of the window's
+#: standard deviation in the keyframe (2/sqrt(pi) = 1.13 for pure noise; 0.6 needs a
+#: texture about 1.6 times stronger than the per-frame noise).
+_MATCH_RATIO = 0.6
+#: Spread of agreeing-looking tracks (rms, px) above which a failed step is put down to
+#: missing texture rather than to a tracking problem (textured steps scatter ~0.05 px).
+_NOISE_SPREAD_PX = 0.5
 #: Seed of the sub-pixel jitter of new features (results are reproducible).
 _JITTER_SEED = 20170101
 
@@ -83,9 +90,17 @@ class StepEstimate:
     se_px
         Standard error of the mean, px.
     low_texture
-        No usable features (texture below ``min_texture_eig``).
+        No trackable texture (see :class:`RoiTracker`).
     valid
         The value can be used.
+    span_s
+        Time the step covers, s: from the last frame this tracker processed (longer than
+        one frame after a stale frame).
+    stale
+        The ROI repeated the previous frame's pixels (:func:`is_stale`: a damaged frame
+        the decoder concealed), or this is the step right after such a frame (the
+        decoder may have lost frames there that constant-rate timestamps cannot show).
+        Either way the value is NaN.
     """
 
     value: float
@@ -95,6 +110,30 @@ class StepEstimate:
     se_px: float
     low_texture: bool
     valid: bool
+    span_s: float = math.nan
+    stale: bool = False
+
+
+def is_stale(crop: U8, previous: U8) -> bool:
+    """Whether an image region repeats the previous frame's, wholly or in part.
+
+    With sensor noise no row of real image data repeats bit for bit; a damaged frame that
+    the decoder concealed with the previous frame's pixels (MJPEG, H.264), or a driver
+    that repeats a buffer, does. A region is stale when at least ``max(4, 5 %)`` of its
+    rows are bit-identical to the previous frame's and not uniform (uniform rows, e.g.
+    clipped black, carry no information either way).
+
+    Parameters
+    ----------
+    crop, previous
+        The region in this and the previous frame, shape ``(H, W)``, uint8.
+
+    Returns
+    -------
+    bool
+    """
+    same = np.all(crop == previous, axis=1) & (crop.max(axis=1) > crop.min(axis=1))
+    return int(same.sum()) >= max(4, int(0.05 * crop.shape[0]))
 
 
 def robust_mean(values: npt.NDArray[np.float64], scale: npt.NDArray[np.float64] | None = None,
@@ -304,6 +343,7 @@ class RoiTracker:
         self._ref_pts = np.zeros((0, 2), np.float64)
         self._cur_pts = np.zeros((0, 2), np.float64)
         self._alive = np.zeros(0, dtype=bool)
+        self._ref_std = np.zeros(0, np.float64)
         self._age = 0
         self._total = 0.0
         self._low_texture = False
@@ -311,6 +351,9 @@ class RoiTracker:
         self._last_valid = False
         self._last_dt: float | None = None
         self._prev_small: F32 | None = None
+        self._prev_crop: U8 | None = None
+        self._pending_s = 0.0
+        self._damaged = False
 
     # --- helpers --------------------------------------------------------------------
     def _crop(self, gray: U8) -> U8:
@@ -340,6 +383,13 @@ class RoiTracker:
         self._cur_pts = self._ref_pts.copy()
         self._alive = np.ones(len(self._ref_pts), dtype=bool)
         self._low_texture = len(self._ref_pts) < p.min_tracks
+        # contrast of each feature's window in the keyframe, to judge later matches
+        f = norm.astype(np.float32)
+        mean = cv2.boxFilter(f, -1, self._win)
+        var = cv2.boxFilter(f * f, -1, self._win) - mean * mean
+        ix = np.clip(np.rint(self._ref_pts[:, 0]).astype(int), 0, f.shape[1] - 1)
+        iy = np.clip(np.rint(self._ref_pts[:, 1]).astype(int), 0, f.shape[0] - 1)
+        self._ref_std = np.sqrt(np.maximum(var[iy, ix], 0.0)).astype(np.float64)
 
     def _predict(self, pts: npt.NDArray[np.float64], step: float) -> npt.NDArray[np.float64]:
         if self.mode == "translation":
@@ -359,8 +409,7 @@ class RoiTracker:
         gray
             Whole grey frame, shape ``(H, W)``, uint8.
         dt_s
-            Time since the previous frame processed by this tracker, s (scales the
-            motion prediction).
+            Time since the previous frame given to this tracker, s.
 
         Returns
         -------
@@ -368,6 +417,17 @@ class RoiTracker:
             ``None`` for the first frame (nothing to compare with).
         """
         crop = self._crop(gray)
+        if self._prev_crop is not None and is_stale(crop, self._prev_crop):
+            # a repeated image region (decoder concealment, driver repeat) holds no
+            # information about this instant: skip it and let the next step span it
+            if dt_s is not None:
+                self._pending_s += dt_s
+            self._damaged = True
+            return StepEstimate(math.nan, 0, 0, math.nan, math.nan, False, False, stale=True)
+        self._prev_crop = crop.copy()
+        if dt_s is not None:
+            dt_s += self._pending_s
+        self._pending_s = 0.0
         norm = self._normalise(crop)
         small: F32 | None = None
         if self.mode == "translation":
@@ -378,6 +438,12 @@ class RoiTracker:
             self._keyframe(crop, norm)
             return None
         result = self._step(norm, dt_s, self._guess(prev_small, small, dt_s))
+        result = replace(result, span_s=math.nan if dt_s is None else dt_s)
+        if self._damaged:
+            # the step across a concealed (damaged) frame: the decoder may have lost
+            # frames there too, which constant-rate timestamps do not show
+            self._damaged = False
+            result = replace(result, value=math.nan, valid=False, stale=True)
         self._age += 1
         n_alive = int(self._alive.sum())
         if (not result.valid or self._age >= self.params.redetect_interval
@@ -440,7 +506,7 @@ class RoiTracker:
             guess = self._predict(prev_pts, step_guess)
         p0 = np.ascontiguousarray(ref_pts[:, None, :], dtype=np.float32)
         flags = cv2.OPTFLOW_USE_INITIAL_FLOW
-        p1, st1, _ = cv2.calcOpticalFlowPyrLK(
+        p1, st1, err1 = cv2.calcOpticalFlowPyrLK(
             ref, target, p0, np.ascontiguousarray(guess[:, None, :], dtype=np.float32),
             winSize=self._win, maxLevel=self._levels, criteria=self._criteria,
             flags=flags)
@@ -456,6 +522,12 @@ class RoiTracker:
         inside = ((b[:, 0] >= half) & (b[:, 0] < w - half) & (b[:, 1] >= half)
                   & (b[:, 1] < h - half))
         good = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (fb < p.fb_max_px) & inside
+        # the matched windows must agree better than noise would: the mean absolute
+        # difference after alignment against the window's own contrast (noise alone
+        # gives 2/sqrt(pi) = 1.13 of it, a clean texture much less)
+        match = err1[:, 0].astype(np.float64) <= _MATCH_RATIO * self._ref_std[idx]
+        unmatched = int(np.sum(good & ~match))
+        good &= match
         if self.mode == "translation":
             perp = np.array([-self.axis[1], self.axis[0]])
             total = b - ref_pts
@@ -483,7 +555,8 @@ class RoiTracker:
         n_cand = int(values.size)
         self._last_valid = False
         if n_cand < p.min_tracks:
-            return self._invalid(low_texture=False, n_candidates=n_cand)
+            # mostly windows that match no better than noise: the texture is too weak
+            return self._invalid(low_texture=unmatched >= n_cand, n_candidates=n_cand)
         mean, inl = robust_mean(values, lever)
         n_in = int(inl.sum())
         res_px = (values[inl] - mean) * lever[inl]
@@ -494,6 +567,11 @@ class RoiTracker:
             self._last_value = mean
             self._last_valid = True
             self._total += mean
+        if not valid and spread > _NOISE_SPREAD_PX:
+            # tracks that passed every check yet scatter by this much follow noise
+            # blotches and static structure, not the surface: no trackable texture
+            self._alive[idx] = False
+            return StepEstimate(math.nan, n_in, n_cand, spread, se, True, False)
         # outliers of this step do not continue
         keep = np.zeros(len(idx), dtype=bool)
         keep[np.flatnonzero(good)[inl]] = True

@@ -23,6 +23,10 @@ from flowtwin.errors import VisionError
 
 __all__ = ["EdgeMeasurement", "calibration_factor", "measure_width_px"]
 
+#: A row's width is an outlier (a texture blotch taken for an edge) only if it is this
+#: far from the median row, px; real width changes within a ROI are smaller.
+_ROW_OUTLIER_PX = 2.0
+
 
 @dataclass(frozen=True, slots=True)
 class EdgeMeasurement:
@@ -125,7 +129,7 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     if good.sum() >= 3:
         med = float(np.median(widths[good]))
         mad = float(np.median(np.abs(widths[good] - med)))
-        good &= np.abs(widths - med) <= max(3 * 1.4826 * mad, 0.5)
+        good &= np.abs(widths - med) <= max(3 * 1.4826 * mad, _ROW_OUTLIER_PX)
     n = int(good.sum())
     if n < max(3, min_rows_frac * h):
         return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan,

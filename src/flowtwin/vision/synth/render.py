@@ -278,14 +278,15 @@ class SyntheticCamera:
     def _render(self, t: float) -> tuple[npt.NDArray[np.uint8], float, float, float]:
         sc, px, mo = self.scene, self._px, self.motion
         r_drive = sc.drive_radius_mm
-        # exposure sub-samples for motion blur: one per ~0.5 px of motion, at most 8
+        # exposure sub-samples for motion blur: filament one per ~0.5 px of motion (at most 8),
+        # gear one per ~1.5 px at the tips (at most 3: each is a warp of the whole gear)
         te = sc.exposure_s
         span_f = abs(float(mo.filament_distance_mm(t + te / 2) - mo.filament_distance_mm(
             t - te / 2))) / px
         span_g = abs(float(mo.gear_distance_mm(t + te / 2) - mo.gear_distance_mm(
             t - te / 2))) / r_drive * self._r_tip
         n_f = int(min(8, max(1, math.ceil(span_f / 0.5))))
-        n_g = int(min(6, max(1, math.ceil(span_g / 1.0))))
+        n_g = int(min(3, max(1, math.ceil(span_g / 1.5))))
         tf = t + te * ((np.arange(n_f) + 0.5) / n_f - 0.5) if n_f > 1 else np.array([t])
         tg = t + te * ((np.arange(n_g) + 0.5) / n_g - 0.5) if n_g > 1 else np.array([t])
         s_mm = float(mo.filament_distance_mm(t))
