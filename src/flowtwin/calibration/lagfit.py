@@ -8,12 +8,14 @@ Bellini's ``g·e^(−τs)/(1 + K·s)`` if asked — is found by nonlinear least 
 
 Fitting hygiene (docs/calibration.md):
 
-* **Start.** ``K`` is first scanned on a logarithmic grid (5 ms … 2 s) with ``τ = 0`` and
-  ``g = 1``; the best grid point starts the fit, so a machine profile far from the truth
-  does not trap it in a local minimum.
+* **Start.** ``K`` is first scanned on a logarithmic grid (12 values, 5 ms … 2 s, each
+  72 % above the last) with ``τ = 0`` and ``g = 1``; the best grid point starts the fit,
+  so a machine profile far from the truth does not trap it in a local minimum.
 * **Jacobian.** Central differences with steps chosen per parameter: ``1e-3·K`` for the
   lag (the integrator is exact, the width smooth in ``K``), one flow-series sample for
   the dead time (the series is interpolated linearly in time), ``1e-3`` for the gain.
+  Only ``K`` changes the dynamics: the flow series is computed once per ``K`` and reused
+  for the other parameters.
 * **Uncertainty.** ``cov = s²·(JᵀJ)⁻¹`` with ``s² = Σr²/(n − p)``: the noise level is
   estimated from the scatter, the errors are taken as independent (width samples closer
   than the measurement's own resolution are correlated, which makes ``σ`` optimistic).
@@ -63,9 +65,16 @@ PROFILE_COLUMNS = (
 )
 
 #: Parameter bounds of the fit: (lower, upper).
-_BOUNDS = {"k_s": (1e-3, 5.0), "dead_time_s": (0.0, DEAD_TIME_MAX_S), "gain": (0.2, 5.0)}
+_BOUNDS = {"k_s": (1e-3, 5.0), "dead_time_s": (0.0, DEAD_TIME_MAX_S), "gain": (0.2, 5.0),
+           "shift_mm": (-5.0, 5.0), "stretch": (-0.1, 0.1)}
+#: Finite-difference step of each parameter (K: relative).
+_STEPS = {"k_s": 1e-3, "gain": 1e-3, "shift_mm": 0.01, "stretch": 1e-4}
+#: Typical size of each parameter for the trust region (where its start is 0).
+_X_SCALE = {"shift_mm": 0.1, "stretch": 1e-3}
+#: Points per window when the model is averaged over a measurement window.
+_WINDOW_POINTS = 5
 #: Grid of the start scan of K, s.
-_K_SCAN = np.geomspace(0.005, 2.0, 16)
+_K_SCAN = np.geomspace(0.005, 2.0, 12)
 #: A dead time known worse than this (s) is "not determined".
 _DEAD_TIME_MAX_ERR_S = 0.1
 
@@ -82,11 +91,15 @@ class WidthProfile:
         Measured width, mm, shape ``(n,)``; NaN where nothing could be measured.
     source
         Where the numbers come from (file name, image), for messages.
+    window_mm
+        Length along the line over which each width is averaged by the measurement
+        (0: a point measurement); the model is averaged over the same window.
     """
 
     positions_mm: FloatArray
     widths_mm: FloatArray
     source: str = "<data>"
+    window_mm: float = 0.0
 
     def __post_init__(self) -> None:
         if self.positions_mm.shape != self.widths_mm.shape or self.positions_mm.ndim != 1:
@@ -162,6 +175,8 @@ class LagFit:
         The test lines.
     machine_lag_s
         The lag the machine profile predicts for these lines, s (for comparison).
+    registration
+        Fitted shift (mm) and stretch of the measured positions (empty if not fitted).
     notes
         Facts worth knowing about the fit.
     """
@@ -176,6 +191,7 @@ class LagFit:
     line_rms_mm: tuple[float, ...]
     lines: tuple[TestLine, ...]
     machine_lag_s: float
+    registration: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = field(default_factory=tuple)
 
     @property
@@ -201,6 +217,8 @@ class LagFit:
             "dead_time_s": p.dead_time_s, "dead_time_err_s": self.stderr.get("dead_time_s"),
             "gain": p.gain, "gain_err": self.stderr.get("gain"),
             "fitted": list(self.fitted),
+            "registration": {k: {"value": v, "err": self.stderr[k]}
+                             for k, v in self.registration.items()},
             "correlation": self.correlation().tolist(),
             "points": self.n_points, "excluded": self.n_excluded, "rms_mm": self.rms_mm,
             "machine_lag_s": self.machine_lag_s,
@@ -276,8 +294,8 @@ def _usable_points(model: LagModel, profiles: Sequence[WidthProfile], end_margin
 
 def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, WidthProfile], *,
             fit_dead_time: bool = False, fit_gain: bool = False,
-            fixed: LagParams | None = None, end_margin_mm: float = 1.0,
-            max_relative_error: float = 0.5) -> LagFit:
+            fit_registration: bool = False, fixed: LagParams | None = None,
+            end_margin_mm: float = 1.0, max_relative_error: float = 0.5) -> LagFit:
     """Fit the lag ``K`` (and optionally ``τ``, ``g``) of the twin to measured widths.
 
     Parameters
@@ -291,6 +309,12 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
     fit_dead_time, fit_gain
         Also fit the dead time ``τ`` / the flow gain ``g``; otherwise they stay at
         ``fixed``'s values (default ``τ = 0``, ``g = 1``).
+    fit_registration
+        Also fit a shift ``δ`` (mm) and a relative stretch ``ε`` of the measured
+        positions, the same for every line: the model is evaluated at
+        ``x_c + (1 + ε)·(x − x_c) + δ`` (``x_c`` the line's middle). For positions read
+        from an image whose registration along the lines is uncertain by a fraction of a
+        millimetre (the bead's ends are not the path's ends).
     fixed
         Values of the parameters that are not fitted (its ``k_s`` is ignored).
     end_margin_mm
@@ -316,8 +340,9 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                                value=len(profs), allowed=f"{len(model.lines)} profiles")
     base = fixed or LagParams(k_s=1.0)
     xs, ws, excluded = _usable_points(model, profs, end_margin_mm)
-    names = ["k_s"] + (["dead_time_s"] if fit_dead_time else []) + (["gain"] if fit_gain
-                                                                       else [])
+    names = (["k_s"] + (["dead_time_s"] if fit_dead_time else []) + (["gain"] if fit_gain
+                                                                        else [])
+             + (["shift_mm", "stretch"] if fit_registration else []))
     n = int(sum(x.size for x in xs))
     p = len(names)
     if n <= p + 1:
@@ -327,24 +352,51 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                                        f"their ends ({end_margin_mm:g} mm) and not narrower "
                                        "than the layer height")
     measured = np.concatenate(ws)
+    # each sample is the mean of the model over its window: offsets within the window
+    offsets = [np.linspace(-0.5, 0.5, _WINDOW_POINTS) * pr.window_mm if pr.window_mm > 0
+               else np.zeros(1) for pr in profs]
+    centres = [0.5 * ln.length_mm for ln in model.lines]
 
     def params_of(v: FloatArray) -> LagParams:
         d = dict(zip(names, v.tolist(), strict=True))
         return LagParams(k_s=d["k_s"], dead_time_s=d.get("dead_time_s", base.dead_time_s),
                          gain=d.get("gain", base.gain))
 
-    def residuals(v: FloatArray) -> FloatArray:
-        pred = np.concatenate(model.widths(params_of(v), xs))
-        return np.asarray(pred - measured, dtype=np.float64)
+    cache: dict[float, tuple[FloatArray, FloatArray]] = {}
 
-    steps = {"k_s": lambda v: 1e-3 * v, "dead_time_s": lambda v: model.series_dt_s,
-             "gain": lambda v: 1e-3}
+    def series(params: LagParams) -> tuple[FloatArray, FloatArray]:
+        # the dynamics depend on K only (dead time, gain and positions act afterwards)
+        if params.k_s not in cache:
+            if len(cache) > 8:
+                cache.pop(next(iter(cache)))
+            cache[params.k_s] = model.flow_series(params)
+        return cache[params.k_s]
+
+    def predict(v: FloatArray) -> FloatArray:
+        d = dict(zip(names, v.tolist(), strict=True))
+        shift, stretch = d.get("shift_mm", 0.0), d.get("stretch", 0.0)
+        pts = []
+        for x, off, c, ln in zip(xs, offsets, centres, model.lines, strict=True):
+            xm = c + (1.0 + stretch) * (x - c) + shift
+            pts.append(np.clip(xm[:, None] + off[None, :], 0.0, ln.length_mm).ravel())
+        lp = params_of(v)
+        w = model.widths(lp, pts, series=series(lp))
+        return np.concatenate([wi.reshape(-1, off.size).mean(axis=1)
+                               for wi, off in zip(w, offsets, strict=True)])
+
+    def residuals(v: FloatArray) -> FloatArray:
+        return np.asarray(predict(v) - measured, dtype=np.float64)
+
+    def step(name: str, value: float) -> float:
+        if name == "dead_time_s":
+            return model.series_dt_s
+        return _STEPS[name] * (abs(value) if name == "k_s" else 1.0)
 
     def jacobian(v: FloatArray) -> FloatArray:
         cols = []
         for j, name in enumerate(names):
             lo, hi = _BOUNDS[name]
-            h = steps[name](float(v[j]))
+            h = step(name, float(v[j]))
             a, b = max(v[j] - h, lo), min(v[j] + h, hi)
             va, vb = v.copy(), v.copy()
             va[j], vb[j] = a, b
@@ -352,16 +404,13 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
         return np.column_stack(cols)
 
     # start: the best K of a log grid, other parameters at their fixed values
+    rest = {"dead_time_s": min(max(base.dead_time_s, 0.002), DEAD_TIME_MAX_S / 2),
+            "gain": base.gain, "shift_mm": 0.0, "stretch": 0.0}
     scan = []
     for k in _K_SCAN:
-        r = np.concatenate(model.widths(LagParams(float(k), base.dead_time_s, base.gain), xs)
-                           ) - measured
+        r = residuals(np.array([float(k)] + [rest[nm] for nm in names[1:]]))
         scan.append(float(np.sum(r[np.isfinite(r)] ** 2)))
-    x0 = [float(_K_SCAN[int(np.argmin(scan))])]
-    if fit_dead_time:
-        x0.append(min(max(base.dead_time_s, 0.002), DEAD_TIME_MAX_S / 2))
-    if fit_gain:
-        x0.append(base.gain)
+    x0 = [float(_K_SCAN[int(np.argmin(scan))])] + [rest[nm] for nm in names[1:]]
     lower = [_BOUNDS[nm][0] for nm in names]
     upper = [_BOUNDS[nm][1] for nm in names]
     start = np.clip(np.asarray(x0), lower, upper)
@@ -369,16 +418,22 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
         raise CalibrationError("the model width is undefined at some measured positions "
                                "(the nozzle stands still there)", field="position_mm")
     sol = least_squares(residuals, start, jac=jacobian, bounds=(lower, upper),
-                        x_scale=np.maximum(np.abs(start), 1e-2), method="trf",
-                        xtol=1e-10, ftol=1e-12, gtol=1e-12, max_nfev=200)
+                        x_scale=np.array([max(abs(v), _X_SCALE.get(nm, 1e-2))
+                                          for v, nm in zip(start, names, strict=True)]),
+                        method="trf",
+                        xtol=1e-8, ftol=1e-10, gtol=1e-10, max_nfev=200)
     if sol.status <= 0:
         raise CalibrationError(f"the lag fit did not converge: {sol.message}",
                                field=",".join(names))
     values = np.asarray(sol.x, dtype=np.float64)
     for name, value in zip(names, values.tolist(), strict=True):
         lo, hi = _BOUNDS[name]
-        at_lo = value <= lo * (1 + 1e-6) + 1e-12 and name != "dead_time_s"
-        if at_lo or value >= hi * (1 - 1e-6):
+        if name in ("shift_mm", "stretch"):
+            at_lo, at_hi = value <= lo * (1 - 1e-6), value >= hi * (1 - 1e-6)
+        else:
+            at_lo = value <= lo * (1 + 1e-6) + 1e-12 and name != "dead_time_s"
+            at_hi = value >= hi * (1 - 1e-6)
+        if at_lo or at_hi:
             raise CalibrationError(f"the lag fit ends on the bound of {name} ({value:.4g}): "
                                    "the widths do not determine it", field=name,
                                    value=value, allowed=f"{lo:g} .. {hi:g}")
@@ -410,6 +465,8 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                                        f"{value:.3g} ± {e:.2g} s", field=name, value=value,
                                        allowed=f"standard error <= {_DEAD_TIME_MAX_ERR_S:g} s")
             continue
+        if name in ("shift_mm", "stretch"):
+            continue   # nuisance parameters: 0 is a valid value
         if not e <= max_relative_error * abs(value):
             raise CalibrationError(f"the fit does not determine {name}: {value:.4g} ± "
                                    f"{e:.2g} (measure lines with larger speed steps, a finer "
@@ -428,4 +485,7 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                   stderr=dict(zip(names, err.tolist(), strict=True)), covariance=cov,
                   n_points=n, n_excluded=excluded, rms_mm=float(np.sqrt(np.mean(resid ** 2))),
                   line_rms_mm=line_rms, lines=model.lines, machine_lag_s=model.machine_lag_s,
+                  registration={nm: float(v) for nm, v in zip(names, values.tolist(),
+                                                               strict=True)
+                                if nm in ("shift_mm", "stretch")},
                   notes=tuple(notes))

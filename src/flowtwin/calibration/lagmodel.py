@@ -148,6 +148,8 @@ class TestLine:
         When the nozzle starts and ends the line, s.
     vertices_xy_mm
         The path: start point and each move's end point, mm, shape ``(m + 1, 2)``.
+    cruise_mm_s
+        Planned cruise speed of each move, mm/s, shape ``(m,)``.
     """
 
     first_move: int
@@ -163,6 +165,7 @@ class TestLine:
     t_start_s: float
     t_end_s: float
     vertices_xy_mm: FloatArray
+    cruise_mm_s: FloatArray
 
     @property
     def length_mm(self) -> float:
@@ -247,6 +250,12 @@ class LagModel:
         idx = np.concatenate([np.arange(ln.first_move, ln.last_move + 1) for ln in self.lines])
         return float(np.median(self.base_params.lag_k_s[idx]))
 
+    def subset(self, indices: Sequence[int]) -> LagModel:
+        """The same model restricted to the test lines ``indices`` (in that order)."""
+        idx = [int(i) for i in indices]
+        return dataclasses.replace(self, lines=tuple(self.lines[i] for i in idx),
+                                   _grids=tuple(self._grids[i] for i in idx))
+
     def flow_series(self, params: LagParams) -> tuple[FloatArray, FloatArray]:
         """Times (s) and melt flow ``Q_twin`` (mm³/s) around the lines for lag ``params.k_s``.
 
@@ -263,8 +272,8 @@ class LagModel:
         return (np.asarray(series["t_s"], dtype=np.float64),
                 np.asarray(series["q_out_mm3_s"], dtype=np.float64))
 
-    def widths(self, params: LagParams, positions_mm: Sequence[npt.ArrayLike]
-               ) -> list[FloatArray]:
+    def widths(self, params: LagParams, positions_mm: Sequence[npt.ArrayLike], *,
+               series: tuple[FloatArray, FloatArray] | None = None) -> list[FloatArray]:
         """Predicted bead width at the given positions of each line, mm.
 
         Parameters
@@ -285,7 +294,7 @@ class LagModel:
             raise CalibrationError("one position array per test line is needed",
                                    field="positions_mm", value=len(positions_mm),
                                    allowed=f"{len(self.lines)} arrays")
-        t_q, q = self.flow_series(params)
+        t_q, q = self.flow_series(params) if series is None else series
         out: list[FloatArray] = []
         for line, grid, pos in zip(self.lines, self._grids, positions_mm, strict=True):
             x = np.asarray(pos, dtype=np.float64)
@@ -385,7 +394,8 @@ def _test_line(plan: PlanResult, first: int, last: int, heights: FloatArray,
                     accel_mm_s2=float(np.max(ph["accel"][first:last + 1])),
                     t_start_s=t0, t_end_s=t1,
                     vertices_xy_mm=np.vstack([start[:1], np.column_stack(
-                        [m["x"][first:last + 1], m["y"][first:last + 1]])]))
+                        [m["x"][first:last + 1], m["y"][first:last + 1]])]),
+                    cruise_mm_s=cruise)
     return line, _LineGrid(t, s, v)
 
 
