@@ -87,7 +87,7 @@ class TrackingParams:
         Slip is undefined (flagged) while the gear turns slower than this, mm/s.
     """
 
-    max_tracks: int = 40
+    max_tracks: int = 30
     redetect_interval: int = 100
     win_px: int = 15
     pyramid_levels: int = 3

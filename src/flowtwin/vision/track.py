@@ -226,7 +226,9 @@ def noise_sigma_dn(gray: U8) -> float:
 
 
 def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
-                    min_distance_px: int | None = None) -> npt.NDArray[np.float64]:
+                    min_distance_px: int | None = None,
+                    noise_region: tuple[slice, slice] | None = None
+                    ) -> npt.NDArray[np.float64]:
     """Shi–Tomasi features that stand out of the noise enough to track [003 §2.2].
 
     ``goodFeaturesToTrack`` picks up to ``max_tracks`` corners. A corner is kept only if
@@ -247,6 +249,9 @@ def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
         Where features may be, shape ``(H, W)``, uint8 (non-zero = allowed).
     min_distance_px
         Smallest distance between features (default ``win_px // 4``), px.
+    noise_region
+        ``(rows, columns)`` slices where the noise is estimated (default: the bounding
+        box of ``mask``, or the whole image).
 
     Returns
     -------
@@ -259,11 +264,10 @@ def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
     if pts is None:
         return np.zeros((0, 2), np.float64)
     xy = pts[:, 0, :].astype(np.float64)
-    region = gray
-    if mask is not None:
+    if noise_region is None and mask is not None:
         ys, xs = np.nonzero(mask)
-        region = gray[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
-    sigma = noise_sigma_dn(region)
+        noise_region = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+    sigma = noise_sigma_dn(gray if noise_region is None else gray[noise_region])
     floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
     eig = min_eigenvalue_map(gray)
     ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, gray.shape[1] - 1)
@@ -321,6 +325,7 @@ class RoiTracker:
         self._mask = np.zeros((self.y1 - self.y0, self.x1 - self.x0), np.uint8)
         ins = min(inset_px, roi.w // 4)
         self._mask[self._ry0:self._ry1, self._rx0 + ins:self._rx1 - ins] = 255
+        self._mask_box = (slice(self._ry0, self._ry1), slice(self._rx0 + ins, self._rx1 - ins))
         self._win = (params.win_px, params.win_px)
         self._criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, _LK_ITERATIONS,
                           _LK_EPS_PX)
@@ -374,7 +379,8 @@ class RoiTracker:
         self._ref = norm
         self._age = 0
         self._total = 0.0
-        pts = detect_features(crop, p, mask=self._mask, min_distance_px=self._min_dist)
+        pts = detect_features(crop, p, mask=self._mask, min_distance_px=self._min_dist,
+                              noise_region=self._mask_box)
         # spread the features over sub-pixel phases: LK's interpolation error depends on
         # the sub-pixel part of the displacement, and with every feature on the integer
         # grid those errors would add up coherently instead of averaging out

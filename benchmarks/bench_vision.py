@@ -1,0 +1,108 @@
+"""Vision benchmark: frames per second of the slip camera pipeline at 640×480.
+
+Measured on synthetic frames (flowtwin.vision.synth) with OpenCV on one thread
+(``cv2.setNumThreads(1)``):
+
+* ``rois``: the pipeline with the three ROIs of docs/vision.md (gear rotation, filament
+  translation, width), frames already in memory; wall-clock and CPU-time rates (the
+  machine may be shared, CPU time is the fairer figure).
+* ``file``: the same, reading an MJPG AVI through ``measure()`` (decoding included).
+* ``full_frame``: gear and filament trackers on the whole 640×480 frame, and what that
+  reads (static background features pull it towards zero).
+
+The peer is [003 §2.1]: 14.3 frames/s (70 ms per frame) in Greeff and Schilling's set-up;
+the goal is >= 150 frames/s (10×). Accuracy against the synthetic truth is printed too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from flowtwin.vision import Frame, Roi, RoiSet, measure, measure_frames
+from flowtwin.vision.synth import MotionSeries, SceneSpec, SyntheticCamera, write_video
+
+PEER_FPS = 14.3          # [003 §2.1]: (70 ± 8) ms between frames
+GOAL_FPS = 150.0
+
+
+def _rate(fn, n_frames: int, repeats: int) -> tuple[float, float]:
+    """Best wall-clock and CPU-time frames per second over ``repeats`` runs."""
+    wall, cpu = [], []
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return n_frames / min(wall), n_frames / min(cpu)
+
+
+def run(quick: bool = False) -> dict:
+    """Measure and print; return the figures."""
+    cv2.setNumThreads(1)
+    n = 60 if quick else 240
+    repeats = 2 if quick else 3
+    out: dict = {"opencv": cv2.__version__, "frames": n, "threads": cv2.getNumThreads(),
+                 "peer_fps_003": PEER_FPS, "goal_fps": GOAL_FPS}
+    for speed in (2.0, 15.0):
+        scene = SceneSpec(seed=21)
+        motion = MotionSeries.constant(duration_s=(n - 1) / scene.fps, gear_speed_mm_s=speed,
+                                       slip=0.1)
+        synth = list(SyntheticCamera(scene, motion).frames())
+        frames = [Frame(f.index, f.t_s, f.image) for f in synth]
+        cfg = scene.vision_config()
+        result = measure_frames(frames, cfg, frame_size=(640, 480))
+        wall, cpu = _rate(lambda cfg=cfg, frames=frames: measure_frames(
+            frames, cfg, frame_size=(640, 480)), n, repeats)
+        s = result.summary
+        key = f"{speed:g}mm_s"
+        out[key] = {
+            "rois_fps_wall": wall, "rois_fps_cpu": cpu,
+            "ratio_vs_003": cpu / PEER_FPS,
+            "gear_speed_err_pct": 100 * (s.gear_speed_mm_s / speed - 1),
+            "filament_speed_err_pct": 100 * (s.filament_speed_mm_s / (0.9 * speed) - 1),
+            "slip_err_pp": 100 * (s.slip - 0.1),
+            "width_err_um": 1000 * (s.width_mm - float(np.mean([f.width_mm for f in synth]))),
+            "valid_frames": s.valid_frames, "frame_count": s.frames,
+        }
+        # end to end from a real file (MJPG decode + pipeline)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = write_video(synth, Path(tmp) / "bench.avi", fps=scene.fps, fourcc="MJPG")
+            f_wall, f_cpu = _rate(lambda path=path, cfg=cfg: measure(path, cfg), n, repeats)
+        out[key]["file_fps_wall"], out[key]["file_fps_cpu"] = f_wall, f_cpu
+        # full frame: both trackers over the whole image
+        full = Roi("after", 0, 0, 640, 480)
+        full_cfg = dataclasses.replace(cfg, rois=RoiSet(
+            Roi("gear", 0, 0, 640, 480), cfg.rois.before, full))
+        full_res = measure_frames(frames, full_cfg, frame_size=(640, 480))
+        ff_wall, ff_cpu = _rate(lambda c=full_cfg, frames=frames: measure_frames(
+            frames, c, frame_size=(640, 480)), n, repeats)
+        fs = full_res.summary
+        out[key].update({
+            "full_frame_fps_wall": ff_wall, "full_frame_fps_cpu": ff_cpu,
+            "full_frame_filament_err_pct": 100 * (fs.filament_speed_mm_s / (0.9 * speed) - 1),
+            "full_frame_valid_frames": fs.filament_valid_frames,
+        })
+    print(f"OpenCV {out['opencv']}, {out['threads']} thread, {n} frames of 640×480, "
+          f"peer [003] {PEER_FPS} fps, goal {GOAL_FPS:.0f} fps")
+    print(f"{'speed':>8} {'ROIs fps (cpu/wall)':>21} {'x[003]':>7} {'file fps':>10} "
+          f"{'full fps':>9} {'gear err':>9} {'fil err':>8} {'slip err':>9} "
+          f"{'width err':>10} {'full-frame fil err':>19}")
+    for speed in (2.0, 15.0):
+        r = out[f"{speed:g}mm_s"]
+        print(f"{speed:>5g} mm/s {r['rois_fps_cpu']:>9.0f} / {r['rois_fps_wall']:<9.0f}"
+              f"{r['ratio_vs_003']:>7.1f} {r['file_fps_cpu']:>10.0f} "
+              f"{r['full_frame_fps_cpu']:>9.0f} {r['gear_speed_err_pct']:>+8.3f}% "
+              f"{r['filament_speed_err_pct']:>+7.3f}% {r['slip_err_pp']:>+7.3f}pp "
+              f"{r['width_err_um']:>+8.2f}µm {r['full_frame_filament_err_pct']:>+17.1f}%")
+    out["goal_met"] = all(out[f"{v:g}mm_s"]["rois_fps_cpu"] >= GOAL_FPS for v in (2.0, 15.0))
+    return out
+
+
+if __name__ == "__main__":
+    run()
