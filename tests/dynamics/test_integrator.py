@@ -338,3 +338,51 @@ def test_inconsistent_inputs_are_refused_before_the_kernel(make_feed):
         type(p)(p.lag_k_s, p.compliance_mm_per_n, p.slip_offset[:1], p.slip_gradient_per_n,
                 p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm,
                 p.max_feed_force_n, p.filament_area_mm2)
+
+
+def test_adaptive_stage_count_matches_the_fixed_6_stage_method(make_feed, rng):
+    # the fewest-stage choice (bound C_s z^(2s+1) <= 1e-16 per substep) against the fixed
+    # 6-stage method on cubic feeds with retractions, velocity-dependent slip [000 Eq. 8] and
+    # grinding: per-move volumes agree to 1e-10 of the largest (the bound summed over a
+    # few thousand substeps, with margin for the events located on slightly different paths)
+    from flowtwin.dynamics.integrator import _integrate
+
+    n = 400
+    dts = rng.uniform(0.001, 0.2, n)
+    coef = [[rng.uniform(-2, 12), rng.uniform(-300, 300), rng.uniform(-900, 900),
+             rng.uniform(-5000, 5000)] for _ in range(n)]
+    feed = make_feed(dts, coef)
+    p = params(n, slip_offset=0.01, slip_gradient_per_n=0.0024,
+               slip_velocity_gain_per_n=0.0018, slip_velocity_decay_s_per_mm=0.32,
+               max_feed_force_n=25.0)
+    kw: dict[str, object] = {"initial_compression_mm": 0.0, "initially_grinding": False,
+                             "tail_s": 0.2, "series_dt_s": None, "series_window_s": None,
+                             "stiffness": 1.0}
+    fast = _integrate(feed, p, min_stages=2, **kw)  # type: ignore[arg-type]
+    ref = _integrate(feed, p, min_stages=6, **kw)  # type: ignore[arg-type]
+    assert fast.summary.grinding_moves > 0  # the test covers grinding events
+    for name in ("fed_mm3", "out_mm3", "stop_out_mm3", "slip_loss_mm3", "grind_loss_mm3",
+                 "peak_force_n", "q_max_mm3_s"):
+        scale = float(np.max(np.abs(ref.moves[name]))) or 1.0
+        assert np.max(np.abs(fast.moves[name] - ref.moves[name])) <= 1e-10 * scale, name
+    assert fast.final_compression_mm == pytest.approx(ref.final_compression_mm, rel=1e-10)
+
+
+def test_constant_speed_slip_is_the_exact_exponential_over_long_segments(make_feed):
+    # a cruise of 50 time constants with velocity-dependent slip: β = 1/K + v s'(v)/k is
+    # constant, x(t) = x∞ (1 - e^{-βt}), ∫x = x∞ (t - (1 - e^{-βt})/β) in closed form
+    v, kp, a, b, c = 3.0, 0.01, 0.0024, 0.0018, 0.32
+    t = 50 * K
+    p = params(slip_offset=kp, slip_gradient_per_n=a, slip_velocity_gain_per_n=b,
+               slip_velocity_decay_s_per_mm=c)
+    res = integrate(make_feed([t], [[v]]), p)
+    sp = a + b * math.exp(-c * v)
+    beta = 1.0 / K + v * sp / KC
+    x_inf = v * (1.0 - kp) / beta
+    x_end = x_inf * (1.0 - math.exp(-beta * t))
+    ix = x_inf * (t - (1.0 - math.exp(-beta * t)) / beta)
+    assert res.final_compression_mm == pytest.approx(x_end, rel=1e-13)
+    area = p.filament_area_mm2
+    assert res.moves["out_mm3"][0] == pytest.approx(area * ix / K, rel=1e-13)
+    assert res.moves["slip_loss_mm3"][0] == pytest.approx(
+        area * (kp * v * t + v * sp / KC * ix), rel=1e-13)

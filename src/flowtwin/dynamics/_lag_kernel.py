@@ -16,6 +16,12 @@ SLIP / GRIND) until one of these events ends the regime:
   the maximum (hysteresis);
 * that release.
 
+A segment at constant speed in the slip regime has a constant coefficient and is solved in
+closed form; otherwise collocation substeps with the fewest stages that meet the error
+bound (:mod:`flowtwin.dynamics._expint`). Speed polynomials travel as four floats and the
+accumulators are indexed in place: no array views in the loops (numba reference counts
+each view and each array argument with atomic operations).
+
 Event times are located by safeguarded Newton iteration to rounding. Extremes of the
 force and flow inside a regime are found at the end points and at the turning point of
 ``x`` where ``x'`` changes sign between them (at most one turning point is assumed per
@@ -35,15 +41,18 @@ from flowtwin.dynamics._expint import (
     FREE,
     GRIND,
     LAG,
+    MAX_STAGES,
     SLIP,
-    colloc_step,
-    dpoly,
-    free_step,
-    ipoly,
-    lag_step,
-    poly,
-    shift,
+    WS_ROWS,
+    colloc4,
+    dpoly4,
+    free4,
+    ipoly4,
+    lag4,
+    poly4,
+    shift4,
     slope_factor,
+    stages_for,
 )
 
 __all__ = [
@@ -84,32 +93,30 @@ _EV_RELEASE = 3    # force fell to the release level
 
 
 @njit(cache=True)
-def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float64],
-            ends: npt.NDArray[np.float64]) -> int:
-    """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted; returns the count.
-
-    ``ends`` is scratch of length >= 4.
-    """
+def _vroots(c0: float, c1: float, c2: float, c3: float, t_len: float,
+            out: npt.NDArray[np.float64]) -> int:
+    """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted in ``out[:n]``;
+    returns ``n``. ``out`` has length >= 8 (``out[4:8]`` is scratch)."""
     n = 0
-    if abs(c[0]) > t_len * (abs(c[1]) + t_len * (abs(c[2]) + t_len * abs(c[3]))):
+    if abs(c0) > t_len * (abs(c1) + t_len * (abs(c2) + t_len * abs(c3))):
         return 0  # |v(0)| exceeds any change over the segment: no sign change
-    if c[2] == 0.0 and c[3] == 0.0:
-        if c[1] != 0.0:
-            r = -c[0] / c[1]
+    if c2 == 0.0 and c3 == 0.0:
+        if c1 != 0.0:
+            r = -c0 / c1
             if 0.0 < r < t_len:
                 out[0] = r
                 n = 1
         return n
     # split at the turning points of v (roots of v' = c1 + 2 c2 t + 3 c3 t²)
     nc = 1
-    ends[0] = 0.0
-    qa = 3.0 * c[3]
-    qb = 2.0 * c[2]
-    qc = c[1]
+    out[4] = 0.0
+    qa = 3.0 * c3
+    qb = 2.0 * c2
+    qc = c1
     if qa == 0.0:
         r = -qc / qb
         if 0.0 < r < t_len:
-            ends[nc] = r
+            out[4 + nc] = r
             nc += 1
     else:
         disc = qb * qb - 4.0 * qa * qc
@@ -121,24 +128,24 @@ def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float6
             lo = min(r1, r2)
             hi = max(r1, r2)
             if 0.0 < lo < t_len:
-                ends[nc] = lo
+                out[4 + nc] = lo
                 nc += 1
             if 0.0 < hi < t_len and hi != lo:
-                ends[nc] = hi
+                out[4 + nc] = hi
                 nc += 1
-    ends[nc] = t_len
+    out[4 + nc] = t_len
     for q in range(nc):
-        a = ends[q]
-        b = ends[q + 1]
-        fa = poly(c, a)
-        fb = poly(c, b)
+        a = out[4 + q]
+        b = out[4 + q + 1]
+        fa = poly4(c0, c1, c2, c3, a)
+        fb = poly4(c0, c1, c2, c3, b)
         if fa == 0.0 or fb == 0.0 or (fa > 0.0) == (fb > 0.0):
             continue
         for _ in range(200):  # bisection on a monotone piece, to rounding
             m = 0.5 * (a + b)
             if m <= a or m >= b:
                 break
-            fm = poly(c, m)
+            fm = poly4(c0, c1, c2, c3, m)
             if (fm > 0.0) == (fa > 0.0):
                 a = m
                 fa = fm
@@ -149,53 +156,69 @@ def _vroots(c: npt.NDArray[np.float64], t_len: float, out: npt.NDArray[np.float6
     return n
 
 
+@njit(cache=True, inline="always")
+def _constant(c1: float, c2: float, c3: float) -> bool:
+    """Whether the speed polynomial is constant."""
+    return c1 == 0.0 and c2 == 0.0 and c3 == 0.0
+
+
 @njit(cache=True)
-def _advance(regime: int, x0: float, c: npt.NDArray[np.float64], ta: float, tb: float,
-             ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
-             stiffness: float, b: npt.NDArray[np.float64], phi: npt.NDArray[np.float64],
-             gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
-             gl_a: npt.NDArray[np.float64], mat: npt.NDArray[np.float64],
-             rhs: npt.NDArray[np.float64], beta: npt.NDArray[np.float64],
-             gam: npt.NDArray[np.float64], alp: npt.NDArray[np.float64]
+def _advance(regime: int, x0: float, c0: float, c1: float, c2: float, c3: float, ta: float,
+             tb: float, ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
+             stiffness: float, min_stages: int, ws: npt.NDArray[np.float64]
              ) -> tuple[float, float, float]:
-    """``x(tb)``, ``∫x`` and ``∫γx`` from ``x(ta) = x0`` in one regime."""
+    """``x(tb)``, ``∫x`` and ``∫γx`` from ``x(ta) = x0`` in one regime.
+
+    A collocation substep uses the fewest stages (``>= min_stages``) that meet
+    ``_expint.STAGE_TOL``; ``ws`` is the collocation scratch array.
+    """
     length = tb - ta
-    if length == 0.0 or (length < 0.0 and regime != SLIP):
-        return x0, 0.0, 0.0
-    if regime == FREE:
-        shift(c, ta, ascale, b)
-        xe, ix = free_step(x0, b, length)
-        return xe, ix, 0.0
-    if regime != SLIP:
-        shift(c, ta, ascale, b)
-        xe, ix = lag_step(x0, b, k_s, length, phi)
-        return xe, ix, 0.0
-    # collocation substeps (backwards too, for the root search: |β h| stays small)
-    shift(c, min(ta, tb), 1.0, b)
-    span = abs(length)
-    vbound = abs(b[0]) + span * (abs(b[1]) + span * (abs(b[2]) + span * abs(b[3])))
-    beta_max = 1.0 / k_s + vbound * (sa + sb) / kc
-    n = int(math.ceil(span * beta_max / stiffness))
-    if n < 1:
-        n = 1
-    h = length / n
-    x = x0
+    xe = x0
     ix = 0.0
     igx = 0.0
-    for m in range(n):
-        x, dix, digx = colloc_step(x, c, ta + m * h, h, ascale, k_s, kc, sa, sb, sc,
-                                   gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
-        ix += dix
-        igx += digx
-    return x, ix, igx
+    if length == 0.0 or (length < 0.0 and regime != SLIP):
+        pass
+    elif regime == FREE:
+        b0, b1, b2, b3 = shift4(c0, c1, c2, c3, ta, ascale)
+        xe, ix = free4(x0, b0, b1, b2, b3, length)
+    elif regime != SLIP:
+        b0, b1, b2, b3 = shift4(c0, c1, c2, c3, ta, ascale)
+        xe, ix = lag4(x0, b0, b1, b2, b3, k_s, length)
+    elif length > 0.0 and _constant(c1, c2, c3):
+        # constant speed: constant β = 1/K + γ, the exact exponential step with K' = 1/β
+        g = c0 * slope_factor(c0, sa, sb, sc) / kc
+        xe, ix = lag4(x0, ascale * c0, 0.0, 0.0, 0.0, 1.0 / (1.0 / k_s + g), length)
+        igx = g * ix
+    else:
+        # collocation substeps (backwards too, for the root search: |β h| stays small)
+        b0, b1, b2, b3 = shift4(c0, c1, c2, c3, min(ta, tb), 1.0)
+        span = abs(length)
+        vbound = abs(b0) + span * (abs(b1) + span * (abs(b2) + span * abs(b3)))
+        beta_max = 1.0 / k_s + vbound * (sa + sb) / kc
+        n = int(math.ceil(span * beta_max / stiffness))
+        if n < 1:
+            n = 1
+        h = length / n
+        # stage count from β·h plus the change of the slip law's terms over a substep
+        # (|v'| bounds the rate of v, c|v'| that of exp(-c v), (a + b)|v'|/k that of γ)
+        dvb = abs(b1) + span * (2.0 * abs(b2) + 3.0 * span * abs(b3))
+        z = abs(h) * (beta_max + dvb * ((sa + sb) / kc + (sc if sb != 0.0 else 0.0)))
+        st = stages_for(z, min_stages)
+        for m in range(n):
+            xe, dix, digx = colloc4(xe, c0, c1, c2, c3, ta + m * h, h, ascale, k_s, kc, sa,
+                                    sb, sc, st, ws)
+            ix += dix
+            igx += digx
+    return xe, ix, igx
 
 
 @njit(cache=True)
-def _slope(regime: int, c: npt.NDArray[np.float64], tau: float, x: float, ascale: float,
-           k_s: float, kc: float, sa: float, sb: float, sc: float) -> tuple[float, float]:
+def _slope(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float, x: float,
+           ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float
+           ) -> tuple[float, float]:
     """``x'`` and ``x''`` at ``tau`` given ``x(tau)``."""
-    v = poly(c, tau)
-    dv = dpoly(c, tau)
+    v = poly4(c0, c1, c2, c3, tau)
+    dv = dpoly4(c0, c1, c2, c3, tau)
     if regime == FREE:
         return ascale * v, ascale * dv
     if regime == GRIND:
@@ -213,24 +236,20 @@ def _slope(regime: int, c: npt.NDArray[np.float64], tau: float, x: float, ascale
 
 
 @njit(cache=True)
-def _turn_x(regime: int, c: npt.NDArray[np.float64], tau: float, ascale: float, k_s: float,
-            kc: float, sa: float, sb: float, sc: float) -> float:
+def _turn_x(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float,
+            ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float) -> float:
     """``x`` at a turning point (``x' = 0``): ``α/β`` of the regime."""
-    v = poly(c, tau)
+    v = poly4(c0, c1, c2, c3, tau)
     if regime == LAG:
         return k_s * ascale * v
     return ascale * v / (1.0 / k_s + v * slope_factor(v, sa, sb, sc) / kc)
 
 
 @njit(cache=True)
-def _root(which: int, regime: int, x0: float, c: npt.NDArray[np.float64], ta: float,
-          lo: float, hi: float, glo: float, ghi: float, level: float, tol: float,
+def _root(which: int, regime: int, x0: float, c0: float, c1: float, c2: float, c3: float,
+          ta: float, lo: float, hi: float, glo: float, ghi: float, level: float, tol: float,
           ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
-          stiffness: float, b: npt.NDArray[np.float64], phi: npt.NDArray[np.float64],
-          gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
-          gl_a: npt.NDArray[np.float64], mat: npt.NDArray[np.float64],
-          rhs: npt.NDArray[np.float64], beta: npt.NDArray[np.float64],
-          gam: npt.NDArray[np.float64], alp: npt.NDArray[np.float64]) -> float:
+          stiffness: float, min_stages: int, ws: npt.NDArray[np.float64]) -> float:
     """Root in ``[lo, hi]`` of ``g = x - level`` (``which = 0``) or ``g = x'`` (``which = 1``).
 
     ``glo``, ``ghi`` are ``g`` at the bracket ends (opposite signs); ``x(ta) = x0``.
@@ -249,13 +268,14 @@ def _root(which: int, regime: int, x0: float, c: npt.NDArray[np.float64], ta: fl
     # closed forms are evaluated from ta; collocation steps from the previous iterate
     t_cur = ta
     x_cur = x0
+    stepping = regime == SLIP and not _constant(c1, c2, c3)
     for _ in range(200):
-        x = _advance(regime, x_cur, c, t_cur, tau, ascale, k_s, kc, sa, sb, sc, stiffness,
-                     b, phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)[0]
-        if regime == SLIP:
+        x = _advance(regime, x_cur, c0, c1, c2, c3, t_cur, tau, ascale, k_s, kc, sa, sb, sc,
+                     stiffness, min_stages, ws)[0]
+        if stepping:
             t_cur = tau
             x_cur = x
-        y, dy = _slope(regime, c, tau, x, ascale, k_s, kc, sa, sb, sc)
+        y, dy = _slope(regime, c0, c1, c2, c3, tau, x, ascale, k_s, kc, sa, sb, sc)
         if which == 0:
             g = x - level
             dg = y
@@ -292,25 +312,17 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      kp: npt.NDArray[np.float64], sa: npt.NDArray[np.float64],
                      sb: npt.NDArray[np.float64], sc: npt.NDArray[np.float64],
                      fmax: npt.NDArray[np.float64], release: float,
-                     x_init: float, grind_init: bool, stiffness: float,
-                     gl_c: npt.NDArray[np.float64], gl_b: npt.NDArray[np.float64],
-                     gl_a: npt.NDArray[np.float64], sample_t: npt.NDArray[np.float64],
+                     x_init: float, grind_init: bool, stiffness: float, min_stages: int,
+                     sample_t: npt.NDArray[np.float64],
                      samples: npt.NDArray[np.float64], acc: npt.NDArray[np.float64]
                      ) -> tuple[float, bool, int]:
     """Integrate all segments; fill ``acc`` (slots × N_ACC) and ``samples``.
 
-    Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
+    ``min_stages``: fewest stages a collocation substep may use (6: the fixed 6-stage
+    method). Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
     """
-    s = gl_c.shape[0]
-    mat = np.empty((s, s))
-    rhs = np.empty(s)
-    beta = np.empty(s)
-    gam = np.empty(s)
-    alp = np.empty(s)
-    b = np.empty(4)
-    phi = np.empty(6)
+    ws = np.empty((WS_ROWS, MAX_STAGES))
     roots = np.empty(8)
-    ends = np.empty(4)
     x = x_init
     grinding = grind_init
     n_events = 0
@@ -326,7 +338,10 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     k_last = 1.0
     kc_last = 1.0
     for i in range(nseg):
-        c = coef[i]
+        c0 = coef[i, 0]
+        c1 = coef[i, 1]
+        c2 = coef[i, 2]
+        c3 = coef[i, 3]
         seg_len = dt[i]
         p = seg_param[i]
         slot = seg_slot[i]
@@ -341,13 +356,13 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         has_slip = saa != 0.0 or sbb != 0.0
         thr = kcc * fmax[p]
         rel = (1.0 - release) * thr
-        nr = _vroots(c, seg_len, roots, ends)
+        nr = _vroots(c0, c1, c2, c3, seg_len, roots)
         pa = 0.0
         for q in range(nr + 1):
             pb = roots[q] if q < nr else seg_len
             if pb <= pa:
                 continue
-            vpos = poly(c, 0.5 * (pa + pb)) > 0.0
+            vpos = poly4(c0, c1, c2, c3, 0.5 * (pa + pb)) > 0.0
             tau = pa
             while tau < pb:
                 # regime of the state equation
@@ -372,9 +387,8 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                     grinding = True  # starts above the maximum feed force: grind at once
                     n_events += 1
                     continue
-                xe, ix, igx = _advance(regime, x, c, tau, pb, ascale, kk, kcc, saa, sbb, scc,
-                                       stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs, beta,
-                                       gam, alp)
+                xe, ix, igx = _advance(regime, x, c0, c1, c2, c3, tau, pb, ascale, kk, kcc,
+                                       saa, sbb, scc, stiffness, min_stages, ws)
                 tend = pb
                 x_hi_end = xe  # x at the end of the bracket of an event
                 event = _EV_NONE
@@ -401,64 +415,66 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                         event = _EV_LEVEL
                         level = 0.0
                 else:
-                    ya = _slope(regime, c, tau, x, ascale, kk, kcc, saa, sbb, scc)[0]
-                    yb = _slope(regime, c, pb, xe, ascale, kk, kcc, saa, sbb, scc)[0]
+                    ya = _slope(regime, c0, c1, c2, c3, tau, x, ascale, kk, kcc, saa, sbb,
+                                scc)[0]
+                    yb = _slope(regime, c0, c1, c2, c3, pb, xe, ascale, kk, kcc, saa, sbb,
+                                scc)[0]
                     if (ya > 0.0 and yb < 0.0) or (ya < 0.0 and yb > 0.0):
                         turn_t = -1.0
-                        if regime == LAG and c[2] == 0.0 and c[3] == 0.0:
+                        if regime == LAG and c2 == 0.0 and c3 == 0.0:
                             # linear input: x' = K b1 + (x'(tau) - K b1) e^{-(τ-tau)/K}
-                            kb1 = kk * ascale * c[1]
+                            kb1 = kk * ascale * c1
                             ratio = kb1 / (kb1 - ya)
                             if 0.0 < ratio < 1.0:
                                 turn_t = min(max(tau - kk * math.log(ratio), tau), pb)
                         if turn_t < 0.0:
-                            turn_t = _root(1, regime, x, c, tau, tau, pb, ya, yb, 0.0, 1e-6,
-                                           ascale, kk, kcc, saa, sbb, scc, stiffness, b, phi,
-                                           gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
+                            turn_t = _root(1, regime, x, c0, c1, c2, c3, tau, tau, pb, ya, yb,
+                                           0.0, 1e-6, ascale, kk, kcc, saa, sbb, scc,
+                                           stiffness, min_stages, ws)
                     if thr < math.inf:
                         if xe >= thr:
                             event = _EV_THRESHOLD
                             level = thr
                         elif turn_t >= 0.0 and ya > 0.0:
-                            xt = _turn_x(regime, c, turn_t, ascale, kk, kcc, saa, sbb, scc)
+                            xt = _turn_x(regime, c0, c1, c2, c3, turn_t, ascale, kk, kcc, saa,
+                                         sbb, scc)
                             if xt >= thr:
                                 event = _EV_THRESHOLD
                                 level = thr
                                 tend = turn_t
                                 x_hi_end = xt
                 if event != _EV_NONE and regime != GRIND:
-                    tend = _root(0, regime, x, c, tau, tau, tend, x - level, x_hi_end - level,
-                                 level, 1e-15, ascale, kk, kcc, saa, sbb, scc, stiffness, b,
-                                 phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam, alp)
+                    tend = _root(0, regime, x, c0, c1, c2, c3, tau, tau, tend, x - level,
+                                 x_hi_end - level, level, 1e-15, ascale, kk, kcc, saa, sbb,
+                                 scc, stiffness, min_stages, ws)
                 if event != _EV_NONE:
                     n_events += 1
-                    xe, ix, igx = _advance(regime, x, c, tau, tend, ascale, kk, kcc, saa, sbb,
-                                           scc, stiffness, b, phi, gl_c, gl_b, gl_a, mat,
-                                           rhs, beta, gam, alp)
+                    xe, ix, igx = _advance(regime, x, c0, c1, c2, c3, tau, tend, ascale, kk,
+                                           kcc, saa, sbb, scc, stiffness, min_stages, ws)
                     xe = level
                 # ---- accumulate over [tau, tend]
                 length = tend - tau
-                shift(c, tau, 1.0, b)
-                cmd = ipoly(b, length)
-                row = acc[slot]
-                row[A_CMD] += cmd
-                row[A_TIME] += length
+                b0, b1, b2, b3 = shift4(c0, c1, c2, c3, tau, 1.0)
+                cmd = ipoly4(b0, b1, b2, b3, length)
+                acc[slot, A_CMD] += cmd
+                acc[slot, A_TIME] += length
                 if vpos:
-                    row[A_FWD] += cmd
+                    acc[slot, A_FWD] += cmd
                 if regime == GRIND:
-                    row[A_GRIND] += cmd
+                    acc[slot, A_GRIND] += cmd
                 else:
-                    row[A_FED] += ascale * cmd - igx
+                    acc[slot, A_FED] += ascale * cmd - igx
                     if vpos:
-                        row[A_SLIP] += kpp * cmd + igx
+                        acc[slot, A_SLIP] += kpp * cmd + igx
                 if grinding:
-                    row[A_GTIME] += length
+                    acc[slot, A_GTIME] += length
                 if regime != FREE:
-                    row[A_OUT] += ix / kk
+                    acc[slot, A_OUT] += ix / kk
                     xhi = max(x, xe)
                     xlo = min(x, xe)
                     if event == _EV_NONE and turn_t > tau and turn_t < tend:
-                        xt = _turn_x(regime, c, turn_t, ascale, kk, kcc, saa, sbb, scc)
+                        xt = _turn_x(regime, c0, c1, c2, c3, turn_t, ascale, kk, kcc, saa, sbb,
+                                     scc)
                         xhi = max(xhi, xt)
                         xlo = min(xlo, xt)
                     xlo = max(xlo, 0.0)
@@ -466,37 +482,35 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 else:
                     xlo = 0.0
                     xhi = 0.0
-                if xhi / kcc > row[A_FMAX]:
-                    row[A_FMAX] = xhi / kcc
-                if xhi / kk > row[A_QMAX]:
-                    row[A_QMAX] = xhi / kk
-                if xlo / kk < row[A_QMIN]:
-                    row[A_QMIN] = xlo / kk
+                if xhi / kcc > acc[slot, A_FMAX]:
+                    acc[slot, A_FMAX] = xhi / kcc
+                if xhi / kk > acc[slot, A_QMAX]:
+                    acc[slot, A_QMAX] = xhi / kk
+                if xlo / kk < acc[slot, A_QMIN]:
+                    acc[slot, A_QMIN] = xlo / kk
                 # ---- samples inside [tau, tend)
                 while js < ns and sample_t[js] < t0[i] + tend:
                     ts = sample_t[js] - t0[i]
                     if ts < tau:
                         ts = tau
-                    xs = _advance(regime, x, c, tau, ts, ascale, kk, kcc, saa, sbb, scc,
-                                  stiffness, b, phi, gl_c, gl_b, gl_a, mat, rhs, beta, gam,
-                                  alp)[0]
-                    v = poly(c, ts)
+                    xs = _advance(regime, x, c0, c1, c2, c3, tau, ts, ascale, kk, kcc, saa,
+                                  sbb, scc, stiffness, min_stages, ws)[0]
+                    v = poly4(c0, c1, c2, c3, ts)
                     if regime == GRIND:
                         vfil = 0.0
                     elif regime == SLIP:
                         vfil = ascale * v - v * slope_factor(v, saa, sbb, scc) / kcc * xs
                     else:
                         vfil = ascale * v
-                    row_s = samples[js]
-                    row_s[S_T] = sample_t[js]
-                    row_s[S_E] = e0[i] + ipoly(c, ts)
-                    row_s[S_VCMD] = v
-                    row_s[S_VFIL] = vfil
+                    samples[js, S_T] = sample_t[js]
+                    samples[js, S_E] = e0[i] + ipoly4(c0, c1, c2, c3, ts)
+                    samples[js, S_VCMD] = v
+                    samples[js, S_VFIL] = vfil
                     xp = max(xs, 0.0)
-                    row_s[S_Q] = xp / kk
-                    row_s[S_F] = xp / kcc
-                    row_s[S_SLIP] = 1.0 - vfil / v if v > 0.0 else 0.0
-                    row_s[S_X] = xs
+                    samples[js, S_Q] = xp / kk
+                    samples[js, S_F] = xp / kcc
+                    samples[js, S_SLIP] = 1.0 - vfil / v if v > 0.0 else 0.0
+                    samples[js, S_X] = xs
                     js += 1
                 # ---- state change
                 x = xe
@@ -507,15 +521,17 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                     grinding = False
             pa = pb
     # samples after the end: final state at rest
-    e_end = e0[nseg - 1] + ipoly(coef[nseg - 1], dt[nseg - 1]) if nseg > 0 else 0.0
+    e_end = 0.0
+    if nseg > 0:
+        e_end = e0[nseg - 1] + ipoly4(coef[nseg - 1, 0], coef[nseg - 1, 1], coef[nseg - 1, 2],
+                                      coef[nseg - 1, 3], dt[nseg - 1])
     while js < ns:
-        row_s = samples[js]
-        row_s[S_T] = sample_t[js]
-        row_s[S_E] = e_end
+        samples[js, S_T] = sample_t[js]
+        samples[js, S_E] = e_end
         xp = max(x, 0.0)
-        row_s[S_Q] = xp / k_last
-        row_s[S_F] = xp / kc_last
-        row_s[S_X] = x
+        samples[js, S_Q] = xp / k_last
+        samples[js, S_F] = xp / kc_last
+        samples[js, S_X] = x
         js += 1
     return x, grinding, n_events
 
