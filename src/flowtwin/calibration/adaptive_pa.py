@@ -25,7 +25,10 @@ OrcaSlicer would drop it (:meth:`AdaptivePaTable.orca_warnings`).
 Measurements come from a CSV with columns ``k_s``, ``accel_mm_s2`` and either
 ``flow_mm3_s`` or ``speed_mm_s`` with ``line_width_mm`` and ``layer_height_mm`` (the flow
 is then the slicer bead [001 Eq. 7] times the speed, as OrcaSlicer computes it for its
-test patterns). Repeated measurements at the same flow and acceleration are averaged.
+test patterns), and optionally ``k_err_s``, the 1σ error ``flowtwin calibrate fit-k``
+reports (``fit-k --append-to`` writes exactly such rows). Repeated measurements at the
+same flow and acceleration are averaged, weighted by ``1/k_err_s²`` when the errors are
+given.
 """
 
 from __future__ import annotations
@@ -45,7 +48,9 @@ from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = [
     "ADAPTIVE_PA_COLUMNS",
+    "FIT_K_MEASUREMENT_HEADER",
     "AdaptivePaTable",
+    "append_measurement",
     "hermite_slopes",
     "parse_orca_model",
     "read_orca_model",
@@ -69,7 +74,12 @@ ADAPTIVE_PA_COLUMNS = (
            lower_open=True, upper=10.0),
     Column("layer_height_mm", "layer height of the test, mm", required=False, lower=0.0,
            lower_open=True, upper=10.0),
+    Column("k_err_s", "1-sigma error of k_s (from fit-k), s; repeats are weighted by "
+                      "1/error²", required=False, lower=0.0, lower_open=True, upper=MAX_K_S),
 )
+
+#: Header of the measurements file ``flowtwin calibrate fit-k --append-to`` writes.
+FIT_K_MEASUREMENT_HEADER = "k_s,k_err_s,flow_mm3_s,accel_mm_s2"
 
 
 def hermite_slopes(x: npt.ArrayLike, y: npt.ArrayLike) -> FloatArray:
@@ -158,8 +168,12 @@ class AdaptivePaTable:
     @classmethod
     def from_points(cls, k_s: npt.ArrayLike, flow_mm3_s: npt.ArrayLike,
                     accel_mm_s2: npt.ArrayLike, *, source: str = "<data>",
-                    lines: npt.ArrayLike | None = None) -> AdaptivePaTable:
+                    lines: npt.ArrayLike | None = None,
+                    k_err_s: npt.ArrayLike | None = None) -> AdaptivePaTable:
         """Sort, validate and average repeated points.
+
+        With ``k_err_s`` (1σ errors, s, shape ``(n,)``) repeats are averaged with weights
+        ``1/k_err_s²``; otherwise with equal weights.
 
         Raises
         ------
@@ -191,10 +205,24 @@ class AdaptivePaTable:
                             line=None if where is None else int(where[i]),
                             field="accel_mm_s2", value=float(a[i]), allowed="an integer")
         a = np.round(a)
+        weights = np.ones_like(k)
+        if k_err_s is not None:
+            err = np.asarray(k_err_s, dtype=np.float64).ravel()
+            if err.shape != k.shape:
+                raise DataError("one advance-factor error per measurement is needed",
+                                source=source, field="k_err_s", value=(err.size, k.size))
+            bad = np.nonzero(~((err > 0.0) & np.isfinite(err)))[0]
+            if bad.size:
+                i = int(bad[0])
+                raise DataError("invalid advance-factor error", source=source,
+                                line=None if where is None else int(where[i]),
+                                field="k_err_s", value=float(err[i]), allowed="finite, > 0 s")
+            weights = 1.0 / err ** 2
         keys = np.stack([a, q])
         uniq, inverse = np.unique(keys, axis=1, return_inverse=True)
         inverse = inverse.ravel()
-        k_mean = np.bincount(inverse, weights=k) / np.bincount(inverse)
+        k_mean = np.bincount(inverse, weights=weights * k) / np.bincount(inverse,
+                                                                         weights=weights)
         order = np.lexsort((uniq[1], uniq[0]))
         return cls(k_mean[order], uniq[1][order].copy(), uniq[0][order].copy())
 
@@ -284,7 +312,55 @@ def table_from_measurements(table: Table) -> AdaptivePaTable:
                             value=float(w[i]), allowed=f">= layer height {h[i]:g} mm")
         flow = bead_area_mm2(w, h) * table.get("speed_mm_s")
     return AdaptivePaTable.from_points(table.get("k_s"), flow, table.get("accel_mm_s2"),
-                                       source=table.source, lines=table.lines)
+                                       source=table.source, lines=table.lines,
+                                       k_err_s=table.get("k_err_s") if table.has("k_err_s")
+                                       else None)
+
+
+def append_measurement(path: str | os.PathLike[str], row: dict[str, float]) -> int:
+    """Append one ``k_s,k_err_s,flow_mm3_s,accel_mm_s2`` row to a measurements file.
+
+    The file is created with :data:`FIT_K_MEASUREMENT_HEADER` if missing; an existing file
+    must have exactly that header. The whole file is rewritten atomically.
+
+    Parameters
+    ----------
+    path
+        Measurements CSV (the input of :func:`table_from_measurements`).
+    row
+        ``k_s``, ``k_err_s``, ``flow_mm3_s``, ``accel_mm_s2`` (whole number).
+
+    Returns
+    -------
+    int
+        Number of measurement rows in the file afterwards.
+
+    Raises
+    ------
+    DataError
+        An existing file with another header, or unreadable.
+    """
+    name = os.fspath(path)
+    text = ""
+    if os.path.exists(name):
+        try:
+            with open(name, encoding="utf-8") as fh:
+                text = fh.read()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise DataError(f"cannot read the measurements file: {exc}", source=name) from exc
+    header = next((ln.strip() for ln in text.splitlines()
+                   if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if header is None:
+        text = FIT_K_MEASUREMENT_HEADER + "\n"
+    elif header.replace(" ", "") != FIT_K_MEASUREMENT_HEADER:
+        raise DataError("the measurements file has other columns", source=name, field="header",
+                        value=header, allowed=FIT_K_MEASUREMENT_HEADER)
+    elif not text.endswith("\n"):
+        text += "\n"
+    text += (f"{row['k_s']:.6g},{row['k_err_s']:.3g},{row['flow_mm3_s']:.6g},"
+             f"{row['accel_mm_s2']:.0f}\n")
+    atomic_write_text(name, text)
+    return sum(1 for ln in text.splitlines() if ln.strip() and not ln.startswith("#")) - 1
 
 
 def read_orca_model(path: str | os.PathLike[str]) -> AdaptivePaTable:

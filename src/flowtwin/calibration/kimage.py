@@ -56,12 +56,24 @@ from flowtwin.calibration.beadwidth import (
     sample_strip,
     window_widths,
 )
+from flowtwin.calibration.kfit import pattern_firmware
 from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.lagmodel import LagModel, TestLine, lag_model, printed_runs
-from flowtwin.calibration.linefind import find_lines, local_scale, register_pattern
+from flowtwin.calibration.lagmodel import (
+    DEFAULT_MACHINE,
+    LagModel,
+    TestLine,
+    lag_model,
+    printed_runs,
+)
+from flowtwin.calibration.linefind import (
+    Registration,
+    find_lines,
+    local_scale,
+    register_pattern,
+)
 from flowtwin.calibration.pattern_base import Pattern
 from flowtwin.errors import CalibrationError, VisionError
-from flowtwin.profiles.machine import Machine
+from flowtwin.profiles.machine import Machine, load_machine
 
 __all__ = ["KLineImageResult", "LineReading", "analyse_kline_image", "load_grey",
            "score_line"]
@@ -280,6 +292,58 @@ def _num(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _read_lines(gray32: npt.NDArray[np.float32], reg: Registration, model: LagModel, *,
+                pitch: float, step_mm: float, method: str, mm_per_px: float | None
+                ) -> list[LineReading]:
+    """Width profile and scores of every K-line under one registration."""
+    half_span = min(0.4 * abs(pitch), 3.0)
+    strips = [sample_strip(gray32, reg.homography, ln.vertices_xy_mm[0],
+                           ln.vertices_xy_mm[-1], step_mm=step_mm, half_span_mm=half_span,
+                           dv_mm=0.5 / reg.px_per_mm) for ln in model.lines]
+    dark = dark_level(strips) if method == "area" else math.nan
+    readings: list[LineReading] = []
+    for line, strip in zip(model.lines, strips, strict=True):
+        cols = area_widths(strip, dark) if method == "area" else edge_widths(strip)
+        if mm_per_px is not None:
+            mid = 0.5 * (line.vertices_xy_mm[0] + line.vertices_xy_mm[-1])
+            cols = cols * (mm_per_px * local_scale(reg.homography, mid))
+        wid = window_widths(cols, strip.per, min_width_mm=0.5 * line.layer_height_mm)
+        pos = strip.positions_mm
+        ref, score, e_acc, e_dec = score_line(line, pos, wid)
+        readings.append(LineReading(line.advance_k_s, pos, wid, ref, score, e_acc, e_dec,
+                                    float(np.mean(np.isfinite(wid)))))
+    return readings
+
+
+def _trend(readings: list[LineReading]) -> float:
+    """Rank correlation of the acceleration/deceleration errors with the lines' K, mean."""
+    k = np.array([r.k_la_s for r in readings])
+    out = []
+    for e in (np.array([r.accel_error for r in readings]),
+              np.array([r.decel_error for r in readings])):
+        ok = np.isfinite(e)
+        if np.count_nonzero(ok) >= 3:
+            rk = np.argsort(np.argsort(k[ok])).astype(float)
+            re = np.argsort(np.argsort(e[ok])).astype(float)
+            out.append(float(np.corrcoef(rk, re)[0, 1]))
+    return float(np.mean(out)) if out else math.nan
+
+
+def _by_trend(regs: list[Registration], readings_of: list[list[LineReading]],
+              name: str) -> int:
+    """The reading whose errors grow with K (physics: a too-low K under-extrudes after a
+    step up, over-extrudes after a step down [001 Fig. 2]) when the ticks cannot tell."""
+    trends = [_trend(r) for r in readings_of]
+    good = [i for i, t in enumerate(trends) if t > 0.5]
+    if len(good) == 1 and all(not t > 0.0 for i, t in enumerate(trends) if i != good[0]):
+        return good[0]
+    raise VisionError("the image does not show whether it is seen from above or mirrored "
+                      "(scanned face down), and the widths do not decide it",
+                      source=name, field="view",
+                      value={r.view: round(t, 2) for r, t in zip(regs, trends, strict=True)},
+                      allowed="view top or mirrored")
+
+
 def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], pattern: Pattern, *,
                         machine: Machine | str | os.PathLike[str] | None = None,
                         mm_per_px: float | None = None, view: str = "auto",
@@ -337,10 +401,17 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
     if not (0.05 <= step_mm <= 5.0):
         raise CalibrationError("sample step out of range", field="step_mm", value=step_mm,
                                allowed="0.05 .. 5 mm")
+    m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
+    if pattern.settings.firmware is not pattern_firmware(m):
+        raise CalibrationError("the pattern is written for another firmware than the "
+                               "machine's printer: its advance commands would be ignored",
+                               field="firmware", value=pattern.settings.firmware.value,
+                               allowed=f"{pattern_firmware(m).value} (printer "
+                                       f"{m.printer.name})")
     gray, name = load_grey(image)
     firsts = [next(s.line for s in pattern.segments if s.group == g)
               for g in range(len(pattern.values))]
-    full = lag_model(pattern.text().encode(), None, machine=machine)
+    full = lag_model(pattern.text().encode(), None, machine=m)
     runs = printed_runs(full.plan)
     k_index = [runs.index(f) for f in firsts]
     model: LagModel = full.subset(k_index)
@@ -354,29 +425,18 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
     ticks = [r + 1 < len(runs) and r + 1 not in k_runs for r in k_index]
     prime = None if prime_line is None else (prime_line.vertices_xy_mm[0],
                                              prime_line.vertices_xy_mm[-1])
-    reg = register_pattern(found, direction, starts_mm=starts, ends_mm=ends, prime_mm=prime,
-                           ticks=ticks, view=view, source=name)
+    regs = register_pattern(found, direction, starts_mm=starts, ends_mm=ends,
+                            prime_mm=prime, ticks=ticks, view=view, source=name)
     pitch = float(np.median(np.diff(starts[:, 1]))) if len(starts) > 1 else 5.0
-    half_span = min(0.4 * abs(pitch), 3.0)
-    dv = 0.5 / reg.px_per_mm
     gray32 = gray.astype(np.float32)
-    strips = [sample_strip(gray32, reg.homography, ln.vertices_xy_mm[0],
-                           ln.vertices_xy_mm[-1], step_mm=step_mm, half_span_mm=half_span,
-                           dv_mm=dv) for ln in model.lines]
-    dark = dark_level(strips) if method == "area" else math.nan
-    readings: list[LineReading] = []
-    profiles: list[WidthProfile] = []
-    for line, strip in zip(model.lines, strips, strict=True):
-        cols = area_widths(strip, dark) if method == "area" else edge_widths(strip)
-        if mm_per_px is not None:
-            mid = 0.5 * (line.vertices_xy_mm[0] + line.vertices_xy_mm[-1])
-            cols = cols * (mm_per_px * local_scale(reg.homography, mid))
-        wid = window_widths(cols, strip.per, min_width_mm=0.5 * line.layer_height_mm)
-        pos = strip.positions_mm
-        ref, score, e_acc, e_dec = score_line(line, pos, wid)
-        readings.append(LineReading(line.advance_k_s, pos, wid, ref, score, e_acc, e_dec,
-                                    float(np.mean(np.isfinite(wid)))))
-        profiles.append(WidthProfile(pos, wid, name, window_mm=step_mm))
+    readings_of = [_read_lines(gray32, reg, model, pitch=pitch, step_mm=step_mm,
+                               method=method, mm_per_px=mm_per_px) for reg in regs]
+    choice = 0
+    if len(regs) > 1:
+        choice = _by_trend(regs, readings_of, name)
+    reg, readings = regs[choice], readings_of[choice]
+    profiles = [WidthProfile(r.positions_mm, r.widths_mm, name, window_mm=step_mm)
+                for r in readings]
     usable = [i for i, r in enumerate(readings) if r.measured_fraction >= _MIN_MEASURED
               and math.isfinite(r.score)]
     whole = [i for i in usable if readings[i].measured_fraction >= _FIT_MEASURED]

@@ -285,8 +285,14 @@ def register_pattern(lines: list[ImageLine], direction: FloatArray, *,
                      starts_mm: FloatArray, ends_mm: FloatArray,
                      prime_mm: tuple[FloatArray, FloatArray] | None,
                      ticks: Sequence[bool], view: str = "auto",
-                     source: str = "<image>") -> Registration:
+                     source: str = "<image>") -> list[Registration]:
     """Match image lines to the pattern's K-lines and fit the bed → image homography.
+
+    The ticks fix the print direction. Front and back (a view from above or a mirrored
+    one) follow from the tick layout and the prime line unless that layout reads the same
+    both ways (e.g. ticks on K-lines 0 and 5 of 7 and the prime line in front: a
+    palindrome); then both readings are returned and the caller decides (the widths do:
+    a too-low K under-extrudes after a step up).
 
     Parameters
     ----------
@@ -306,13 +312,15 @@ def register_pattern(lines: list[ImageLine], direction: FloatArray, *,
 
     Returns
     -------
-    Registration
+    list of Registration
+        Every reading consistent with the ticks (one, or two when the layout is
+        symmetric).
 
     Raises
     ------
     VisionError
-        No ticks, a line count or tick pattern that does not match the pattern, an
-        ambiguous view, or line ends that no homography fits.
+        No ticks, a line count or tick pattern that does not match the pattern, or line
+        ends that no homography fits.
     """
     n_k = int(starts_mm.shape[0])
     expected = [bool(t) for t in ticks]
@@ -358,12 +366,13 @@ def register_pattern(lines: list[ImageLine], direction: FloatArray, *,
                           value=f"ticks on {sum(ln.tick != 0 for ln in lines)} of "
                                 f"{len(lines)} lines",
                           allowed=f"ticks beyond K-lines {marked} (counted from the front)")
-    if len(matches) > 1:
-        raise VisionError("the image does not show whether it is seen from above or "
-                          "mirrored (scanned face down)", source=source, field="view",
-                          value=view, allowed="view top or mirrored, or an image that "
-                                              "shows the prime line")
-    v, prime, ordered = matches[0]
+    return [_homography(v, prime, ordered, starts_mm, ends_mm, prime_mm, source)
+            for v, prime, ordered in matches]
+
+
+def _homography(v: str, prime: bool, ordered: list[ImageLine], starts_mm: FloatArray,
+                ends_mm: FloatArray, prime_mm: tuple[FloatArray, FloatArray] | None,
+                source: str) -> Registration:
     src = []
     dst = []
     if prime:

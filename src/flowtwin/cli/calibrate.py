@@ -15,12 +15,25 @@ import typer
 
 from flowtwin.calibration.adaptive_pa import (
     ADAPTIVE_PA_COLUMNS,
+    append_measurement,
     table_from_measurements,
     write_orca_model,
 )
 from flowtwin.calibration.csvdata import read_table
 from flowtwin.calibration.firmware import parse_firmware
 from flowtwin.calibration.fragment import render_fragment, write_fragment
+from flowtwin.calibration.guide import (
+    ADAPTIVE_HELP,
+    FIT_K_HELP,
+    FIT_SLIP_HELP,
+    FROM_IMAGE_HELP,
+    PATTERN_HELP,
+    STRAND_HELP,
+    VISCOSITY_HELP,
+)
+from flowtwin.calibration.kfit import fit_k
+from flowtwin.calibration.kline import KLineParams
+from flowtwin.calibration.lagfit import LagFit, read_width_profiles
 from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
 from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
@@ -36,87 +49,6 @@ from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
 
 __all__ = ["register"]
-
-_PATTERN_HELP = """Write a calibration test pattern as G-code for your firmware.
-
-KIND is one of:
-
-kline: K-factor lines (Marlin style). Each line is 20 mm slow, 40 mm
-fast, 20 mm slow, one advance factor K per line, front to back. Where
-the speed steps up and down, pick the K whose line keeps an even width.
-
-chevron: Ellis-style chevrons, nested 90-degree corners, one K per
-whole chevron, left to right. Pick the chevron with a sharp apex and
-no gap before it.
-
-tower: a square tower with K = k_start + k_step_per_mm * z. Measure
-with calipers the height z of the best corners; K follows from it.
-
-flow: extrusion-multiplier blocks, front left first. Pick the block
-with a closed, flat top; multiply your flow setting by its value.
-
-maxflow: lines of rising volumetric flow (mm3/s), front to back. The
-last line that is still full and even is your maximum volumetric speed.
-
-flowline: one line alternating v/4 and v for a target flow (one line
-per K if --k-start/--k-end/--k-step are given). Measure its width along
-the line (microscope, scanner, camera) every ~0.5 mm for a lag fit.
-
-Every extrusion uses the slicer bead A = w*h - (1 - pi/4)*h^2. Unless
---no-check, the file is read back and planned with flowtwin's reader
-and planner for --printer, and the test speeds are checked to be
-reached (a warning names every move that falls short).
-"""
-
-_VISCOSITY_HELP = """Fit a viscosity law to a temperature sweep; write a [viscosity] fragment.
-
-What to measure: extrude into air (no bed) at ONE constant volumetric
-flow (e.g. 5 mm3/s) while stepping the nozzle temperature (e.g. 190 to
-240 C in 5 C steps, 3 repeats each); at each step wait until the force
-is steady, then record it.
-
-DATA.csv has a header line naming its columns (# starts a comment):
-temp_c (melt temperature, C; required) and ONE of
-feed_force_n with flow_mm3_s (steady force on the filament, load cell),
-slip_pct with flow_mm3_s (steady drive slip, %; needs --drive),
-viscosity_pa_s (viscosity measured elsewhere, Pa*s).
-
-A force becomes a viscosity through the hot end's Hagen-Poiseuille
-resistance (--hotend); a slip becomes a force through the drive's slip
-law s = k_p + s'*F. The fragment holds the law's parameters with their
-1-sigma errors as comments: paste it into a material profile in place
-of its [viscosity] table.
-"""
-
-_STRAND_HELP = """Fit the strand shape (tractrix, parabola, catenary) to profile points.
-
-What to measure: film from the side (or section) the strand between
-the nozzle and the bed while printing a straight line at constant
-speed. DATA.csv has the columns x_mm (distance behind the nozzle axis;
-the strand trails towards +x) and z_mm (height above the layer below).
-
-Give --height-mm, the nozzle height above the layer below. The points
-must reach past where the strand meets the bed. The fragment's lag_mm
-is how far behind the nozzle the strand reaches the bed.
-"""
-
-_ADAPTIVE_HELP = """Build OrcaSlicer's adaptive pressure-advance table from measured K.
-
-What to measure: run a K test (kline or chevron pattern) at several
-print speeds (e.g. 50, 100, 150, 200 mm/s) and accelerations (e.g.
-1000, 2000, 4000 mm/s2), two or more speeds per acceleration, and note
-the best K of each test.
-
-MEASUREMENTS.csv has the columns k_s (best K, s), accel_mm_s2 (whole
-number) and flow_mm3_s, or instead of flow_mm3_s the three columns
-speed_mm_s, line_width_mm, layer_height_mm (flow = bead area * speed).
-
-The output has one "K,flow,accel" line per measurement: paste it into
-OrcaSlicer's filament setting "Adaptive pressure advance measurements".
-Between measurements K is interpolated (monotone cubic in flow, then
-in acceleration) and held at the edge values outside them.
-"""
-
 
 # ------------------------------------------------------------------------ helpers ---
 
@@ -340,7 +272,7 @@ def _fit_viscosity_cmd(
     console.print(f"{fit.n_points} points, {fit.t_min_c:g}–{fit.t_max_c:g} °C, RMS of "
                   f"log10 μ {fit.rms_log10:.3g}")
     if output is None:
-        console.print(text, markup=False, highlight=False)
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
     else:
         console.print(f"wrote {output}")
 
@@ -382,7 +314,7 @@ def _fit_strand_cmd(
     console.print("RMS by model: " + ", ".join(f"{k} {v:.3g} mm"
                                                for k, v in cal.rms_by_model.items()))
     if output is None:
-        console.print(text, markup=False, highlight=False)
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
     else:
         console.print(f"wrote {output}")
 
@@ -429,13 +361,238 @@ def _adaptive_pa_cmd(
     console.print(f"wrote {output}")
 
 
+# ------------------------------------------------------------ lag fits (fit-k ...) ---
+
+def _kline_parts(k_start: float, k_end: float, k_step: float, slow_speed: float,
+                 fast_speed: float, slow_length: float, fast_length: float,
+                 layer_height: float | None, line_width: float, nozzle_diameter: float,
+                 filament_diameter: float, accel: float | None, mark_every: int
+                 ) -> tuple[PrintSettings, KLineParams]:
+    settings = PrintSettings(nozzle_diameter_mm=nozzle_diameter,
+                             filament_diameter_mm=filament_diameter,
+                             layer_height_mm=0.2 if layer_height is None else layer_height,
+                             line_width_mm=line_width, accel_mm_s2=accel)
+    params = KLineParams(k_start=k_start, k_end=k_end, k_step=k_step,
+                         slow_speed_mm_s=slow_speed, fast_speed_mm_s=fast_speed,
+                         slow_length_mm=slow_length, fast_length_mm=fast_length,
+                         mark_every=mark_every)
+    return settings, params
+
+
+_Machine = Annotated[str, typer.Option(help="Set-up that printed it (built-in name or "
+                                            "TOML): its printer plans the line.")]
+_SlowSpeed = Annotated[float, typer.Option(help="K-line slow speed, mm/s.")]
+_FastSpeed = Annotated[float, typer.Option(help="K-line fast speed, mm/s.")]
+_SlowLength = Annotated[float, typer.Option(help="K-line slow segment length, mm.")]
+_FastLength = Annotated[float, typer.Option(help="K-line fast segment length, mm.")]
+_LineWidth = Annotated[float, typer.Option(help="Line width, mm.")]
+_Nozzle = Annotated[float, typer.Option(help="Nozzle, mm.")]
+_Filament = Annotated[float, typer.Option(help="Filament, mm.")]
+_Accel = Annotated[float | None, typer.Option(
+    help="Acceleration the pattern set, mm/s2 (default: the printer's).")]
+_Output = Annotated[Path | None, typer.Option("--output", "-o",
+                                              help="Write the TOML fragment here.")]
+_Json = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+
+
+def _lag_rows(fit: LagFit) -> list[tuple[str, str, str]]:
+    p = fit.params
+    rows = [("K (lag)", f"{p.k_s:.4f} s", f"{fit.stderr['k_s']:.2g}")]
+    if "dead_time_s" in fit.fitted:
+        rows.append(("dead time", f"{p.dead_time_s:.4f} s", f"{fit.stderr['dead_time_s']:.2g}"))
+    if "gain" in fit.fitted:
+        rows.append(("flow gain", f"{p.gain:.4f}", f"{fit.stderr['gain']:.2g}"))
+    for k, v in fit.registration.items():
+        rows.append((k, f"{v:.4g}", f"{fit.stderr[k]:.2g}"))
+    return rows
+
+
+def _report_lag(fit: LagFit, title: str, output: Path | None, text: str,
+                appended: int | None, append_to: Path | None) -> None:
+    console.print(table_from_rows(title, ["parameter", "value", "± 1σ"], _lag_rows(fit)))
+    console.print(f"{fit.n_points} widths ({fit.n_excluded} left out), RMS residual "
+                  f"{fit.rms_mm * 1000:.1f} µm; the machine profile predicts K = "
+                  f"{fit.machine_lag_s:.4f} s")
+    for note in fit.notes:
+        console.print(f"  • {note}")
+    if append_to is not None:
+        console.print(f"added measurement {appended} to {append_to}")
+    if output is None:
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
+    else:
+        console.print(f"wrote {output}")
+
+
+def _fit_k_cmd(
+    profile: Annotated[Path, typer.Argument(help="Width profile CSV (see above).")],
+    gcode: Annotated[Path | None, typer.Option(help="G-code that printed the line(s).")
+                     ] = None,
+    gcode_line: Annotated[list[int] | None, typer.Option(
+        help="Line of the test line's first extruding move (repeatable).")] = None,
+    machine: _Machine = "tronvoll2019",
+    k_la: Annotated[float, typer.Option(help="Generated K-line: advance factor it was "
+                                             "printed with, s.")] = 0.0,
+    slow_speed: _SlowSpeed = 20.0, fast_speed: _FastSpeed = 70.0,
+    slow_length: _SlowLength = 20.0, fast_length: _FastLength = 40.0,
+    layer_height: Annotated[float | None, typer.Option(
+        help="Layer height, mm (default 0.2; with --gcode: from the file).")] = None,
+    line_width: _LineWidth = 0.48, nozzle_diameter: _Nozzle = 0.4,
+    filament_diameter: _Filament = 1.75, accel: _Accel = None,
+    fit_dead_time: Annotated[bool, typer.Option(help="Also fit a dead time.")] = False,
+    fit_gain: Annotated[bool, typer.Option(help="Also fit a flow gain.")] = False,
+    slip: Annotated[bool, typer.Option(help="Include the drive's slip law (slower).")
+                    ] = False,
+    end_margin: Annotated[float, typer.Option(help="Leave out widths this close to a "
+                                                   "line's ends, mm.")] = 1.0,
+    output: _Output = None,
+    append_to: Annotated[Path | None, typer.Option(
+        help="Add k_s,k_err_s,flow_mm3_s,accel_mm_s2 to this adaptive-pa file.")] = None,
+    json_out: _Json = False,
+) -> None:
+    profiles = read_width_profiles(profile)
+    settings, params = _kline_parts(k_la, k_la, 0.01, slow_speed, fast_speed, slow_length,
+                                    fast_length, layer_height, line_width, nozzle_diameter,
+                                    filament_diameter, accel, 0)
+    settings_arg = None if gcode is not None and layer_height is None else settings
+    fit, _ = fit_k(profiles, gcode=None if gcode is None else str(gcode),
+                   gcode_lines=gcode_line or None, settings=settings_arg, kline=params,
+                   k_la_s=k_la, machine=machine, fit_dead_time=fit_dead_time,
+                   fit_gain=fit_gain, slip=slip, end_margin_mm=end_margin)
+    text = fit.fragment(header=[f"flowtwin calibrate fit-k: lag fitted to {profile.name} "
+                                f"({fit.n_points} widths, RMS {fit.rms_mm * 1000:.1f} µm)",
+                                f"machine {machine}; ± are 1-sigma errors"])
+    if output is not None:
+        write_fragment(output, text)
+    appended = None
+    if append_to is not None:
+        appended = append_measurement(append_to, fit.measurement_row())
+    if json_out:
+        print_json({**fit.summary(), "output": None if output is None else str(output),
+                    "appended_to": None if append_to is None else str(append_to)})
+        return
+    _report_lag(fit, f"Lag from {profile}", output, text, appended, append_to)
+
+
+def _from_image_cmd(
+    image: Annotated[Path, typer.Argument(help="Scan or photo of the K-line pattern.")],
+    machine: _Machine = "tronvoll2019",
+    k_start: Annotated[float, typer.Option(help="First K of the pattern, s.")] = 0.0,
+    k_end: Annotated[float, typer.Option(help="Last K of the pattern, s.")] = 0.2,
+    k_step: Annotated[float, typer.Option(help="K step of the pattern, s.")] = 0.01,
+    slow_speed: _SlowSpeed = 20.0, fast_speed: _FastSpeed = 70.0,
+    slow_length: _SlowLength = 20.0, fast_length: _FastLength = 40.0,
+    layer_height: Annotated[float, typer.Option(help="Layer height, mm.")] = 0.2,
+    line_width: _LineWidth = 0.48, nozzle_diameter: _Nozzle = 0.4,
+    filament_diameter: _Filament = 1.75, accel: _Accel = None,
+    mark_every: Annotated[int, typer.Option(help="Tick every N lines, as printed.")] = 5,
+    dpi: Annotated[float | None, typer.Option(help="Scan resolution (sets the width "
+                                                   "scale: 25.4/dpi mm/px).")] = None,
+    mm_per_px: Annotated[float | None, typer.Option(help="Image resolution, mm/px.")
+                         ] = None,
+    view: Annotated[str, typer.Option(help="auto, top, or mirrored (scanned face down).")
+                    ] = "auto",
+    method: Annotated[str, typer.Option(help="Width from the bead's integrated darkness "
+                                             "(area) or its edges.")] = "area",
+    step: Annotated[float, typer.Option(help="Width sample spacing along a line, mm.")
+                    ] = 0.25,
+    fit_dead_time: Annotated[bool, typer.Option(help="Also fit a dead time.")] = False,
+    output: _Output = None,
+    json_out: _Json = False,
+) -> None:
+    from flowtwin.calibration.kfit import kline_for_machine
+    from flowtwin.calibration.kimage import analyse_kline_image
+    from flowtwin.profiles.machine import load_machine
+
+    if dpi is not None and mm_per_px is not None:
+        raise CalibrationError("give --dpi or --mm-per-px, not both", field="--dpi",
+                               value=dpi, allowed="one of them")
+    if dpi is not None:
+        if not dpi > 0:
+            raise CalibrationError("scan resolution must be positive", field="--dpi",
+                                   value=dpi, allowed="> 0 dots per inch")
+        mm_per_px = 25.4 / dpi
+    m = load_machine(machine)
+    settings, params = _kline_parts(k_start, k_end, k_step, slow_speed, fast_speed,
+                                    slow_length, fast_length, layer_height, line_width,
+                                    nozzle_diameter, filament_diameter, accel, mark_every)
+    pattern = kline_for_machine(m, settings, params)
+    res = analyse_kline_image(image, pattern, machine=m, mm_per_px=mm_per_px, view=view,
+                              step_mm=step, method=method, fit_dead_time=fit_dead_time)
+    text = None
+    if res.lag is not None:
+        text = res.lag.fragment(header=[
+            f"flowtwin calibrate from-image: lag fitted to {image.name} "
+            f"({len(res.lag.lines)} K-lines, RMS {res.lag.rms_mm * 1000:.1f} µm)",
+            f"most even line K = {res.k_best_line_s:g} s; ± are 1-sigma errors"])
+        if output is not None:
+            write_fragment(output, text)
+    elif output is not None:
+        raise CalibrationError(f"no lag fit to write: {res.lag_problem}", field="--output")
+    if json_out:
+        print_json({**res.summary(), "output": None if output is None else str(output)})
+        return
+    console.print(table_from_rows(
+        f"K-lines in {image}", ["K (s)", "score", "accel err", "decel err", "width (mm)",
+                                "measured"],
+        [(f"{r.k_la_s:g}" + (" ◀" if i == res.best_index else ""), _fmt(r.score),
+          _fmt(r.accel_error), _fmt(r.decel_error), _fmt(r.steady_width_mm),
+          f"{r.measured_fraction:.0%}") for i, r in enumerate(res.lines)]))
+    console.print(f"most even line: K = {res.k_best_line_s:g} s; zero crossings: "
+                  f"acceleration {_fmt(res.k_accel_s)} s, deceleration "
+                  f"{_fmt(res.k_decel_s)} s [001 Table II]")
+    console.print(f"view {res.view}, {res.px_per_mm:.2f} px/mm, line ends fit the pattern "
+                  f"within {res.reprojection_rms_mm:.2f} mm RMS")
+    for note in res.notes:
+        console.print(f"  • {note}")
+    if res.lag is None:
+        err_console.print(f"[yellow]warning:[/] no lag fit: {res.lag_problem}")
+        return
+    assert text is not None
+    _report_lag(res.lag, "Lag fitted to all lines", output, text, None, None)
+
+
+def _fmt(x: float | None) -> str:
+    return "-" if x is None or x != x else f"{x:.4g}"
+
+
+def _fit_slip_cmd(
+    records: Annotated[Path, typer.Argument(help="Test-stand records CSV (schema 1).")],
+    roller: Annotated[str | None, typer.Option(help="Roller id in the file (if several).")
+                      ] = None,
+    output: _Output = None,
+    json_out: _Json = False,
+) -> None:
+    from flowtwin.calibration.slipfit import fit_slip_records
+
+    cal = fit_slip_records(records, roller_id=roller)
+    text = cal.fragment()
+    if output is not None:
+        write_fragment(output, text)
+    if json_out:
+        print_json({**cal.summary(), "output": None if output is None else str(output)})
+        return
+    values, errors = cal.overrides()
+    rows = [("k_p_pct", f"{cal.k_p_pct:.4g}", f"{cal.k_p_err_pct:.2g}")]
+    rows += [(k, f"{v:.5g}", f"{errors[k]:.2g}") for k, v in values.items()]
+    console.print(table_from_rows(f"Slip law of roller {cal.analysis.roller_id} from "
+                                  f"{records}", ["parameter", "value", "± 1σ"], rows))
+    if output is None:
+        console.print(text, markup=False, highlight=False, soft_wrap=True)
+    else:
+        console.print(f"wrote {output}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``flowtwin calibrate`` (pattern, fit-viscosity, fit-strand, adaptive-pa)."""
+    """Add ``flowtwin calibrate`` (pattern, fit-k, from-image, fit-viscosity, fit-strand,
+    fit-slip, adaptive-pa)."""
     sub = typer.Typer(name="calibrate", no_args_is_help=True, add_completion=False,
                       help="Calibration: test patterns, fits of measurements, profile "
                            "fragments, adaptive pressure-advance tables.")
-    sub.command("pattern", help=_PATTERN_HELP)(_pattern_cmd)
-    sub.command("fit-viscosity", help=_VISCOSITY_HELP)(_fit_viscosity_cmd)
-    sub.command("fit-strand", help=_STRAND_HELP)(_fit_strand_cmd)
-    sub.command("adaptive-pa", help=_ADAPTIVE_HELP)(_adaptive_pa_cmd)
+    sub.command("pattern", help=PATTERN_HELP)(_pattern_cmd)
+    sub.command("fit-k", help=FIT_K_HELP)(_fit_k_cmd)
+    sub.command("from-image", help=FROM_IMAGE_HELP)(_from_image_cmd)
+    sub.command("fit-viscosity", help=VISCOSITY_HELP)(_fit_viscosity_cmd)
+    sub.command("fit-strand", help=STRAND_HELP)(_fit_strand_cmd)
+    sub.command("fit-slip", help=FIT_SLIP_HELP)(_fit_slip_cmd)
+    sub.command("adaptive-pa", help=ADAPTIVE_HELP)(_adaptive_pa_cmd)
     app.add_typer(sub, name="calibrate")
