@@ -1,8 +1,7 @@
 """``flowtwin batch`` throughput on dask, against calling the Python API in a loop.
 
 Files: the reference corpus (../shared/corpus, 18 real slicer files); without it, generated
-prints (said so in the output). For each engine (``plan`` and, when installed,
-``simulate``):
+prints (said so in the output). For each engine (``simulate``, the default, and ``plan``):
 
 * loop — :func:`flowtwin.batch.run_job` on every file in this process, one after the
   other (the same work with no dask, no Parquet parts);
@@ -33,6 +32,7 @@ from pathlib import Path
 from distributed import get_task_stream
 
 from flowtwin.batch import (
+    DEFAULT_ENGINE,
     ENGINES,
     Engine,
     Job,
@@ -76,15 +76,9 @@ def _files(tmp: Path, quick: bool) -> tuple[list[Path], str]:
 
 
 def _engines(quick: bool) -> list[Engine]:
-    available: list[Engine] = ["plan"]
-    try:
-        import flowtwin.simulation  # noqa: F401
-    except ModuleNotFoundError:
-        pass
-    else:
-        available.append("simulate")
-    assert all(e in ENGINES for e in available)
-    return available[:1] if quick else available
+    """Both engines (the default first); the default alone when quick."""
+    ordered = [DEFAULT_ENGINE, *(e for e in ENGINES if e != DEFAULT_ENGINE)]
+    return ordered[:1] if quick else ordered
 
 
 def _loop(files: list[Path], engine: Engine) -> Callable[[], object]:

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from flowtwin.batch import (
+    DEFAULT_ENGINE,
     Job,
     expand_inputs,
     load_base,
@@ -31,8 +32,8 @@ def test_expand_inputs_files_globs_folders(prints: dict[str, Path], tmp_path: Pa
                            "missing.gcode"])
     # Explicit file first, then the sorted glob matches (p5 only once), then the folder.
     assert found[0] == prints["p5"]
-    assert sorted(found[1:4]) == sorted(prints[k] for k in ("p2", "p30", "p600"))
-    assert found[4:] == [sub / "a.gcode.gz", sub / "b.gco", Path("missing.gcode")]
+    assert sorted(found[1:3]) == sorted(prints[k] for k in ("p2", "p30"))
+    assert found[3:] == [sub / "a.gcode.gz", sub / "b.gco", Path("missing.gcode")]
     with pytest.raises(GcodeError, match="matches no file"):
         expand_inputs([str(tmp_path / "*.gcode")])
     (tmp_path / "empty").mkdir()
@@ -55,6 +56,8 @@ def test_sweep_errors_are_raised_before_anything_runs(prints: dict[str, Path],
     with pytest.raises(ProfileError, match="swept twice"):
         run_sweep(prints["p2"], ["setup.temperature_c=200", "material.temperature_c=210"],
                   out=out)
+    with pytest.raises(GcodeError, match="cannot open"):
+        run_sweep(tmp_path / "gone.gcode", ["setup.temperature_c=200"], out=out)
     with pytest.raises(ProfileError, match="at least one --param"):
         run_sweep(prints["p2"], [], out=out)
     with pytest.raises(FlowtwinError, match="unknown engine"):
@@ -77,7 +80,7 @@ def test_bad_file_row_carries_the_error_others_unaffected(
     machine = load_base(None)
     for index in (0, 2):
         path = files[index]
-        job = Job(index, row_identity(os.path.abspath(path), (), "plan"), str(path),
+        job = Job(index, row_identity(os.path.abspath(path), (), DEFAULT_ENGINE), str(path),
                   str(path), machine)
         expected = run_job(job).row
         assert {k: rows[index][k] for k in expected} == expected

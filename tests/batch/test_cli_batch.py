@@ -88,7 +88,7 @@ def test_interrupted_sweep_leaves_a_readable_partial_table_and_resumes(
     out = tmp_path / "sweep.parquet"
     args = ["sweep", str(prints["p30"]), "--param", "setup.temperature_c=180:240:0.5",
             "--out", str(out), "--scheduler", _address(dask_cluster), "--flush-rows", "1",
-            "--no-progress"]  # 121 points, one part file per row
+            "--engine", "plan", "--no-progress"]  # 121 points, one part file per row
     child = subprocess.Popen([sys.executable, str(script), *args], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     manifest = parts_dir(out) / "manifest.jsonl"

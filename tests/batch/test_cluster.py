@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from flowtwin.batch import (
+    DEFAULT_ENGINE,
     ClusterError,
     Job,
     MachineBuilder,
@@ -40,8 +41,9 @@ def _expected_sweep_rows(source: Path, texts: list[str]) -> dict[str, dict[str, 
     rows: dict[str, dict[str, Cell]] = {}
     for index, point in enumerate(grid_points([parse_axis(t) for t in texts])):
         params = tuple(point.items())
-        rid = row_identity(os.path.abspath(source), params, "plan")
-        job = Job(index, rid, str(source), str(source), builder.build(point), params, "plan")
+        rid = row_identity(os.path.abspath(source), params, DEFAULT_ENGINE)
+        job = Job(index, rid, str(source), str(source), builder.build(point), params,
+                  DEFAULT_ENGINE)
         rows[rid] = run_job(job).row
     return rows
 
@@ -63,7 +65,7 @@ def test_killed_worker_tasks_are_retried_table_complete_no_duplicates(
         os.kill(pids[address], signal.SIGKILL)
 
     out = tmp_path / "sweep.parquet"
-    summary = run_sweep(prints["p600"], params, out=out, client=client,
+    summary = run_sweep(prints["p30"], params, out=out, client=client,
                         on_result=kill_busiest_worker)
     # The killed worker held tasks that had not returned when it died.
     assert killed["keys"], "the killed worker held no task: the test did not test anything"
@@ -76,7 +78,7 @@ def test_killed_worker_tasks_are_retried_table_complete_no_duplicates(
     # in-process (per-task determinism).
     held = {str(k).split("-")[1] for k in killed["keys"]}
     assert held <= set(ids)
-    expected = _expected_sweep_rows(prints["p600"], params)
+    expected = _expected_sweep_rows(prints["p30"], params)
     assert {r["row_id"]: r for r in table.to_pylist()} == expected
     # The process is really gone (the nanny started a new worker in its place).
     assert pids[str(killed["address"])] not in client.run(os.getpid).values()  # type: ignore[attr-defined]

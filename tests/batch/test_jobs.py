@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -10,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from flowtwin.batch.jobs import (
+    DEFAULT_ENGINE,
     Job,
     evaluate,
     flatten_summary,
@@ -23,10 +25,12 @@ from flowtwin.planning import plan_gcode
 
 
 def _job(path: Path, **kw: object) -> Job:
+    """A plan job (the cheaper engine) unless ``engine`` is given."""
     machine = kw.pop("machine", load_base("tronvoll2019"))
     params = kw.pop("params", ())
-    return Job(0, row_identity(os.path.abspath(path), params, "plan"),  # type: ignore[arg-type]
-               str(path), str(path), machine, params, "plan", **kw)  # type: ignore[arg-type]
+    engine = kw.pop("engine", "plan")
+    return Job(0, row_identity(os.path.abspath(path), params, engine),  # type: ignore[arg-type]
+               str(path), str(path), machine, params, engine, **kw)  # type: ignore[arg-type]
 
 
 def test_row_carries_the_plan_summary_of_the_file(prints: dict[str, Path]) -> None:
@@ -43,11 +47,26 @@ def test_row_carries_the_plan_summary_of_the_file(prints: dict[str, Path]) -> No
         expected["time_by_feature_s"])
 
 
+def test_simulate_engine_row_is_the_twin_summary(prints: dict[str, Path]) -> None:
+    from flowtwin.simulation import simulate
+
+    assert DEFAULT_ENGINE == "simulate"
+    job = _job(prints["p5"], engine="simulate")
+    row = run_job(job).row
+    expected = flatten_summary(simulate(str(prints["p5"]), machine=job.machine).summary())
+    assert row["error"] is None and row["engine"] == "simulate"
+    for key in ("total_time_s", "commanded_volume_mm3", "delivered_volume_mm3",
+                "volume_error", "rms_flow_error", "worst_width_error_mm", "max_feed_force_n",
+                "min_force_margin_n", "grinding_events", "ooze_volume_mm3"):
+        assert row[key] == expected[key], key
+    assert run_job(job).row == row  # deterministic
+
+
 def test_same_job_same_row_and_bytes_equal_path(prints: dict[str, Path]) -> None:
     job = _job(prints["p5"])
     first = run_job(job).row
     assert run_job(job).row == first
-    shipped = Job(job.index, job.row_id, job.file, prints["p5"].read_bytes(), job.machine)
+    shipped = dataclasses.replace(job, source=prints["p5"].read_bytes())
     assert run_job(shipped).row == first
 
 
@@ -58,7 +77,7 @@ def test_bad_file_gives_an_error_row_naming_file_and_line(prints: dict[str, Path
     assert "total_time_s" not in row
     # Shipped as bytes, the message still names the file.
     job = _job(prints["bad"])
-    shipped = Job(0, job.row_id, job.file, prints["bad"].read_bytes(), job.machine)
+    shipped = dataclasses.replace(job, source=prints["bad"].read_bytes())
     assert run_job(shipped).row["error"] == row["error"]
 
 

@@ -349,6 +349,9 @@ def run_sweep(source: str | os.PathLike[str], params: Sequence[str | Axis], *,
     for point in points:  # every combination checked before anything runs
         builder.build(point)
     path = Path(source)
+    if not path.is_file():  # every point would fail the same way
+        raise GcodeError("cannot open G-code file", source=str(path),
+                         allowed="an existing G-code file")
     key = os.path.abspath(path)
     ids = [row_identity(key, tuple(p.items()), engine) for p in points]
     config: dict[str, object] = {"command": "sweep", "engine": engine, "file": key,

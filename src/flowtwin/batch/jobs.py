@@ -4,9 +4,10 @@
 on any worker, in any order), so dask can run it anywhere and run it again after a worker
 is lost. The model behind it is chosen by :data:`Engine`:
 
-* ``"plan"`` — :func:`flowtwin.planning.plan_gcode` (print time, filament, moves, layers);
-* ``"simulate"`` — :func:`flowtwin.simulation.simulate`, the whole-print twin (volume,
-  width and force figures), when that module is installed.
+* ``"simulate"`` (default) — :func:`flowtwin.simulation.simulate`, the whole-print twin
+  (print time, commanded and delivered volume, width, force, grinding and ooze figures);
+* ``"plan"`` — :func:`flowtwin.planning.plan_gcode` only (print time, filament, moves,
+  layers): faster, for time estimates.
 
 A row is flat: the job's identity (``index``, ``row_id``, ``file``, one column per swept
 parameter path, ``setup``, ``engine``), ``error`` and ``error_kind`` (``None`` when the file
@@ -49,10 +50,10 @@ __all__ = [
 Engine = Literal["plan", "simulate"]
 
 #: Every engine, in the order the CLI lists them.
-ENGINES: tuple[Engine, ...] = ("plan", "simulate")
+ENGINES: tuple[Engine, ...] = ("simulate", "plan")
 
 #: The engine used when none is given.
-DEFAULT_ENGINE: Engine = "plan"
+DEFAULT_ENGINE: Engine = "simulate"
 
 #: Why a row has no results: ``input`` = the G-code or profile was rejected (a
 #: FlowtwinError, deterministic); ``internal`` = the task raised another exception on every
@@ -207,7 +208,7 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
     Raises
     ------
     FlowtwinError
-        The G-code or the machine is rejected by the model, or the engine is not installed.
+        The G-code or the machine is rejected by the model.
     """
     if engine == "plan":
         from flowtwin.planning import plan_gcode
@@ -216,12 +217,8 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
         summary = planned.summary()
         return summary, ({**summary, "per_layer": planned.per_layer()} if report else None)
     if engine == "simulate":
-        try:
-            from flowtwin.simulation import simulate  # type: ignore[import-not-found]
-        except ModuleNotFoundError as exc:
-            raise FlowtwinError("the simulate engine is not installed (flowtwin.simulation "
-                                "is missing)", field="engine", value=engine,
-                                allowed="plan") from exc
+        from flowtwin.simulation import simulate
+
         simulated = simulate(source, machine=machine)
         summary = simulated.summary()
         return summary, (dict(summary) if report else None)

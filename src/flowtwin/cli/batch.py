@@ -115,8 +115,8 @@ def _engine(value: str) -> Engine:
 
 
 #: Result columns shown in the terminal when present (all are in the table).
-_SHOWN = ("total_time_s", "volume_error", "rms_flow_error", "worst_width_error_mm",
-          "min_force_margin_n", "grinding_events", "ooze_volume_mm3")
+_SHOWN = ("total_time_s", "volume_error", "worst_width_error_mm", "min_force_margin_n",
+          "grinding_events", "ooze_volume_mm3", "rms_flow_error")
 
 
 def _fmt(value: object) -> str:
@@ -130,7 +130,9 @@ def _fmt(value: object) -> str:
 def _print_rows(table: pa.Table, params: list[str], *, limit: int = 20) -> None:
     """The first rows of the table with the parameters and the main figures."""
     names = table.column_names
-    columns = ["file", *(p for p in params if p in names), *(c for c in _SHOWN if c in names)]
+    # At most six columns fit a terminal; every column is in the table file.
+    columns = ["file", *(p for p in params if p in names)][:4]
+    columns += [c for c in _SHOWN if c in names][:max(0, 6 - len(columns))]
     rows = table.select(columns).slice(0, limit).to_pylist()
     shown = [[Path(str(r["file"])).name if c == "file" else _fmt(r[c]) for c in columns]
              for r in rows]
