@@ -10,6 +10,12 @@ multiplier acts on moves queued after it. It records every command it received.
 
 It can lose its connection on purpose (:meth:`drop_connection`) so the supervisor's
 recovery path can be exercised.
+
+Given a print job (:class:`~flowtwin.control.twinjob.JobRunner`), the twin also prints:
+every call first advances the job to the clock's time with the multipliers that acted
+meanwhile, so the extrusion — and the slip — follow the machine's physics at the current
+temperature and the commanded speed and flow (``M220`` lowers the gear speed, hence the
+feed force, hence the slip [003 §2.3]). A lost connection does not stop the print.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from flowtwin.control.printer import (
     FactorTracker,
     Response,
 )
+from flowtwin.control.twinjob import JobRunner
 
 __all__ = ["TwinPrinter"]
 
@@ -67,10 +74,13 @@ class TwinPrinter:
     reset_on_connect
         Whether (re)connecting resets both multipliers to 100 % (a Marlin board resets
         when the serial port opens; a Klipper host keeps its state).
+    job
+        A print job the twin prints physically (None: multipliers only).
     """
 
     def __init__(self, clock: Clock, *, firmware: Firmware = Firmware.MARLIN,
-                 effect_delay_s: float = 0.0, reset_on_connect: bool = True) -> None:
+                 effect_delay_s: float = 0.0, reset_on_connect: bool = True,
+                 job: JobRunner | None = None) -> None:
         if not effect_delay_s >= 0:
             raise ValueError(f"effect_delay_s must be >= 0, got {effect_delay_s!r}")
         self.clock = clock
@@ -88,6 +98,19 @@ class TwinPrinter:
         self._schedules = {Channel.SPEED: _Schedule(), Channel.FLOW: _Schedule()}
         self._speed_pct = 100.0
         self._flow_pct = 100.0
+        self.job = job
+
+    # -- the print job ----------------------------------------------------------------
+    def sync(self) -> None:
+        """Advance the print job (if any) to the clock's current time."""
+        if self.job is not None:
+            self.job.advance_to(self.clock.now(), self.factors_at)
+
+    @property
+    def job_done(self) -> bool:
+        """True when a print job has finished (False without a job)."""
+        self.sync()
+        return self.job is not None and self.job.done
 
     # -- connection -----------------------------------------------------------------
     def connect(self) -> None:
@@ -96,6 +119,7 @@ class TwinPrinter:
             self.refuse_connects -= 1
             raise ConnectionLost("twin printer refused the connection",
                                  source=self.description)
+        self.sync()
         if self.reset_on_connect:
             self._apply(Channel.SPEED, 100.0)
             self._apply(Channel.FLOW, 100.0)
@@ -123,6 +147,7 @@ class TwinPrinter:
     def execute(self, line: str) -> Response:
         """What the firmware does with ``line``, unguarded (a bare Klipper M221 resets)."""
         self.check()
+        self.sync()
         text = line.strip()
         self.received.append((self.clock.now(), text))
         m = _CMD_RE.match(text)
@@ -157,6 +182,7 @@ class TwinPrinter:
     def read_factors(self) -> Factors:
         """The multipliers the firmware holds now (reported by the twin itself)."""
         self.check()
+        self.sync()
         return Factors(self._speed_pct, self._flow_pct, "printer")
 
     def held_factors(self) -> Factors:
