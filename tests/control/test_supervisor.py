@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import pytest
@@ -10,7 +11,7 @@ from flowtwin.control.clock import SimClock
 from flowtwin.control.controllers import GreeffController, Limits, PIController, WindowState
 from flowtwin.control.firmware import Channel, Firmware
 from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import SyntheticSlipSource
+from flowtwin.control.measurement import Measurement, SyntheticSlipSource
 from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
 from flowtwin.control.twin import TwinPrinter
 
@@ -179,3 +180,57 @@ def test_settings_validated() -> None:
     from flowtwin.errors import FlowtwinError
     with pytest.raises(FlowtwinError, match="watchdog shorter"):
         LoopSettings(duration_s=10.0, period_s=1.0, watchdog_s=0.5)
+
+
+class _Scripted:
+    """A source replaying a script of (from time, kind) measurements once per tick."""
+
+    def __init__(self, clk: SimClock, script: list[tuple[float, str]]) -> None:
+        self.clk = clk
+        self.script = script
+
+    def read(self) -> Measurement | None:
+        now = self.clk.now()
+        kind = [k for t, k in self.script if now >= t][-1]
+        if kind == "slip":
+            return Measurement(now, 0.3)
+        if kind == "idle":
+            return Measurement(now, math.nan, valid=False, idle=True)
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+def test_idle_measurements_hold_the_multiplier_without_a_fault() -> None:
+    # a heater wait: the camera sees the gear at rest for 20 s — not a stale camera
+    clk = SimClock()
+    twin = TwinPrinter(clk)
+    src = _Scripted(clk, [(0.0, "slip"), (10.0, "idle"), (30.0, "slip")])
+    log = ControlLog()
+    s = run_control(twin, src, GreeffController(), clock=clk,
+                    settings=LoopSettings(duration_s=40.0, watchdog_s=2.0), log_to=log)
+    assert s.faults == () and s.restored
+    held = {g for t, g in twin.received if 10.5 <= t < 30.0}
+    assert held == set()                              # nothing sent while idle
+    assert twin.factors_at(29.9).speed_pct == 70.0    # 100 (1 - 0.3), held
+    assert len(log.events("idle")) == 40              # 2 Hz for 20 s
+    assert s.samples == 40                            # idle is not a sample
+    # the same silence without idle reports is a stale camera
+    clk2 = SimClock()
+    twin2 = TwinPrinter(clk2)
+    src2 = _Scripted(clk2, [(0.0, "slip"), (10.0, "none"), (30.0, "slip")])
+    s2 = run_control(twin2, src2, GreeffController(), clock=clk2,
+                     settings=LoopSettings(duration_s=40.0, watchdog_s=2.0))
+    assert [f.kind for f in s2.faults] == [FaultKind.STALE]
+
+
+def test_stop_condition_ends_the_run_normally() -> None:
+    clk, twin, src = _rig()
+    log = ControlLog()
+    s = run_control(twin, src, GreeffController(), clock=clk,
+                    settings=LoopSettings(duration_s=60.0), log_to=log,
+                    stop=lambda: clk.now() >= 12.0)
+    assert s.duration_s == pytest.approx(12.0) and s.faults == () and s.restored
+    assert [r["event"] for r in log.rows][-4:] == ["done", "restore", "read", "end"]
+    assert s.to_dict()["final_multiplier_restored"] is True

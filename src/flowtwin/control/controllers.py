@@ -17,6 +17,8 @@ Slip is a fraction (SPEC §2: 0.10 = 10 %).
 * :class:`PIController` — PI with conditional-integration anti-windup, either on the speed
   channel (holds the slip at a set point) or the flow channel (holds the delivered fraction
   ``(1 − s) m`` at 1).
+* :class:`OpenLoopController` — the loop turned off: always 100 %, so a run measures the
+  slip without acting ([003 §3.3] printed its test part with the control on and off).
 
 All outputs pass :func:`limit_command`: clamped to ``[min_pct, max_pct]`` (default
 50–150 %) and rate-limited to ``max_rate_pct_s``.
@@ -36,6 +38,7 @@ __all__ = [
     "FeedForwardController",
     "GreeffController",
     "Limits",
+    "OpenLoopController",
     "PIController",
     "PIState",
     "WindowState",
@@ -299,11 +302,30 @@ class PIController:
         return replace(state, integral_pct=integral, last_t_s=t_s, pct=pct), pct
 
 
+@dataclass(frozen=True)
+class OpenLoopController:
+    """The loop turned off: every update commands 100 % (measurement only)."""
+
+    channel: Channel = Channel.SPEED
+    limits: Limits = field(default_factory=Limits)
+
+    def initial_state(self) -> WindowState:
+        """No history, 100 %."""
+        return WindowState()
+
+    def update(self, state: WindowState, t_s: float, slip: float) -> tuple[WindowState, float]:
+        """Ignore the (finite) slip; command 100 %."""
+        _check_slip(slip)
+        return WindowState((), t_s, 100.0), 100.0
+
+
 def make_controller(name: str, *, limits: Limits | None = None,
                     channel: Channel | None = None) -> GreeffController | FeedForwardController \
-        | PIController:
-    """Build a controller by name (``greeff``, ``feedforward``, ``pi``) with defaults."""
+        | PIController | OpenLoopController:
+    """Build a controller by name (``greeff``, ``feedforward``, ``pi``, ``off``)."""
     lim = limits or Limits()
+    if name == "off":
+        return OpenLoopController(channel=channel or Channel.SPEED, limits=lim)
     if name == "greeff":
         return GreeffController(limits=lim, channel=channel or Channel.SPEED)
     if name == "feedforward":
@@ -311,4 +333,4 @@ def make_controller(name: str, *, limits: Limits | None = None,
     if name == "pi":
         return PIController(limits=lim, channel=channel or Channel.SPEED)
     raise ProfileError("unknown controller", field="controller", value=name,
-                       allowed="greeff, feedforward, pi")
+                       allowed="greeff, feedforward, pi, off")

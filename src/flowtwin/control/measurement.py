@@ -3,7 +3,9 @@
 A :class:`MeasurementSource` is polled by the supervisor once per loop tick. ``read()``
 returns the newest measurement not yet returned (or None when nothing new arrived) and
 must not block; a source whose camera or file is gone raises :class:`MeasurementLost`.
-The camera and video sources (the vision module) implement the same interface.
+The camera and video sources (:mod:`flowtwin.control.video`) and the twin's camera
+(:mod:`flowtwin.control.twin_camera`) implement the same interface on top of
+:mod:`flowtwin.vision`.
 
 :class:`SyntheticSlipSource` produces a slip signal for exercising the loop without a
 camera: a three-phase profile after Greeff & Schilling's print test (low slip, high slip,
@@ -53,12 +55,20 @@ class Measurement:
         Measured filament speed (mm/s), if known.
     valid
         False when the source produced a frame but no usable measurement.
+    idle
+        The source works but the gear is at rest (a heater wait, a pause): slip is
+        undefined, which is not a fault — the supervisor holds the multiplier and its
+        watchdog counts the source as alive. ``valid`` is False.
+    gear_speed_mm_s
+        Measured gear surface speed (mm/s), if known.
     """
 
     t_s: float
     slip: float
     filament_speed_mm_s: float | None = None
     valid: bool = True
+    idle: bool = False
+    gear_speed_mm_s: float | None = None
 
 
 @runtime_checkable

@@ -4,13 +4,17 @@ Safe state = the controlled multiplier at 100 %. The supervisor returns to it, a
 why, on every way a run can go wrong or end:
 
 =====================  =========================================================
-normal end             after ``duration_s``: restore 100 %, read the factors back
+normal end             after ``duration_s`` or when ``stop()`` says so (a print job
+                       finished): restore 100 %, read the factors back
 crash                  any exception in the loop (controller, source, bug):
                        ``finally`` restores 100 %, logs ``crash``, re-raises
 interrupt              Ctrl-C: as a crash, logged ``interrupted``
 lost camera            the source raises :class:`MeasurementLost`: 100 %, run ends
 stale measurements     watchdog: nothing fresh for ``watchdog_s`` → 100 % and hold
-                       (controller reset) until measurements return
+                       (controller reset) until measurements return; an *idle*
+                       measurement (the camera sees the gear at rest, e.g. during a
+                       heater wait) counts as fresh but is not fed to the controller:
+                       the multiplier is held
 lost connection        ``ConnectionLost`` from the printer: reconnect every
                        ``reconnect_interval_s`` up to ``reconnect_timeout_s``; on
                        success set 100 % first, reset the controller, resume
@@ -172,6 +176,7 @@ class RunSummary:
                        for f in self.faults],
             "fault_kinds": sorted({str(f.kind) for f in self.faults}),
             "restored": self.restored,
+            "final_multiplier_restored": self.restored,
             "final_factors": None if self.final_factors is None else {
                 "speed_pct": self.final_factors.speed_pct,
                 "flow_pct": self.final_factors.flow_pct,
@@ -223,7 +228,8 @@ class _Run:
 
 def run_control(printer: Printer, source: MeasurementSource, controller: Controller[Any], *,
                 clock: Clock, settings: LoopSettings, log_to: ControlLog | None = None,
-                on_status: Callable[[Status], None] | None = None) -> RunSummary:
+                on_status: Callable[[Status], None] | None = None,
+                stop: Callable[[], bool] | None = None) -> RunSummary:
     """Run ``controller`` on ``printer`` with measurements from ``source``.
 
     Connects the printer, sets the controlled multiplier to 100 %, then once per
@@ -246,6 +252,9 @@ def run_control(printer: Printer, source: MeasurementSource, controller: Control
         CSV log to write (an in-memory one is used when None).
     on_status
         Called once per tick with a :class:`Status` (the CLI's live display).
+    stop
+        Checked once per tick; the run ends normally when it returns True (e.g. the twin
+        finished its print job).
 
     Returns
     -------
@@ -276,6 +285,9 @@ def run_control(printer: Printer, source: MeasurementSource, controller: Control
         run.command(SAFE_PCT, event="safe", force=True)
         next_tick = clock.now()
         while clock.now() < end:
+            if stop is not None and stop():
+                run.log.write(run.t(), "done", detail="stop condition met")
+                break
             try:
                 printer.check()
                 try:
@@ -287,7 +299,16 @@ def run_control(printer: Printer, source: MeasurementSource, controller: Control
                 now = clock.now()
                 fresh = (m is not None and m.valid and math.isfinite(m.slip)
                          and now - m.t_s <= settings.watchdog_s)
-                if fresh and m is not None:
+                if m is not None and m.idle and now - m.t_s <= settings.watchdog_s:
+                    # the camera works and sees the gear at rest: hold, no fault
+                    if mode == "safe":
+                        run.log.write(run.t(), "resume", detail="source alive (idle)")
+                        mode = "running"
+                    last_fresh = now
+                    slip_now = None
+                    run.log.write(m.t_s - run.t0, "idle", measurement_age_s=now - m.t_s,
+                                  command_pct=run.pct, detail="gear at rest")
+                elif fresh and m is not None:
                     if mode == "safe":
                         run.log.write(run.t(), "resume", detail="fresh measurements again")
                         mode = "running"
