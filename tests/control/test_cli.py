@@ -76,3 +76,79 @@ def test_user_errors(app: typer.Typer, args: list[str], match: str) -> None:
     r = CliRunner().invoke(app, ["control", *args])
     assert isinstance(r.exception, FlowtwinError)
     assert match in str(r.exception)
+
+
+def test_twin_camera_prints_the_polygon_in_simulated_time(app: typer.Typer,
+                                                          tmp_path: Path) -> None:
+    log = tmp_path / "job.csv"
+    r = CliRunner().invoke(app, ["control", "--printer", "twin?delay=0.5", "--twin-camera",
+                                 "--layers-per-set", "1", "--sim-time", "--json",
+                                 "--log", str(log)])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.stdout)
+    for key in ("samples", "mean_slip", "multiplier_min_pct", "multiplier_max_pct",
+                "faults", "final_multiplier_restored"):
+        assert key in s
+    assert s["final_multiplier_restored"] is True and s["faults"] == []
+    assert s["samples"] >= 8 and 0.0 < s["mean_slip"] < 0.6
+    assert s["multiplier_min_pct"] < 100.0 == s["multiplier_max_pct"]
+    job = s["job"]
+    assert job["done"] is True and 0.0 < job["mass_g"] < job["commanded_mass_g"]
+    assert job["wait_s"] > 60.0                        # two M109 R waits
+    events = [row["event"] for row in csv.DictReader(log.open())]
+    assert "idle" in events and events[-4:] == ["done", "restore", "read", "end"]
+
+
+def test_video_source_ends_with_the_recording(app: typer.Typer, tmp_path: Path) -> None:
+    import cv2
+
+    from flowtwin.control.twin_camera import twin_scene
+    from flowtwin.vision.synth import (
+        MotionSeries,
+        SyntheticCamera,
+        write_config_toml,
+        write_video,
+    )
+
+    cv2.setNumThreads(1)
+    scene = twin_scene(2.85, width_px=320, height_px=256, mm_per_px=0.05, seed=2)
+    duration = 24 / scene.fps
+    motion = MotionSeries.constant(duration_s=duration, gear_speed_mm_s=1.5, slip=0.25,
+                                   width_mm=2.85)
+    video = write_video(SyntheticCamera(scene, motion, duration_s=duration).frames(),
+                        tmp_path / "drive.avi", fps=scene.fps)
+    cfg = write_config_toml(scene.vision_config(), tmp_path / "vision.toml")
+    r = CliRunner().invoke(app, ["control", "--printer", "twin", "--video", str(video),
+                                 "--vision-config", str(cfg), "--window-frames", "5",
+                                 "--sim-time", "--period", "0.1", "--json"])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.stdout)
+    # 24 steps in bursts of 4; a poll that finds more than a burst measures the newest 4
+    # steps only, so one burst may be skipped
+    assert 5 <= s["samples"] <= 6 and s["faults"] == []
+    assert abs(s["mean_slip"] - 0.25) < 0.01            # 3 σ of the pipeline at 50 µm/px
+    assert s["duration_s"] < 2.5 and s["final_multiplier_restored"] is True
+
+
+@pytest.mark.parametrize(("args", "match"), [
+    (["--printer", "moonraker://127.0.0.1:9", "--twin-camera"], "only applies to the twin"),
+    (["--printer", "twin", "--synthetic", "--twin-camera"], "more than one"),
+    (["--printer", "twin", "--video", "x.avi"], "needs a vision configuration"),
+    (["--printer", "twin", "--sim-time", "--gcode", "nope.gcode", "--synthetic"],
+     "nope.gcode"),
+])
+def test_source_errors(app: typer.Typer, args: list[str], match: str) -> None:
+    r = CliRunner().invoke(app, ["control", *args])
+    assert isinstance(r.exception, FlowtwinError)
+    assert match in str(r.exception)
+
+
+def test_missing_camera_is_a_user_error(app: typer.Typer, tmp_path: Path) -> None:
+    from flowtwin.control.twin_camera import twin_scene
+    from flowtwin.vision.synth import write_config_toml
+
+    cfg = write_config_toml(twin_scene(2.85).vision_config(), tmp_path / "v.toml")
+    r = CliRunner().invoke(app, ["control", "--printer", "twin", "--camera", "57",
+                                 "--vision-config", str(cfg), "--duration", "1"])
+    assert isinstance(r.exception, FlowtwinError)
+    assert "camera could not be opened" in str(r.exception)
