@@ -104,6 +104,10 @@ def measure_cmd(
         write_plot(result, plot)
         written["plot"] = str(plot)
     summary = result.summary.to_dict()
+    if result.summary.truncated:
+        err_console.print(f"[yellow]warning:[/] {result.summary.source}: decoded "
+                          f"{result.summary.frames} of {result.summary.frames_expected} "
+                          "declared frames (truncated or damaged file)")
     if json_out:
         print_json({**summary, "outputs": written})
         return

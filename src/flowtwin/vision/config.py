@@ -49,7 +49,8 @@ class TrackingParams:
     max_tracks
         Most Shi–Tomasi features kept per ROI (cost grows linearly).
     redetect_interval
-        Frames between re-detections of features [003 §2.2].
+        Largest age of a keyframe, frames: features are re-detected at least this often
+        [003 §2.2] (and sooner when half of them left the ROI or a step failed).
     win_px
         Lucas–Kanade window side, px (odd).
     pyramid_levels
@@ -72,7 +73,8 @@ class TrackingParams:
         Sideways rejection: a track moving across the filament (or radially on the gear)
         by more than ``side_max_px + side_frac·|along|`` is dropped [003 §2.2].
     pad_px
-        Margin around a tracking ROI that a feature may move into between two frames, px.
+        Margin around a tracking ROI that a feature may move into between two frames, px
+        (along the filament only, for the filament ROI).
     width_sigma_px
         Gaussian smoothing across the filament before the derivative, px.
     min_edge_dn_px
