@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from flowtwin.vision.config import TrackingParams
-from flowtwin.vision.roi import Roi
-from flowtwin.vision.track import (
-    RoiTracker,
+from flowtwin.vision.features import (
     detect_features,
     min_eigenvalue_map,
     noise_sigma_dn,
     robust_mean,
 )
+from flowtwin.vision.roi import Roi
+from flowtwin.vision.track import RoiTracker
 
 
 def test_robust_mean_drops_outliers_and_weights_by_lever() -> None:

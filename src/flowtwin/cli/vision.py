@@ -8,12 +8,15 @@ A thin layer over :mod:`flowtwin.vision`: ROIs come from ``--config FILE.toml`` 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.errors import VisionError
+
+if TYPE_CHECKING:
+    from flowtwin.vision.config import Direction, VisionConfig
 
 __all__ = ["register"]
 
@@ -47,21 +50,22 @@ def _source(text: str) -> str | int:
 
 def _config(config: Path | None, roi: list[str] | None, mm_per_px: float | None,
             calib_width_mm: float | None, gear_center: str | None,
-            gear_radius_mm: float | None, direction: str | None) -> Any:
+            gear_radius_mm: float | None, direction: str | None) -> VisionConfig:
     from flowtwin.vision import build_config, parse_rois
 
     if mm_per_px is not None and calib_width_mm is not None:
         raise VisionError("give the scale either as --mm-per-px or as --calib-width-mm",
                           field="--mm-per-px/--calib-width-mm",
                           value=(mm_per_px, calib_width_mm), allowed="one of them")
-    if direction is not None and direction not in ("down", "up"):
+    feeds: dict[str, Direction] = {"down": "down", "up": "up"}
+    feed = None if direction is None else feeds.get(direction)
+    if direction is not None and feed is None:
         raise VisionError("unknown filament direction", field="--direction",
                           value=direction, allowed="down, up")
     return build_config(config_path=config, rois=parse_rois(roi or []), mm_per_px=mm_per_px,
                         calib_width_mm=calib_width_mm,
                         gear_center_px=_pair(gear_center, "--gear-center"),
-                        gear_radius_mm=gear_radius_mm,
-                        direction=direction)  # type: ignore[arg-type]
+                        gear_radius_mm=gear_radius_mm, direction=feed)
 
 
 @vision_app.command("measure")

@@ -13,9 +13,9 @@ import numpy.typing as npt
 from flowtwin.atomic import atomic_write_bytes
 from flowtwin.errors import VisionError
 from flowtwin.vision.config import TrackingParams
+from flowtwin.vision.features import detect_features
 from flowtwin.vision.roi import Roi
 from flowtwin.vision.source import open_source
-from flowtwin.vision.track import detect_features
 from flowtwin.vision.width import measure_width_px
 
 __all__ = ["InspectReport", "annotate_frame", "inspect_source"]

@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from flowtwin.errors import VisionError
 from flowtwin.vision.config import VisionConfig
+from flowtwin.vision.features import is_stale
 from flowtwin.vision.flow import gaussian_smooth, slip_fraction, speed_mm_s, volume_flow_mm3_s
 from flowtwin.vision.result import (
     FILAMENT_INVALID,
@@ -35,7 +36,7 @@ from flowtwin.vision.result import (
     VisionSummary,
 )
 from flowtwin.vision.source import Frame, open_source
-from flowtwin.vision.track import RoiTracker, StepEstimate, is_stale
+from flowtwin.vision.track import RoiTracker, StepEstimate
 from flowtwin.vision.width import calibration_factor, measure_width_px
 
 __all__ = ["SourceInfo", "measure", "measure_frames"]

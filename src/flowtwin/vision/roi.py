@@ -9,7 +9,7 @@ the gear (filament speed). On the command line each is written ``name=x,y,w,h``.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 
 from flowtwin.errors import VisionError
@@ -139,7 +139,8 @@ class RoiSet:
                 source=source, field="roi", allowed="gear, before and after, each x,y,w,h px")
         return cls(gear=rois["gear"], before=rois["before"], after=rois["after"])
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[Roi]:
+        """The gear, before and after ROIs, in that order."""
         return iter((self.gear, self.before, self.after))
 
     def check_inside(self, width_px: int, height_px: int, *, source: str | None = None) -> None:

@@ -7,8 +7,9 @@ the OpenCV example it cites [003 ref. 24]:
 1. The ROI, padded by the motion allowed between two frames, is cut out and normalised to
    zero mean and fixed contrast, so illumination/exposure changes do not read as motion.
 2. Features are detected with ``goodFeaturesToTrack`` on the raw image of a keyframe
-   (:func:`detect_features`); a feature is kept only if its smaller structure-tensor
-   eigenvalue (Shi–Tomasi score) stands clear of what the image noise alone gives.
+   (:func:`~flowtwin.vision.features.detect_features`); a feature is kept only if its
+   smaller structure-tensor eigenvalue (Shi–Tomasi score) stands clear of what the image
+   noise alone gives.
    Edges (one large eigenvalue, the aperture problem) and noise do not qualify, so a
    texture-less ROI yields no features and is *flagged*, never guessed. Each feature is
    followed from the keyframe (not from frame to frame, so position errors do not add
@@ -34,10 +35,10 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
+from flowtwin.vision.features import detect_features, is_stale, robust_mean
 from flowtwin.vision.roi import Roi
 
-__all__ = ["RoiTracker", "StepEstimate", "detect_features", "is_stale", "min_eigenvalue_map",
-           "noise_sigma_dn", "robust_mean"]
+__all__ = ["RoiTracker", "StepEstimate"]
 
 U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
@@ -45,10 +46,6 @@ TrackMode = Literal["translation", "rotation"]
 
 #: Contrast of the normalised crops: one standard deviation maps to this many grey levels.
 _NORM_CONTRAST = 40.0
-#: Immerkaer's noise kernel (difference of two Laplacians).
-_IMMERKAER = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float32)
-#: Block size of the Shi–Tomasi structure tensor, px.
-_BLOCK = 7
 #: Largest gear rotation against the keyframe before new features are taken, rad (the
 #: current crop is turned back by the expected rotation before LK, see ``_derotate``).
 _MAX_KEY_ROTATION = 0.5
@@ -97,8 +94,8 @@ class StepEstimate:
         Time the step covers, s: from the last frame this tracker processed (longer than
         one frame after a stale frame).
     stale
-        The ROI repeated the previous frame's pixels (:func:`is_stale`: a damaged frame
-        the decoder concealed), or this is the step right after such a frame (the
+        The ROI repeated the previous frame's pixels (:func:`~.features.is_stale`: a
+        damaged frame the decoder concealed), or this is the step right after such a frame (the
         decoder may have lost frames there that constant-rate timestamps cannot show).
         Either way the value is NaN.
     """
@@ -112,167 +109,6 @@ class StepEstimate:
     valid: bool
     span_s: float = math.nan
     stale: bool = False
-
-
-def is_stale(crop: U8, previous: U8) -> bool:
-    """Whether an image region repeats the previous frame's, wholly or in part.
-
-    With sensor noise no row of real image data repeats bit for bit; a damaged frame that
-    the decoder concealed with the previous frame's pixels (MJPEG, H.264), or a driver
-    that repeats a buffer, does. A region is stale when at least ``max(4, 5 %)`` of its
-    rows are bit-identical to the previous frame's and not uniform (uniform rows, e.g.
-    clipped black, carry no information either way).
-
-    Parameters
-    ----------
-    crop, previous
-        The region in this and the previous frame, shape ``(H, W)``, uint8.
-
-    Returns
-    -------
-    bool
-    """
-    same = np.all(crop == previous, axis=1) & (crop.max(axis=1) > crop.min(axis=1))
-    return int(same.sum()) >= max(4, int(0.05 * crop.shape[0]))
-
-
-def robust_mean(values: npt.NDArray[np.float64], scale: npt.NDArray[np.float64] | None = None,
-                *, floor: float = 0.1, k: float = 3.0
-                ) -> tuple[float, npt.NDArray[np.bool_]]:
-    """Mean of the values within ``k`` robust standard deviations of their median.
-
-    Parameters
-    ----------
-    values
-        Samples, shape ``(N,)``.
-    scale
-        Per-sample factor converting a deviation into px (the lever arm for angles),
-        shape ``(N,)``; default 1.
-    floor
-        Smallest acceptance half-width, px (tracks agreeing to better than this are
-        never rejected).
-    k
-        Acceptance in robust standard deviations (``1.4826·MAD``).
-
-    Returns
-    -------
-    mean : float
-        Weighted (by ``scale²``) mean of the inliers; NaN if there are none.
-    inliers : numpy.ndarray of bool
-        Which samples were used, shape ``(N,)``.
-    """
-    if values.size == 0:
-        return math.nan, np.zeros(0, dtype=bool)
-    lever = np.ones_like(values) if scale is None else scale
-    med = float(np.median(values))
-    dev = (values - med) * lever
-    mad = float(np.median(np.abs(dev)))
-    inl = np.abs(dev) <= max(k * 1.4826 * mad, floor)
-    w = lever[inl] ** 2
-    return float(np.sum(values[inl] * w) / np.sum(w)), inl
-
-
-def min_eigenvalue_map(gray: U8, *, block: int = _BLOCK) -> F32:
-    """Shi–Tomasi score: smaller eigenvalue of the local structure tensor, (DN/px)².
-
-    Gradients are 3×3 Sobel derivatives divided by 8 (grey levels per pixel), their
-    products averaged over a ``block × block`` window.
-
-    Parameters
-    ----------
-    gray
-        Image, shape ``(H, W)``, uint8.
-    block
-        Averaging window side, px.
-
-    Returns
-    -------
-    numpy.ndarray
-        Score map, shape ``(H, W)``, float32.
-    """
-    img = gray.astype(np.float32)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
-    a = cv2.boxFilter(gx * gx, -1, (block, block))
-    b = cv2.boxFilter(gx * gy, -1, (block, block))
-    c = cv2.boxFilter(gy * gy, -1, (block, block))
-    half = 0.5 * (a - c)
-    return np.asarray(0.5 * (a + c) - np.sqrt(half * half + b * b), dtype=np.float32)
-
-
-def noise_sigma_dn(gray: U8) -> float:
-    """Standard deviation of the pixel noise of an image, DN (Immerkaer's estimator).
-
-    The image is filtered with the difference of two Laplacians
-    ``[[1, −2, 1], [−2, 4, −2], [1, −2, 1]]``, which cancels smooth image structure;
-    ``σ = sqrt(π/2)·Σ|I * N| / (6·(W − 2)·(H − 2))`` (J. Immerkaer, "Fast noise variance
-    estimation", CVIU 64 (1996) 300–302).
-
-    Parameters
-    ----------
-    gray
-        Image, shape ``(H, W)`` with ``H, W >= 3``, uint8.
-
-    Returns
-    -------
-    float
-        Noise standard deviation, DN.
-    """
-    h, w = gray.shape[:2]
-    if h < 3 or w < 3:
-        return 0.0
-    r = cv2.filter2D(gray.astype(np.float32), -1, _IMMERKAER)[1:-1, 1:-1]
-    return float(math.sqrt(math.pi / 2.0) * np.abs(r).sum() / (6.0 * (w - 2) * (h - 2)))
-
-
-def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
-                    min_distance_px: int | None = None,
-                    noise_region: tuple[slice, slice] | None = None
-                    ) -> npt.NDArray[np.float64]:
-    """Shi–Tomasi features that stand out of the noise enough to track [003 §2.2].
-
-    ``goodFeaturesToTrack`` picks up to ``max_tracks`` corners. A corner is kept only if
-    its smaller structure-tensor eigenvalue ``λ`` (:func:`min_eigenvalue_map`) reaches
-    both ``min_texture_eig`` and ``min_texture_snr`` times the value pure noise gives,
-    ``0.1875·σ²`` (the variance of a 3×3 Sobel/8 derivative of white noise of
-    ``σ`` = :func:`noise_sigma_dn`). Edges (one large eigenvalue: the aperture problem)
-    and noise therefore give no features, and a texture-less region is flagged, not
-    tracked.
-
-    Parameters
-    ----------
-    gray
-        Raw (not normalised) grey image, shape ``(H, W)``, uint8.
-    params
-        Tracking parameters (``max_tracks``, ``min_texture_eig``, ``min_texture_snr``).
-    mask
-        Where features may be, shape ``(H, W)``, uint8 (non-zero = allowed).
-    min_distance_px
-        Smallest distance between features (default ``win_px // 4``), px.
-    noise_region
-        ``(rows, columns)`` slices where the noise is estimated (default: the bounding
-        box of ``mask``, or the whole image).
-
-    Returns
-    -------
-    numpy.ndarray
-        Feature positions ``(x, y)``, shape ``(N, 2)``, px.
-    """
-    dist = max(3, params.win_px // 4) if min_distance_px is None else min_distance_px
-    pts = cv2.goodFeaturesToTrack(gray, maxCorners=params.max_tracks, qualityLevel=0.01,
-                                  minDistance=dist, mask=mask, blockSize=_BLOCK)
-    if pts is None:
-        return np.zeros((0, 2), np.float64)
-    xy = pts[:, 0, :].astype(np.float64)
-    if noise_region is None and mask is not None:
-        ys, xs = np.nonzero(mask)
-        noise_region = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
-    sigma = noise_sigma_dn(gray if noise_region is None else gray[noise_region])
-    floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
-    eig = min_eigenvalue_map(gray)
-    ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, gray.shape[1] - 1)
-    iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, gray.shape[0] - 1)
-    return xy[eig[iy, ix] >= floor]
 
 
 class RoiTracker:
