@@ -255,3 +255,23 @@ def test_all_blank_or_textureless_recordings_give_no_numbers(tmp_path: Path) -> 
     assert np.all(flags & fil_bad) and np.all(flags & gear_bad)
     assert np.all(np.isnan(res.series.filament_speed_mm_s))
     assert math.isnan(res.summary.slip) and res.summary.valid_frames == 0
+
+
+def test_stopped_gear_and_retraction(tmp_path: Path) -> None:
+    """Gear still (slip undefined), feeding, then a retraction: signs and slip hold."""
+    t = np.array([0.0, 0.4, 0.45, 1.0, 1.05, 1.5])
+    gear = np.array([0.0, 0.0, 2.0, 2.0, -3.0, -3.0])
+    scene = SceneSpec(seed=15)
+    frames = render_from_series(t, gear, 0.9 * gear, np.full(6, 1.75), scene=scene)
+    path = write_video(frames, tmp_path / "retract.avi", fps=FPS, fourcc="MJPG")
+    res = measure(path, scene.vision_config())
+    se = res.series
+    truth = truth_for(frames, res)
+    still = truth.t_s < 0.39
+    stopped = (se.flags & int(Quality.GEAR_STOPPED)) != 0
+    assert np.all(stopped[still][1:]) and np.all(np.isnan(se.slip[still]))
+    back = truth.t_s > 1.1
+    assert np.all(se.gear_speed_mm_s[back] < 0) and np.all(se.filament_speed_mm_s[back] < 0)
+    assert np.nanmean(se.gear_speed_mm_s[back]) == pytest.approx(-3.0, rel=0.01)
+    # forward and backward distances add up in the run's slip (they do not cancel)
+    assert res.summary.slip == pytest.approx(0.1, abs=0.005)

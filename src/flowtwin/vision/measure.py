@@ -306,9 +306,14 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, *,
         time_s = float(np.sum(dt[ok]))
         return float(np.sum(v[ok] * dt[ok]) / time_s) if time_s > 0 else NAN
 
-    l_gear = float(np.sum(s.gear_speed_mm_s[both] * g_dt[both]))
-    l_fil = float(np.sum(s.filament_speed_mm_s[both] * f_dt[both]))
-    slip = 1.0 - l_fil / l_gear if abs(l_gear) > 0 and both.any() else NAN
+    # slip over the run: distances where both speeds are valid and the gear turns,
+    # counted along the gear's direction, so feeding and retracting both add up
+    # (s = 1 − Σ sign(g)·v_fil·Δt / Σ |g|·Δt, [000 Eq. 1] for the whole run)
+    moving = both & ((fl & int(Quality.GEAR_STOPPED)) == 0)
+    g_dir = np.sign(s.gear_speed_mm_s[moving])
+    l_gear = float(np.sum(np.abs(s.gear_speed_mm_s[moving]) * g_dt[moving]))
+    l_fil = float(np.sum(g_dir * s.filament_speed_mm_s[moving] * f_dt[moving]))
+    slip = 1.0 - l_fil / l_gear if l_gear > 0 else NAN
     flow_ok = f_ok & w_ok
     frames_expected = info.frames_expected
     n = len(s)

@@ -147,7 +147,9 @@ class VisionSummary:
     gear_speed_mm_s, filament_speed_mm_s
         Mean speeds over their valid steps: travelled distance / time, mm/s.
     slip
-        ``1 − L_filament/L_gear`` over steps where both are valid [000 Eq. 1], fraction.
+        ``1 − L_filament/L_gear`` over the steps where both speeds are valid and the gear
+        turns, distances counted along the gear's direction (retractions add up, they do
+        not cancel) [000 Eq. 1], fraction.
     slip_pct
         The same in %.
     width_mm, width_std_mm
