@@ -97,6 +97,8 @@ def test_sweep_rows_and_resume_skips_done_points(
                                      "printer.pressure_advance.k_s=0,0.04"],
                       out=out, client=dask_cluster, ship_files=True)
     assert (first.jobs, first.ok) == (4, 4)
+    # The generated print sets its nozzle temperature with M104/M109: the sweep says so.
+    assert len(first.warnings) == 1 and "setup.temperature_c" in first.warnings[0]
     # A wider grid over the same machine: only the two new points run.
     second = run_sweep(prints["p5"], ["setup.temperature_c=200,210,220",
                                       "printer.pressure_advance.k_s=0,0.04"],

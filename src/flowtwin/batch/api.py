@@ -33,6 +33,7 @@ from flowtwin.batch.overrides import (
     sample_points,
 )
 from flowtwin.batch.params import Axis, ParamValue, parse_axis
+from flowtwin.batch.shadowed import shadowed_parameters
 from flowtwin.batch.store import ResultWriter
 from flowtwin.errors import FlowtwinError, GcodeError, ProfileError
 from flowtwin.profiles.machine import Machine
@@ -70,6 +71,9 @@ class RunSummary:
         Worker threads of the cluster.
     engine
         The model used.
+    warnings
+        Things the user should know about the results (e.g. swept parameters that the
+        G-code sets itself, :mod:`flowtwin.batch.shadowed`).
     """
 
     command: str
@@ -82,13 +86,15 @@ class RunSummary:
     elapsed_s: float
     threads: int
     engine: str
+    warnings: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able values."""
         return {"command": self.command, "out": str(self.out), "jobs": self.jobs,
                 "skipped": self.skipped, "ok": self.ok, "failed": self.failed,
                 "complete": self.complete, "elapsed_s": self.elapsed_s,
-                "threads": self.threads, "engine": self.engine}
+                "threads": self.threads, "engine": self.engine,
+                "warnings": list(self.warnings)}
 
 
 def _is_gcode(path: Path) -> bool:
@@ -157,7 +163,8 @@ def _execute(command: str, jobs: Iterator[Job], ids: list[str], *, out: str | os
              reports_dir: str | os.PathLike[str] | None, flush_rows: int, flush_s: float,
              on_start: Callable[[int, int], None] | None,
              on_result: Callable[[Progress], None] | None,
-             skip: Callable[[frozenset[str]], None]) -> RunSummary:
+             skip: Callable[[frozenset[str]], None],
+             warnings: Sequence[str] = ()) -> RunSummary:
     t0 = time.perf_counter()
     writer = ResultWriter(out, config=config, resume=resume, flush_rows=flush_rows,
                           flush_s=flush_s)
@@ -181,7 +188,7 @@ def _execute(command: str, jobs: Iterator[Job], ids: list[str], *, out: str | os
     finally:
         writer.finish(complete=complete)
     return RunSummary(command, Path(out), len(ids), skipped, stats.ok, stats.failed, complete,
-                      time.perf_counter() - t0, stats.threads, engine)
+                      time.perf_counter() - t0, stats.threads, engine, tuple(warnings))
 
 
 class _given:
@@ -322,6 +329,9 @@ def run_sweep(source: str | os.PathLike[str], params: Sequence[str | Axis], *,
     Returns
     -------
     RunSummary
+        Its ``warnings`` name swept parameters that the G-code sets itself (``M104``
+        temperature, ``M900`` pressure advance, ``M204`` acceleration, …): those values
+        apply only before the G-code sets its own, as on the printer.
 
     Raises
     ------
@@ -367,7 +377,9 @@ def run_sweep(source: str | os.PathLike[str], params: Sequence[str | Axis], *,
                       builder.build(point), tuple(point.items()), engine,
                       reports_dir is not None)
 
+    warnings = shadowed_parameters(path, [p for axis in axes for p in axis.paths])
     return _execute("sweep", jobs(), ids, out=out, config=config, engine=engine, resume=resume,
                     client=client, scheduler=scheduler, workers=workers, retries=retries,
                     reports_dir=reports_dir, flush_rows=flush_rows, flush_s=flush_s,
-                    on_start=on_start, on_result=on_result, skip=done.update)
+                    on_start=on_start, on_result=on_result, skip=done.update,
+                    warnings=warnings)

@@ -19,6 +19,7 @@ from typing import Annotated, cast
 
 import pyarrow as pa
 import typer
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -161,6 +162,8 @@ def _run(label: str, out: Path, progress: bool, json_out: bool,
         for row in table.select(["index", "file", "error", "error_kind"]).to_pylist():
             if row["error"] is not None:
                 failures.append(row)
+    for warning in summary.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(warning)}")
     if json_out:
         document = summary.as_dict()
         document["rows"] = table.num_rows
