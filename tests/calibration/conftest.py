@@ -5,13 +5,21 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from flowtwin.calibration.firmware import Firmware
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.kfit import kline_for_machine
+from flowtwin.calibration.kline import KLineParams
+from flowtwin.calibration.lagmodel import LagParams
+from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
+from flowtwin.profiles.machine import Machine, load_machine
 
 #: Advance-factor parameter of each firmware's command, as the reader stores it.
 PA_EVENTS = {"SET_PRESSURE_ADVANCE": "ADVANCE", "M900": "K", "M572": "S"}
@@ -66,3 +74,31 @@ def firmware(request: pytest.FixtureRequest) -> Firmware:
     fw = request.param
     assert isinstance(fw, Firmware)
     return fw
+
+
+# --- the K-line images (fit-k / from-image tests) --------------------------------------
+
+@pytest.fixture(scope="session")
+def tronvoll() -> Machine:
+    """Tronvoll's set-up [001 Table I] (Prusa firmware: M572 advance with smoothing)."""
+    return load_machine("tronvoll2019")
+
+
+@pytest.fixture(scope="session")
+def kline7(tronvoll: Machine) -> Pattern:
+    """Seven K-lines, K = 0.02 … 0.08 s, ticks on lines 0 and 5, for Tronvoll's printer."""
+    return kline_for_machine(tronvoll, PrintSettings(),
+                             KLineParams(k_start=0.02, k_end=0.08, k_step=0.01))
+
+
+@pytest.fixture(scope="session")
+def render_kline7(tronvoll: Machine, kline7: Pattern
+                  ) -> Callable[[float, ImageConditions], RenderedImage]:
+    """Render ``kline7`` for a lag under image conditions (cached per session)."""
+
+    @functools.lru_cache(maxsize=16)
+    def render(k_s: float, conditions: ImageConditions) -> RenderedImage:
+        return render_pattern_image(kline7.text().encode(), LagParams(k_s), machine=tronvoll,
+                                    conditions=conditions)
+
+    return render

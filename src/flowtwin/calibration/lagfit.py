@@ -21,8 +21,11 @@ Fitting hygiene (docs/calibration.md):
   than the measurement's own resolution are correlated, which makes ``σ`` optimistic).
 * **Degenerate data** raise :class:`~flowtwin.errors.CalibrationError` with the reason:
   fewer usable points than parameters + 1, a singular ``JᵀJ`` (e.g. a line at one speed:
-  its width does not depend on ``K``), a standard error larger than the value, or a
-  parameter that ends on its bound.
+  its width does not depend on ``K``), a standard error larger than half the value, a
+  parameter that ends on its bound, or a sum of squares that does not rise by ``s²`` 2σ
+  to either side of the optimum (the data bound the parameter from one side only, e.g.
+  a constant-speed line whose start transient only says "K is not large"; the Gaussian
+  ``σ`` would be a false statement there).
 """
 
 from __future__ import annotations
@@ -71,8 +74,10 @@ _BOUNDS = {"k_s": (1e-3, 5.0), "dead_time_s": (0.0, DEAD_TIME_MAX_S), "gain": (0
 _STEPS = {"k_s": 1e-3, "gain": 1e-3, "shift_mm": 0.01, "stretch": 1e-4}
 #: Typical size of each parameter for the trust region (where its start is 0).
 _X_SCALE = {"shift_mm": 0.1, "stretch": 1e-3}
-#: Points per window when the model is averaged over a measurement window.
-_WINDOW_POINTS = 5
+#: Spacing of the points the model is averaged over within a measurement window, mm: a
+#: junction's slow-down bulge is a few hundredths of a millimetre long, and a coarser
+#: average makes the fit's sum of squares jump as the window slides over it.
+_WINDOW_STEP_MM = 0.01
 #: Grid of the start scan of K, s.
 _K_SCAN = np.geomspace(0.005, 2.0, 12)
 #: A dead time known worse than this (s) is "not determined".
@@ -292,6 +297,35 @@ def _usable_points(model: LagModel, profiles: Sequence[WidthProfile], end_margin
     return xs, ws, excluded
 
 
+def _check_curvature(names: Sequence[str], values: FloatArray, err: FloatArray,
+                     residuals: Any, ssr: float, s2: float) -> None:
+    """Refuse a σ the data do not back: the sum of squares must rise on both sides.
+
+    For a model linear in its parameters, moving one parameter by 2σ (the others held)
+    raises the sum of squares by at least ``4·s²``. Where it rises by less than ``s²`` on
+    one side the likelihood is flat there — the widths bound the parameter from one side
+    only (a lag longer than the line shows, or one too short to see) — and ``± σ`` would
+    be a false statement.
+    """
+    for j, name in enumerate(names):
+        lo, hi = _BOUNDS[name]
+        for sign in (-1.0, 1.0):
+            v = values.copy()
+            v[j] = values[j] + sign * 2.0 * err[j]
+            if not lo <= v[j] <= hi:
+                continue    # the bound itself limits this side
+            r = residuals(v)
+            rise = float(np.sum(r ** 2)) - ssr
+            if not rise >= s2:
+                side = "below" if sign < 0 else "above"
+                raise CalibrationError(
+                    f"the widths do not determine {name}: {values[j]:.4g} ± {err[j]:.2g} "
+                    f"is not backed by the data (the fit barely changes {side} it; they "
+                    "bound it from one side only)", field=name, value=float(values[j]),
+                    allowed="a sum of squares that rises on both sides (lines with speed "
+                            "changes inside the measured part)")
+
+
 def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, WidthProfile], *,
             fit_dead_time: bool = False, fit_gain: bool = False,
             fit_registration: bool = False, fixed: LagParams | None = None,
@@ -353,8 +387,9 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                                        "than the layer height")
     measured = np.concatenate(ws)
     # each sample is the mean of the model over its window: offsets within the window
-    offsets = [np.linspace(-0.5, 0.5, _WINDOW_POINTS) * pr.window_mm if pr.window_mm > 0
-               else np.zeros(1) for pr in profs]
+    offsets = [np.linspace(-0.5, 0.5, 2 * int(np.ceil(0.5 * pr.window_mm / _WINDOW_STEP_MM))
+                           + 1) * pr.window_mm if pr.window_mm > 0 else np.zeros(1)
+               for pr in profs]
     centres = [0.5 * ln.length_mm for ln in model.lines]
 
     def params_of(v: FloatArray) -> LagParams:
@@ -472,6 +507,7 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
                                    f"{e:.2g} (measure lines with larger speed steps, a finer "
                                    "profile or less scatter)", field=name, value=value,
                                    allowed=f"standard error <= {max_relative_error:g}·|value|")
+    _check_curvature(names, values, err, residuals, float(np.sum(resid ** 2)), s2)
     bounds_per_line = np.cumsum([0] + [x.size for x in xs])
     line_rms = tuple(float(np.sqrt(np.mean(resid[a:b] ** 2))) if b > a else math.nan
                      for a, b in itertools.pairwise(bounds_per_line.tolist()))

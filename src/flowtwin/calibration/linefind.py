@@ -6,8 +6,9 @@ Steps (OpenCV):
    closing with a kernel of 2 % of the image size, wider than any bead), then Otsu's
    threshold separates the dark beads.
 2. **Pieces.** Each connected component gets its principal axis (PCA of its pixels),
-   length along it and mean thickness ``area/length``. Long, thin components are line
-   pieces; a line broken by a gap (over-compensation empties the nozzle [001]) gives
+   length along it, mean thickness ``area/length`` and spread across the axis. Long,
+   thin, solid components (spread at most 0.6 of the thickness: a bead's is 0.29) are
+   line pieces; a line broken by a gap (over-compensation empties the nozzle [001]) gives
    several pieces on one axis.
 3. **Lines.** The mean direction of the pieces deskews the image; pieces are grouped into
    lines by their offset across that direction; each line's axis is fitted to all its
@@ -91,6 +92,14 @@ class _Component:
     direction: FloatArray
     length: float
     thickness: float
+    spread: float             # standard deviation of the pixels across the axis
+
+    @property
+    def solid_line(self) -> bool:
+        """Long, thin and solid: a bead of thickness t spreads t/√12 = 0.29·t across its
+        axis (0.4·t with bulges); a sparse speckle cluster spreads far more."""
+        return (self.length >= _MIN_ELONGATION * self.thickness
+                and self.spread <= 0.6 * self.thickness)
 
 
 def _components(mask: npt.NDArray[np.uint8], min_area: int) -> list[_Component]:
@@ -112,7 +121,8 @@ def _components(mask: npt.NDArray[np.uint8], min_area: int) -> list[_Component]:
         d = evecs[:, int(np.argmax(evals))]
         proj = (pts - c) @ d
         length = float(np.ptp(proj)) + 1.0
-        out.append(_Component(pts, c, d, length, pts.shape[0] / length))
+        spread = float(np.sqrt(max(float(np.min(evals)), 0.0)))
+        out.append(_Component(pts, c, d, length, pts.shape[0] / length, spread))
     return out
 
 
@@ -168,8 +178,7 @@ def find_lines(gray: npt.NDArray[np.uint8], *, line_length_mm: float,
     if not comps:
         raise VisionError("no printed lines found in the image", source=source)
     longest = max(c.length for c in comps)
-    pieces = [c for c in comps if c.length >= _MIN_PIECE_FRACTION * longest
-              and c.length >= _MIN_ELONGATION * c.thickness]
+    pieces = [c for c in comps if c.length >= _MIN_PIECE_FRACTION * longest and c.solid_line]
     if len(pieces) < 2:
         raise VisionError("no printed lines found in the image (need long, thin dark "
                           "beads)", source=source, value=f"{len(pieces)} line piece(s)",
@@ -216,9 +225,15 @@ def find_lines(gray: npt.NDArray[np.uint8], *, line_length_mm: float,
             ok = counts >= 2.0 * dist
             return float(dist[np.flatnonzero(ok)[-1]]) if ok[0] else 0.0
 
+        if (s1 - s0) < _MIN_ELONGATION * t:
+            continue    # pieces that do not make a thin line (speckle, a blob)
         start = c + (s0 + cap(s0, +1.0)) * d
         end = c + (s1 - cap(s1, -1.0)) * d
         lines.append(ImageLine(start, end, float(c @ n), t, len(group), 0))
+    if len(lines) < 2:
+        raise VisionError("no printed lines found in the image (need long, thin dark "
+                          "beads)", source=source, value=f"{len(lines)} line(s)",
+                          allowed="the K-factor pattern, beads darker than the bed")
     scale = float(np.median([ln.length_px for ln in lines])) / line_length_mm
     lines = [_with_tick(ln, others, scale) for ln in lines]
     lines.sort(key=lambda ln: ln.offset_px)

@@ -130,8 +130,9 @@ def _draw_run(coverage: FloatArray, vertices_px: FloatArray, s_px: FloatArray,
     """Max-composite one bead (polyline with varying half-width) into ``coverage``.
 
     For every pixel near a segment: the distance ``d`` to the segment and the half-width
-    ``r`` at the pixel's foot point; coverage ``clip(r − d + 0.5, 0, 1)`` (a one-pixel
-    antialiasing ramp, the area a straight edge covers). Beyond the run's two ends the
+    ``r`` at the pixel's foot point; coverage ``clip(min(r − d + 0.5, 2r), 0, 1)`` (a
+    one-pixel antialiasing ramp, the area a straight edge covers; a bead thinner than a
+    pixel covers at most its width). Beyond the run's two ends the
     distance is to the end point (round end caps); a corner gets a round join (a disc),
     a straight joint none, so the bead is exactly as wide as the width profile says.
     """
@@ -159,14 +160,14 @@ def _draw_run(coverage: FloatArray, vertices_px: FloatArray, s_px: FloatArray,
         tc = np.clip(t, 0.0, length)
         d = np.hypot(cols - (a[0] + seg[0] * tc / length), rows - (a[1] + seg[1] * tc / length))
         r = np.interp(cum[k] + tc, s_px, half_px)
-        cov = np.where(inside, np.clip(r - d + 0.5, 0.0, 1.0), 0.0)
+        cov = np.where(inside, np.clip(np.minimum(r - d + 0.5, 2.0 * r), 0.0, 1.0), 0.0)
         if k < last:
             nxt = vertices_px[k + 2] - b
             turn = float(np.dot(seg, nxt) / max(length * float(np.hypot(*nxt)), 1e-12))
             if turn < math.cos(math.radians(20.0)):     # a corner: round join
                 rj = float(np.interp(cum[k + 1], s_px, half_px))
-                cov = np.maximum(cov, np.clip(rj - np.hypot(cols - b[0], rows - b[1]) + 0.5,
-                                              0.0, 1.0))
+                dj = np.hypot(cols - b[0], rows - b[1])
+                cov = np.maximum(cov, np.clip(np.minimum(rj - dj + 0.5, 2.0 * rj), 0.0, 1.0))
         np.maximum(coverage[r0:r1, c0:c1], cov, out=coverage[r0:r1, c0:c1])
 
 
