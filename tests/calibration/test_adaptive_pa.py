@@ -12,14 +12,16 @@ from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
 from flowtwin.calibration.adaptive_pa import (
     ADAPTIVE_PA_COLUMNS,
+    FIT_K_MEASUREMENT_HEADER,
     AdaptivePaTable,
+    append_measurement,
     hermite_slopes,
     parse_orca_model,
     read_orca_model,
     table_from_measurements,
     write_orca_model,
 )
-from flowtwin.calibration.csvdata import read_table_text
+from flowtwin.calibration.csvdata import read_table, read_table_text
 from flowtwin.errors import DataError
 from flowtwin.physics.deposition import bead_area_mm2
 
@@ -141,3 +143,36 @@ def test_bad_orca_lines_are_located(text: str) -> None:
     with pytest.raises(DataError, match=r"t\.txt:1: an adaptive pressure advance line must "
                                         r"be three numbers"):
         parse_orca_model(text, source="t.txt")
+
+
+def test_repeats_are_weighted_by_their_errors() -> None:
+    table = AdaptivePaTable.from_points([0.04, 0.05, 0.03], [5.0, 5.0, 9.0],
+                                        [3000, 3000, 3000], k_err_s=[0.001, 0.002, 0.001])
+    # inverse-variance mean of 0.04 ± 0.001 and 0.05 ± 0.002: (0.04·1e6 + 0.05·2.5e5)/1.25e6
+    assert table.k_s.tolist() == pytest.approx([0.042, 0.03])
+    with pytest.raises(DataError, match=r"\[k_err_s\]"):
+        AdaptivePaTable.from_points([0.04], [5.0], [3000], k_err_s=[0.0])
+    with pytest.raises(DataError, match="one advance-factor error per measurement"):
+        AdaptivePaTable.from_points([0.04, 0.05], [5.0, 6.0], [3000, 3000], k_err_s=[0.001])
+
+
+def test_fit_k_rows_feed_the_table(tmp_path: Path) -> None:
+    path = tmp_path / "measured.csv"
+    rows = [(0.045, 0.0004, 4.0, 3000), (0.04, 0.0005, 8.0, 3000), (0.05, 0.0004, 4.0, 6000),
+            (0.046, 0.0004, 8.0, 6000)]
+    for i, (k, e, q, a) in enumerate(rows, start=1):
+        n = append_measurement(path, {"k_s": k, "k_err_s": e, "flow_mm3_s": q,
+                                      "accel_mm_s2": a})
+        assert n == i
+    assert path.read_text().splitlines()[0] == FIT_K_MEASUREMENT_HEADER
+    table = table_from_measurements(read_table(path, ADAPTIVE_PA_COLUMNS))
+    assert len(table) == 4 and table.orca_warnings() == []
+    # two accelerations: the monotone cubic through two points with secant end slopes is
+    # the straight line, so half-way in acceleration is the mean
+    assert float(table.k_at(6.0, 4500)) == pytest.approx(
+        float(table.k_at(6.0, 3000)) / 2 + float(table.k_at(6.0, 6000)) / 2, rel=1e-12)
+    other = tmp_path / "other.csv"
+    other.write_text("k_s,flow_mm3_s,accel_mm_s2\n0.04,5,3000\n")
+    with pytest.raises(DataError, match="other columns"):
+        append_measurement(other, {"k_s": 0.04, "k_err_s": 0.001, "flow_mm3_s": 5.0,
+                                   "accel_mm_s2": 3000.0})

@@ -6,17 +6,34 @@ import json
 import math
 import tomllib
 from pathlib import Path
+from typing import Any
 
+import cv2
 import numpy as np
 import pytest
 import typer
 from typer.testing import CliRunner
 
+from flowtwin.calibration.kfit import kline_for_machine
+from flowtwin.calibration.kline import KLineParams
+from flowtwin.calibration.lagmodel import LagParams, lag_model
+from flowtwin.calibration.pattern_base import PrintSettings
+from flowtwin.calibration.render import ImageConditions
 from flowtwin.cli.calibrate import register
-from flowtwin.errors import CalibrationError, DataError
+from flowtwin.errors import CalibrationError, DataError, VisionError
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.physics.strand import tractrix_z_mm
+from flowtwin.profiles import load_rollers
+from flowtwin.profiles.machine import Machine
 from flowtwin.profiles.material import ExponentialViscosity
+from flowtwin.teststand import (
+    DriveUnderTest,
+    Instrument,
+    Procedure,
+    SlipLaw,
+    simulate_campaign,
+    write_records_csv,
+)
 
 runner = CliRunner()
 
@@ -35,7 +52,8 @@ def _app() -> typer.Typer:
 APP = _app()
 
 
-@pytest.mark.parametrize("command", ["pattern", "fit-viscosity", "fit-strand", "adaptive-pa"])
+@pytest.mark.parametrize("command", ["pattern", "fit-viscosity", "fit-strand", "adaptive-pa",
+                                     "fit-k", "from-image", "fit-slip"])
 def test_help_says_what_to_measure(command: str) -> None:
     result = runner.invoke(APP, ["calibrate", command, "--help"])
     assert result.exit_code == 0, result.output
@@ -148,3 +166,99 @@ def test_adaptive_pa_bad_query(tmp_path: Path) -> None:
                                  str(tmp_path / "t.txt"), "--at", "5"])
     assert isinstance(result.exception, CalibrationError)
     assert "--at takes FLOW,ACCEL" in str(result.exception)
+
+
+# --- lag and slip fits -------------------------------------------------------------------
+
+def _kline_profile(tmp_path: Path, machine: Machine, k_s: float, seed: int) -> Path:
+    """Widths along one K-line printed without advance on ``machine``, as a user's CSV."""
+    p = kline_for_machine(machine, PrintSettings(), KLineParams(k_start=0.0, k_end=0.0,
+                                                                mark_every=0))
+    model = lag_model(p.text().encode(), [p.segments[0].line], machine=machine)
+    x = np.arange(0.0, 80.001, 0.25)
+    w = model.widths(LagParams(k_s), [x])[0] + np.random.default_rng(seed).normal(
+        0.0, 0.01, x.size)
+    path = tmp_path / f"profile-{seed}.csv"
+    path.write_text("# microscope, 0.25 mm steps\nposition_mm,width_mm\n" + "".join(
+        f"{a:.3f},{b:.4f}\n" for a, b in zip(x, w, strict=True) if b == b and b > 0))
+    return path
+
+
+def test_fit_k_json_fragment_and_adaptive_rows(tmp_path: Path, tronvoll: Machine) -> None:
+    frag = tmp_path / "pa.toml"
+    measured = tmp_path / "measured.csv"
+    for seed, k in ((1, 0.05), (2, 0.05)):
+        result = runner.invoke(APP, ["calibrate", "fit-k", str(_kline_profile(
+            tmp_path, tronvoll, k, seed)), "-o", str(frag), "--append-to", str(measured),
+            "--json"])
+        assert result.exit_code == 0, result.output
+        out = json.loads(result.stdout)
+        assert abs(out["k_s"] - k) <= 3 * out["k_err_s"]
+        assert out["fitted"] == ["k_s"] and out["lines"][0]["advance_k_s"] == 0.0
+    assert tomllib.loads(frag.read_text())["pressure_advance"]["k_s"] == pytest.approx(
+        out["k_s"], abs=1e-6)
+    assert len(measured.read_text().splitlines()) == 3
+    table = tmp_path / "orca.txt"
+    result = runner.invoke(APP, ["calibrate", "adaptive-pa", str(measured), "-o", str(table),
+                                 "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["points"] == 1      # two repeats at one flow, averaged
+
+
+def test_fit_k_text_and_errors(tmp_path: Path, tronvoll: Machine) -> None:
+    profile = _kline_profile(tmp_path, tronvoll, 0.05, 3)
+    result = runner.invoke(APP, ["calibrate", "fit-k", str(profile), "--fit-gain"])
+    assert result.exit_code == 0, result.output
+    assert "K (lag)" in result.stdout and "[pressure_advance]" in result.stdout
+    result = runner.invoke(APP, ["calibrate", "fit-k", str(profile), "--gcode-line", "34"])
+    assert isinstance(result.exception, CalibrationError)
+    assert "need the G-code file" in str(result.exception)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("position_mm,width_mm\n1,0.5\n2,abc\n3,0.5\n")
+    result = runner.invoke(APP, ["calibrate", "fit-k", str(bad)])
+    assert isinstance(result.exception, DataError)
+    assert "bad.csv:3 [width_mm]" in str(result.exception)
+
+
+def test_from_image_json(tmp_path: Path, render_kline7: Any) -> None:
+    img = render_kline7(0.05, ImageConditions(px_per_mm=10.0, rotation_deg=2.0, blur_px=1.0,
+                                              noise_dn=4.0, seed=8))
+    path = tmp_path / "scan.png"
+    assert cv2.imwrite(str(path), img.image)
+    frag = tmp_path / "pa.toml"
+    result = runner.invoke(APP, ["calibrate", "from-image", str(path), "--k-start", "0.02",
+                                 "--k-end", "0.08", "-o", str(frag), "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert abs(out["lag"]["k_s"] - 0.05) <= 3 * out["lag"]["k_err_s"]
+    assert out["k_best_line_s"] == pytest.approx(0.05) and len(out["lines"]) == 7
+    assert tomllib.loads(frag.read_text())["pressure_advance"]["k_s"] == pytest.approx(
+        out["lag"]["k_s"], abs=1e-6)
+    result = runner.invoke(APP, ["calibrate", "from-image", str(path), "--dpi", "300",
+                                 "--mm-per-px", "0.1"])
+    assert isinstance(result.exception, CalibrationError)
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((200, 300), 240, np.uint8))
+    result = runner.invoke(APP, ["calibrate", "from-image", str(blank)])
+    assert isinstance(result.exception, VisionError)
+    assert "blank" in str(result.exception)
+
+
+def test_fit_slip_json(tmp_path: Path) -> None:
+    drive = DriveUnderTest.from_roller(load_rollers()[3], law=SlipLaw.PINCH, k_p=0.0063)
+    records = tmp_path / "stand.csv"
+    write_records_csv(records, simulate_campaign(
+        drive, seed=4, procedure=Procedure(pinch_forces_n=(40.0, 80.0, 120.0, 150.0),
+                                           speeds_mm_s=(1.0, 5.0, 15.0), repeats=1),
+        instrument=Instrument(sample_rate_hz=25.0)))
+    frag = tmp_path / "drive.toml"
+    result = runner.invoke(APP, ["calibrate", "fit-slip", str(records), "-o", str(frag),
+                                 "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["roller_id"] == "3" and out["records"] == 12
+    parsed = tomllib.loads(frag.read_text())
+    assert parsed["slip_overrides"]["k_s_pct_N"] == pytest.approx(
+        out["slip_overrides"]["k_s_pct_N"], rel=1e-6)
+    assert abs(out["slip_overrides"]["k_inf_pct_per_N"] - 0.32) <= 3 * out["errors"][
+        "k_inf_pct_per_N"]
