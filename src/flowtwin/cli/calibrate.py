@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -31,9 +31,7 @@ from flowtwin.calibration.guide import (
     STRAND_HELP,
     VISCOSITY_HELP,
 )
-from flowtwin.calibration.kfit import fit_k
 from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagfit import LagFit, read_width_profiles
 from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
 from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
@@ -47,6 +45,9 @@ from flowtwin.cli._common import console, err_console, fmt_duration, print_json,
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
+
+if TYPE_CHECKING:
+    from flowtwin.calibration.lagfit import LagFit
 
 __all__ = ["register"]
 
@@ -449,6 +450,9 @@ def _fit_k_cmd(
         help="Add k_s,k_err_s,flow_mm3_s,accel_mm_s2 to this adaptive-pa file.")] = None,
     json_out: _Json = False,
 ) -> None:
+    from flowtwin.calibration.kfit import fit_k
+    from flowtwin.calibration.lagfit import read_width_profiles
+
     profiles = read_width_profiles(profile)
     settings, params = _kline_parts(k_la, k_la, 0.01, slow_speed, fast_speed, slow_length,
                                     fast_length, layer_height, line_width, nozzle_diameter,
