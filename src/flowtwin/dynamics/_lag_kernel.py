@@ -58,7 +58,7 @@ from flowtwin.dynamics._expint import (
 __all__ = [
     "A_CMD", "A_FED", "A_FMAX", "A_FWD", "A_GRIND", "A_GTIME", "A_OUT", "A_QMAX", "A_QMIN",
     "A_SLIP", "A_TIME", "N_ACC", "N_SER", "S_E", "S_F", "S_Q", "S_SLIP", "S_T", "S_VCMD",
-    "S_VFIL", "S_X", "fill_move_results", "integrate_kernel",
+    "S_VFIL", "S_X", "acc_totals", "fill_move_results", "integrate_kernel", "prepare_segments",
 ]
 
 # Accumulator columns (per move, per stop): filament lengths in mm, times in s.
@@ -539,32 +539,92 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
 @njit(cache=True)
 def fill_move_results(acc: npt.NDArray[np.float64], area: float,
                       move_de: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
-                      move_t1: npt.NDArray[np.float64], out: npt.NDArray[np.void]) -> None:
-    """Per-move result records (``result.MOVE_RESULT_DTYPE``) from the accumulators.
+                      move_t1: npt.NDArray[np.float64], cmd: npt.NDArray[np.float64],
+                      fed_cmd: npt.NDArray[np.float64], fed: npt.NDArray[np.float64],
+                      out: npt.NDArray[np.float64], stop_out: npt.NDArray[np.float64],
+                      ooze: npt.NDArray[np.float64], q_mean: npt.NDArray[np.float64],
+                      q_min: npt.NDArray[np.float64], q_max: npt.NDArray[np.float64],
+                      peak: npt.NDArray[np.float64], slip: npt.NDArray[np.float64],
+                      slip_loss: npt.NDArray[np.float64], grind_loss: npt.NDArray[np.float64],
+                      grinding: npt.NDArray[np.bool_], duration: npt.NDArray[np.float64]
+                      ) -> None:
+    """Per-move results (the columns of ``result.MOVE_RESULT_DTYPE``, as strided views of
+    one record array) from the accumulators.
 
     Row ``i`` of ``acc`` is move ``i``; row ``n + 1 + i`` the stop after it. One pass,
-    record by record (filling a wide structured array column by column is memory bound).
+    element by element (no record objects: numba would reference-count each).
     """
     n = move_de.shape[0]
     for i in range(n):
-        mv = acc[i]
-        stop = acc[n + 1 + i]
-        r = out[i]
-        duration = move_t1[i] - move_t0[i]
-        out_mm3 = area * mv[A_OUT]
-        stop_out = area * stop[A_OUT]
-        r.cmd_mm3 = area * move_de[i]
-        r.fed_cmd_mm3 = area * mv[A_CMD]
-        r.fed_mm3 = area * mv[A_FED]
-        r.out_mm3 = out_mm3
-        r.stop_out_mm3 = stop_out
-        r.ooze_mm3 = stop_out if move_de[i] > 0.0 else out_mm3 + stop_out
-        r.q_mean_mm3_s = out_mm3 / duration if duration > 0.0 else 0.0
-        r.q_min_mm3_s = area * mv[A_QMIN] if mv[A_TIME] > 0.0 else 0.0
-        r.q_max_mm3_s = area * mv[A_QMAX]
-        r.peak_force_n = mv[A_FMAX]
-        r.slip = mv[A_SLIP] / mv[A_FWD] if mv[A_FWD] > 0.0 else 0.0
-        r.slip_loss_mm3 = area * mv[A_SLIP]
-        r.grind_loss_mm3 = area * mv[A_GRIND]
-        r.grinding = mv[A_GTIME] > 0.0 or stop[A_GTIME] > 0.0
-        r.duration_s = duration
+        d = move_t1[i] - move_t0[i]
+        o = area * acc[i, A_OUT]
+        so = area * acc[n + 1 + i, A_OUT]
+        cmd[i] = area * move_de[i]
+        fed_cmd[i] = area * acc[i, A_CMD]
+        fed[i] = area * acc[i, A_FED]
+        out[i] = o
+        stop_out[i] = so
+        ooze[i] = so if move_de[i] > 0.0 else o + so
+        q_mean[i] = o / d if d > 0.0 else 0.0
+        q_min[i] = area * acc[i, A_QMIN] if acc[i, A_TIME] > 0.0 else 0.0
+        q_max[i] = area * acc[i, A_QMAX]
+        peak[i] = acc[i, A_FMAX]
+        slip[i] = acc[i, A_SLIP] / acc[i, A_FWD] if acc[i, A_FWD] > 0.0 else 0.0
+        slip_loss[i] = area * acc[i, A_SLIP]
+        grind_loss[i] = area * acc[i, A_GRIND]
+        grinding[i] = acc[i, A_GTIME] > 0.0 or acc[n + 1 + i, A_GTIME] > 0.0
+        duration[i] = d
+
+
+@njit(cache=True)
+def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
+                     dt: npt.NDArray[np.float64], coef: npt.NDArray[np.float64], n: int,
+                     seg_param: npt.NDArray[np.int64], seg_slot: npt.NDArray[np.int64],
+                     acc: npt.NDArray[np.float64]) -> bool:
+    """Check a feed and set up the kernel's inputs in one pass.
+
+    Segment ``i`` takes the parameters of move ``clip(move[i], 0, n - 1)`` and accumulates
+    into slot ``move[i]`` (a move) or ``n + 1 + move[i]`` (the stop after it; ``n`` is the
+    stop before the first move). ``acc`` (slots × N_ACC) is zeroed (``A_QMIN`` = inf).
+    Returns False when a move index is out of ``[-1, n)``, a move segment has none, a
+    duration is not > 0 or a coefficient is not finite.
+    """
+    for i in range(move.shape[0]):
+        m = move[i]
+        if m >= n or m < -1 or (m < 0 and not gap[i]) or not dt[i] > 0.0:
+            return False
+        if not (math.isfinite(coef[i, 0]) and math.isfinite(coef[i, 1])
+                and math.isfinite(coef[i, 2]) and math.isfinite(coef[i, 3])):
+            return False
+        seg_param[i] = min(max(m, 0), n - 1)
+        seg_slot[i] = n + 1 + m if gap[i] else m
+    for r in range(acc.shape[0]):
+        for q in range(N_ACC):
+            acc[r, q] = 0.0
+        acc[r, A_QMIN] = math.inf
+    return True
+
+
+@njit(cache=True)
+def acc_totals(acc: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Column sums of the accumulators, compensated (Neumaier) so that the mass balance of
+    millions of moves stays at rounding; ``A_FMAX``: the maximum instead."""
+    out = np.zeros(N_ACC)
+    comp = np.zeros(N_ACC)
+    for r in range(acc.shape[0]):
+        for q in range(N_ACC):
+            v = acc[r, q]
+            t = out[q] + v
+            if abs(out[q]) >= abs(v):
+                comp[q] += (out[q] - t) + v
+            else:
+                comp[q] += (v - t) + out[q]
+            out[q] = t
+    mx = 0.0
+    for r in range(acc.shape[0]):
+        if acc[r, A_FMAX] > mx:
+            mx = acc[r, A_FMAX]
+    for q in range(N_ACC):
+        out[q] += comp[q]
+    out[A_FMAX] = mx
+    return out

@@ -376,6 +376,11 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
     n = feed.n_moves
     h_move = np.where(sched.k_s > 0.0, 0.5 * sched.smooth_time_s, 0.0)
     h_max = float(np.max(h_move)) if n else 0.0
+    if h_max == 0.0:
+        # no advance and no smoothing anywhere: every piece is a base segment unchanged
+        # (the kernel would return the same coefficients and positions, owners and gaps)
+        phase = np.where(feed.gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
+        return (feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm, feed.move, feed.gap, phase), []
     pad = 2.0 * h_max
     # base segments, padded with rest before and after (extended to infinity by the kernel)
     rest = np.zeros((1, 4))

@@ -24,7 +24,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.dynamics._feed_kernel import build_segments
+from flowtwin.dynamics._feed_kernel import (
+    BAD_NONE,
+    BAD_OVERLAP,
+    BAD_PHASE_TIME,
+    build_segments,
+    prepare_moves,
+)
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveTable
 from flowtwin.planner.timeline import Timeline
@@ -171,36 +177,6 @@ class CommandedFeed:
         return np.where(t < self.t_begin_s, self.e_start_mm, e)
 
 
-def _clamp_residue(t: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    return np.where((t < 0.0) & (t >= -_PHASE_RESIDUE_S), 0.0, t)
-
-
-def _e_ratio(moves: MoveTable, timeline: Timeline, *, tool: int | None
-             ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """E distance per path distance ``r`` and ``de · flow`` per move (checked)."""
-    mv = moves.moves
-    ph = timeline.phases
-    de = np.asarray(mv["de"], dtype=np.float64) * np.asarray(mv["flow"], dtype=np.float64)
-    if tool is not None:
-        de = np.where(mv["tool"] == tool, de, 0.0)
-    ta, tc, td = (_clamp_residue(np.asarray(ph[f], dtype=np.float64))
-                  for f in ("accel_t", "cruise_t", "decel_t"))
-    sv = np.asarray(ph["start_v"], dtype=np.float64)
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
-    ev = np.asarray(ph["end_v"], dtype=np.float64)
-    length = 0.5 * (sv + cv) * ta + cv * tc + 0.5 * (cv + ev) * td
-    bad = (de != 0.0) & ~(length > 0.0)
-    if np.any(bad):
-        i = int(np.flatnonzero(bad)[0])
-        raise DataError("move extrudes but the planner gives it no motion (zero path length "
-                        "or zero duration)", source=moves.source, line=int(mv["line"][i]),
-                        field="timeline.phases", value=float(de[i]),
-                        allowed="moves with de != 0 need a duration > 0")
-    r = np.zeros_like(de)
-    np.divide(de, length, out=r, where=length > 0.0)
-    return r, de
-
-
 def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = None,
                  e_start_mm: float = 0.0, lead_s: float = 0.0, tail_s: float = 0.0
                  ) -> CommandedFeed:
@@ -240,34 +216,32 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
     if lead_s < 0.0 or tail_s < 0.0 or not np.isfinite(lead_s + tail_s):
         raise DataError("lead/tail time must be finite and >= 0", field="lead_s/tail_s",
                         value=(lead_s, tail_s), allowed=">= 0")
-    # planners leave rounding residue like -2e-18 s in phase times: clamp it to 0
-    ta, tc, td = (_clamp_residue(np.asarray(ph[f], dtype=np.float64))
-                  for f in ("accel_t", "cruise_t", "decel_t"))
-    ts = np.asarray(ph["t_start"], dtype=np.float64)
-    dur = ta + tc + td
-    bad_t = ~np.isfinite(dur + ts) | (ta < 0.0) | (tc < 0.0) | (td < 0.0)
-    if np.any(bad_t):
-        i = int(np.flatnonzero(bad_t)[0])
-        raise DataError("phase times must be finite and >= 0", source=moves.source,
-                        line=int(moves.moves["line"][i]), field="timeline.phases",
-                        value=(float(ta[i]), float(tc[i]), float(td[i]), float(ts[i])),
-                        allowed=">= 0")
-    te = ts + dur
-    if n > 1:
-        overlap = te[:-1] - ts[1:]
-        tol = _OVERLAP_TOL_S * np.maximum(1.0, np.abs(ts[1:]))
-        if np.any(overlap > tol):
-            i = int(np.flatnonzero(overlap > tol)[0]) + 1
+    # one compiled pass: planner residue like -2e-18 s in phase times is clamped to 0, the
+    # phase times, move order and motion of extruding moves are checked, E speeds computed
+    ts, te, ta, tc, td, sv, cv, ev, de = (np.empty(n) for _ in range(9))
+    err = np.zeros(2)
+    bad = prepare_moves(ph, moves.moves, -1 if tool is None else int(tool), tool is None,
+                        _PHASE_RESIDUE_S, _OVERLAP_TOL_S, ts, te, ta, tc, td, sv, cv, ev, de,
+                        err)
+    if bad != BAD_NONE:
+        i = int(err[0])
+        line = int(moves.moves["line"][i])
+        if bad == BAD_PHASE_TIME:
+            raise DataError("phase times must be finite and >= 0", source=moves.source,
+                            line=line, field="timeline.phases",
+                            value=(float(ta[i]), float(tc[i]), float(td[i]), float(ts[i])),
+                            allowed=">= 0")
+        if bad == BAD_OVERLAP:
             raise DataError("move starts before the previous one ends", source=moves.source,
-                            line=int(moves.moves["line"][i]), field="timeline.t_start",
-                            value=float(ts[i]), allowed=f">= {float(te[i - 1])!r}")
-    r, de = _e_ratio(moves, timeline, tool=tool)
-    sv = np.asarray(ph["start_v"], dtype=np.float64) * r
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64) * r
-    ev = np.asarray(ph["end_v"], dtype=np.float64) * r
+                            line=line, field="timeline.t_start", value=float(ts[i]),
+                            allowed=f">= {float(err[1])!r}")
+        raise DataError("move extrudes but the planner gives it no motion (zero path length "
+                        "or zero duration)", source=moves.source, line=line,
+                        field="timeline.phases", value=float(err[1]),
+                        allowed="moves with de != 0 need a duration > 0")
     t0_s, dt_s, coef, e0_mm, move, phase_k = build_segments(
         ts, te, ta, tc, td, sv, cv, ev, de, float(e_start_mm), float(lead_s), float(tail_s))
     gap = phase_k == PHASE_GAP
     return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
-                         phase=phase_k, move_t0_s=ts.copy(), move_t1_s=te,
+                         phase=phase_k, move_t0_s=ts, move_t1_s=te,
                          move_de_mm=de, e_start_mm=float(e_start_mm))

@@ -43,7 +43,6 @@ from flowtwin.dynamics._lag_kernel import (
     A_GRIND,
     A_GTIME,
     A_OUT,
-    A_QMIN,
     A_SLIP,
     A_TIME,
     N_ACC,
@@ -56,8 +55,10 @@ from flowtwin.dynamics._lag_kernel import (
     S_VCMD,
     S_VFIL,
     S_X,
+    acc_totals,
     fill_move_results,
     integrate_kernel,
+    prepare_segments,
 )
 from flowtwin.dynamics.feed import CommandedFeed
 from flowtwin.dynamics.params import ExtrusionParams
@@ -164,12 +165,6 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                         value=initial_compression_mm, allowed="finite mm")
     t0, dt, coef, e0 = feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm
     move, gap = feed.move, feed.gap
-    if (move.max() >= n or move.min() < -1 or np.any(move[~gap] < 0)
-            or not np.all(dt > 0.0) or not np.all(np.isfinite(coef))):
-        raise DataError("commanded feed is inconsistent (move index out of range, segment "
-                        "without a move, non-positive duration or non-finite speed)",
-                        field="feed", value=feed.n_segments,
-                        allowed=f"move indices in [-1, {n}), dt > 0, finite coefficients")
     if tail_s > 0.0:
         t0 = np.append(t0, feed.t_end_s)
         dt = np.append(dt, tail_s)
@@ -177,10 +172,18 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         e0 = np.append(e0, feed.e_end_mm())
         move = np.append(move, n - 1)
         gap = np.append(gap, True)
-    seg_param = np.clip(move, 0, n - 1).astype(np.int64)
-    seg_slot = np.where(gap, n + 1 + move, move).astype(np.int64)
-    acc = np.zeros((2 * n + 1, N_ACC))
-    acc[:, A_QMIN] = np.inf
+    seg_param = np.empty(move.shape[0], dtype=np.int64)
+    seg_slot = np.empty(move.shape[0], dtype=np.int64)
+    acc = np.empty((2 * n + 1, N_ACC))
+    if not prepare_segments(np.ascontiguousarray(move, dtype=np.int64),
+                            np.ascontiguousarray(gap, dtype=np.bool_),
+                            np.ascontiguousarray(dt, dtype=np.float64),
+                            np.ascontiguousarray(coef, dtype=np.float64), n, seg_param,
+                            seg_slot, acc):
+        raise DataError("commanded feed is inconsistent (move index out of range, segment "
+                        "without a move, non-positive duration or non-finite speed)",
+                        field="feed", value=feed.n_segments,
+                        allowed=f"move indices in [-1, {n}), dt > 0, finite coefficients")
     t_end = float(t0[-1] + dt[-1])
     sample_t = (np.zeros(0) if series_dt_s is None
                 else _series_times(feed, t_end, series_dt_s, series_window_s))
@@ -205,20 +208,21 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     before["peak_force_n"] = pre[A_FMAX]
     before["duration_s"] = pre[A_TIME]
     before["grinding"] = pre[A_GTIME] > 0.0
-    fed = area * float(np.sum(acc[:, A_FED]))
-    out = area * float(np.sum(acc[:, A_OUT]))
+    tot = acc_totals(acc)
+    fed = area * float(tot[A_FED])
+    out = area * float(tot[A_OUT])
     summary = DynamicsSummary(
         cmd_mm3=area * float(np.sum(feed.move_de_mm)),
-        fed_cmd_mm3=area * float(np.sum(acc[:, A_CMD])),
+        fed_cmd_mm3=area * float(tot[A_CMD]),
         fed_mm3=fed,
         out_mm3=out,
         stored_start_mm3=area * float(initial_compression_mm),
         stored_end_mm3=area * float(x_end),
         mass_balance_error_mm3=fed - out - area * (float(x_end) - float(initial_compression_mm)),
-        slip_loss_mm3=area * float(np.sum(acc[:, A_SLIP])),
-        grind_loss_mm3=area * float(np.sum(acc[:, A_GRIND])),
+        slip_loss_mm3=area * float(tot[A_SLIP]),
+        grind_loss_mm3=area * float(tot[A_GRIND]),
         ooze_mm3=float(np.sum(moves["ooze_mm3"])) + area * float(pre[A_OUT]),
-        peak_force_n=float(np.max(acc[:, A_FMAX])),
+        peak_force_n=float(tot[A_FMAX]),
         grinding_moves=int(np.count_nonzero(moves["grinding"])),
         duration_s=t_end - float(t0[0]),
         n_segments=int(t0.shape[0]),
@@ -244,7 +248,11 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
 def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64],
               area: float) -> npt.NDArray[np.void]:
     res = np.zeros(feed.n_moves, dtype=MOVE_RESULT_DTYPE)
+    cols = [res[name] for name in ("cmd_mm3", "fed_cmd_mm3", "fed_mm3", "out_mm3",
+                                   "stop_out_mm3", "ooze_mm3", "q_mean_mm3_s", "q_min_mm3_s",
+                                   "q_max_mm3_s", "peak_force_n", "slip", "slip_loss_mm3",
+                                   "grind_loss_mm3", "grinding", "duration_s")]
     fill_move_results(acc, float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
                       np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
-                      np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), res)
+                      np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), *cols)
     return res
