@@ -194,7 +194,7 @@ class MachineBuilder:
             machine = dataclasses.replace(machine, roller=roller)
         try:
             # The fit checks of load_machine (flowtwin.profiles.machine), run on the new parts.
-            _machine_module._check_fit(machine, "--param")
+            _machine_module.check_machine(machine, "--param")
         except ProfileError as exc:
             field = _FIT_FIELDS.get(exc.field or "", exc.field)
             where = f" (point: {_describe(overrides)})" if len(overrides) > 1 else ""

@@ -17,7 +17,7 @@ from flowtwin.profiles.rollers import Roller
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.profiles.toml_io import Profile, ProfileKind, load_profile
 
-__all__ = ["Machine", "load_machine"]
+__all__ = ["Machine", "check_machine", "load_machine"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,11 +124,14 @@ def load_machine(setup: str | os.PathLike[str] | SetupProfile) -> Machine:
     roller = drive.resolve_roller(load_rollers())
     machine = Machine(setup=s, printer=printer, drive=drive, roller=roller, hotend=hotend,
                       material=material, filament=filament)
-    _check_fit(machine, setup_src)
+    check_machine(machine, setup_src)
     return machine
 
 
-def _check_fit(m: Machine, src: str) -> None:
+def check_machine(m: Machine, src: str) -> None:
+    """Check that the parts of ``m`` fit together (nozzle, filament and bore, temperature
+    within the viscosity law, pinch force within the roller's data); raise
+    :class:`~flowtwin.errors.ProfileError` naming ``src`` otherwise."""
     fw_nozzle = m.printer.extruder.nozzle_diameter_mm
     if abs(fw_nozzle - m.hotend.nozzle_diameter_mm) > 1e-9:
         raise ProfileError(
