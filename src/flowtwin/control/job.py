@@ -94,7 +94,7 @@ class PrintJob:
 
     @classmethod
     def from_gcode(cls, source: str | os.PathLike[str] | bytes | BinaryIO, *,
-                   machine: Machine) -> PrintJob:
+                   machine: Machine, name: str | None = None) -> PrintJob:
         """Read and plan ``source`` for ``machine``'s printer.
 
         Parameters
@@ -104,6 +104,8 @@ class PrintJob:
         machine
             The set-up (its printer profile plans the moves; its layer height is the
             default where the G-code gives none).
+        name
+            What to call the job (default: the file name, ``<bytes>`` for bytes).
 
         Returns
         -------
@@ -145,7 +147,7 @@ class PrintJob:
             heater.append(HeaterCommand(tau, max(target, 0.0), mode, ev.line))
         in_part = np.flatnonzero(layer >= 0)
         part_start = float(t_start[in_part[0]]) if in_part.size else 0.0
-        return cls(source=table.source, feed=feed, move_t0_s=t_start, layer=layer,
+        return cls(source=name or table.source, feed=feed, move_t0_s=t_start, layer=layer,
                    layer_height_mm=np.asarray(heights, dtype=np.float64),
                    heater=tuple(heater), part_start_s=part_start, end_s=end)
 

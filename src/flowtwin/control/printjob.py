@@ -208,7 +208,8 @@ def run_print_job(*, loop: bool, settings: PrintJobSettings | None = None,
                            field="job/machine")
     if machine is None or job is None:
         machine = load_machine(st.machine)
-        job = PrintJob.from_gcode(polygon_gcode(st.part).encode("utf-8"), machine=machine)
+        job = PrintJob.from_gcode(polygon_gcode(st.part).encode("utf-8"), machine=machine,
+                                  name=f"test polygon [003 §3.3], {st.part.layers} layers")
     clock = SimClock()
     runner = JobRunner(job, machine, start_s=clock.now(), heater_tau_s=st.heater_tau_s,
                        step_s=st.step_s)
@@ -263,7 +264,8 @@ def compare_print_jobs(settings: PrintJobSettings | None = None) -> PrintJobComp
     """
     st = settings or PrintJobSettings()
     machine = load_machine(st.machine)
-    job = PrintJob.from_gcode(polygon_gcode(st.part).encode("utf-8"), machine=machine)
+    job = PrintJob.from_gcode(polygon_gcode(st.part).encode("utf-8"), machine=machine,
+                              name=f"test polygon [003 §3.3], {st.part.layers} layers")
     off = run_print_job(loop=False, settings=st, job=job, machine=machine)
     on = run_print_job(loop=True, settings=st, job=job, machine=machine)
     return PrintJobComparison(off, on)
@@ -294,9 +296,9 @@ def job_runner(*, machine: str | Machine = "greeff2017", gcode: str | Path | Non
     """
     m = machine if isinstance(machine, Machine) else load_machine(machine)
     if gcode is None:
-        source: str | bytes = polygon_gcode(PolygonSpec.greeff(
-            layers_per_set=layers_per_set)).encode("utf-8")
+        spec = PolygonSpec.greeff(layers_per_set=layers_per_set)
+        job = PrintJob.from_gcode(polygon_gcode(spec).encode("utf-8"), machine=m,
+                                  name=f"test polygon [003 §3.3], {spec.layers} layers")
     else:
-        source = str(gcode)
-    job = PrintJob.from_gcode(source, machine=m)
+        job = PrintJob.from_gcode(str(gcode), machine=m)
     return JobRunner(job, m, start_s=start_s, heater_tau_s=heater_tau_s)
