@@ -362,22 +362,18 @@ def _adaptive_pa_cmd(
     console.print(f"wrote {output}")
 
 
-# ------------------------------------------------------------ lag fits (fit-k ...) ---
-
 def _kline_parts(k_start: float, k_end: float, k_step: float, slow_speed: float,
                  fast_speed: float, slow_length: float, fast_length: float,
                  layer_height: float | None, line_width: float, nozzle_diameter: float,
                  filament_diameter: float, accel: float | None, mark_every: int
                  ) -> tuple[PrintSettings, KLineParams]:
-    settings = PrintSettings(nozzle_diameter_mm=nozzle_diameter,
-                             filament_diameter_mm=filament_diameter,
-                             layer_height_mm=0.2 if layer_height is None else layer_height,
-                             line_width_mm=line_width, accel_mm_s2=accel)
-    params = KLineParams(k_start=k_start, k_end=k_end, k_step=k_step,
-                         slow_speed_mm_s=slow_speed, fast_speed_mm_s=fast_speed,
-                         slow_length_mm=slow_length, fast_length_mm=fast_length,
-                         mark_every=mark_every)
-    return settings, params
+    return (PrintSettings(nozzle_diameter_mm=nozzle_diameter,
+                          filament_diameter_mm=filament_diameter, line_width_mm=line_width,
+                          layer_height_mm=0.2 if layer_height is None else layer_height,
+                          accel_mm_s2=accel),
+            KLineParams(k_start=k_start, k_end=k_end, k_step=k_step, slow_speed_mm_s=slow_speed,
+                        fast_speed_mm_s=fast_speed, slow_length_mm=slow_length,
+                        fast_length_mm=fast_length, mark_every=mark_every))
 
 
 _Machine = Annotated[str, typer.Option(help="Set-up that printed it (built-in name or "
@@ -555,7 +551,7 @@ def _from_image_cmd(
     _report_lag(res.lag, "Lag fitted to all lines", output, text, None, None)
 
 
-def _fmt(x: float | None) -> str:
+def _fmt(x: float | None) -> str:  # NaN and None: "-"
     return "-" if x is None or x != x else f"{x:.4g}"
 
 
