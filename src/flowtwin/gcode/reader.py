@@ -17,6 +17,7 @@ scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools
 
 from __future__ import annotations
 
+import functools
 import gzip
 import io
 import math
@@ -193,7 +194,7 @@ class _Rows:
                    evals=np.zeros((cap_other, 27)))
 
     def grow_moves(self, need: int) -> None:
-        cap = max(2 * self.moves.shape[0], self.n + need + 16)
+        cap = max(self.moves.shape[0] + self.moves.shape[0] // 4, self.n + need + 16)
         new = np.empty(cap, MOVE_DTYPE)
         new[: self.n] = self.moves[: self.n]
         self.moves = new
@@ -382,13 +383,14 @@ class _Reader:
         self.events.append(event)
 
     def _record(self, code: str, params: dict[str, float | str], comment: str, line: int,
-                move_index: int, text: str | _Span) -> None:
+                move_index: int, text: str | _Span, *, checked: bool = False) -> None:
         if not code:
             self.comments.feed(comment, move_index, line)
             return
         if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
-            self._check_numeric(code, params, line, text)
-            self._event(Event(move_index, line, code, params))
+            if not checked:  # kernel-parsed commands hold numbers only
+                self._check_numeric(code, params, line, text)
+            self.events.append(Event(move_index, line, code, params))
         elif code not in HARMLESS_CODES:
             if self.options.strict:
                 raise GcodeError(f"unknown command {code}", source=self.name, line=line,
@@ -400,18 +402,18 @@ class _Reader:
         feed = self.comments.feed
         base = self.n_moves
         n = rows.n_other
-        masks = rows.evals[:n, 0].astype(np.int64).tolist()
-        values = rows.evals[:n, 1:].tolist()
-        for k, (lineno, start, end, move_index, kind, code_id) in enumerate(
-                rows.other[:n].tolist()):
+        other = rows.other[:n]
+        numeric = np.flatnonzero(other[:, 4] == K.OTHER_NUMERIC)
+        # values of the kernel-parsed commands only (comments have none)
+        num_vals = dict(zip(numeric.tolist(), rows.evals[numeric].tolist(), strict=True))
+        for k, (lineno, start, end, move_index, kind, code_id) in enumerate(other.tolist()):
             if kind == K.OTHER_NUMERIC:  # parsed by the kernel: no text to look at
                 code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
-                mask = masks[k]
-                vals = values[k]
+                vals = num_vals[k]
                 params: dict[str, float | str] = {
-                    _LETTERS[j]: vals[j] for j in range(26) if mask >> j & 1}
+                    letter: vals[j] for letter, j in _mask_letters(int(vals[0]))}
                 self._record(code, params, "", lineno, base + move_index,
-                             _Span(buf, start, end))
+                             _Span(buf, start, end), checked=True)
                 continue
             text = buf[start:end].decode("utf-8", "replace")
             if "\ufffd" in text:
@@ -436,7 +438,9 @@ class _Reader:
             raise GcodeError("binary data (NUL byte) in G-code", source=self.name, line=line,
                              allowed="text G-code")
         n_lines = buf.count(b"\n") + 1
-        rows = _Rows.make(n_lines + 16, max(64, n_lines // 4))
+        # arcs become several rows: reserve a few per arc so the buffer rarely grows
+        n_arcs = buf.count(b"G2 ") + buf.count(b"G3 ")
+        rows = _Rows.make(n_lines + 4 * n_arcs + 16, max(64, n_lines // 4))
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other = K.scan(
@@ -444,7 +448,7 @@ class _Reader:
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
-                rows.grow_moves(max(1024, rows.moves.shape[0]))
+                rows.grow_moves(max(1024, rows.moves.shape[0] // 4))
             elif status == K.ST_OTHER_FULL:
                 rows.grow_other()
             elif status == K.ST_ERROR:
@@ -467,7 +471,7 @@ class _Reader:
     def _table(self, rows: _Rows) -> MoveTable:
         n = rows.n
         # keep the kernel's buffer when it is mostly full, else copy to release the rest
-        moves = rows.moves[:n] if n >= 0.75 * rows.moves.shape[0] else rows.moves[:n].copy()
+        moves = rows.moves[:n] if n >= 0.6 * rows.moves.shape[0] else rows.moves[:n].copy()
         # cumulative E per tool, continuing across chunks
         e = np.empty(n)
         tools = moves["tool"]
@@ -527,6 +531,12 @@ class _Reader:
 
 
 _LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+
+
+@functools.lru_cache(maxsize=4096)
+def _mask_letters(mask: int) -> tuple[tuple[str, int], ...]:
+    """(letter, column in evals) of every bit set in a kernel letter mask."""
+    return tuple((_LETTERS[j], 1 + j) for j in range(26) if mask >> j & 1)
 
 
 @dataclass(frozen=True, slots=True)
