@@ -33,7 +33,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -298,7 +298,8 @@ def _usable_points(model: LagModel, profiles: Sequence[WidthProfile], end_margin
 
 
 def _check_curvature(names: Sequence[str], values: FloatArray, err: FloatArray,
-                     residuals: Any, ssr: float, s2: float) -> None:
+                     residuals: Callable[[FloatArray], FloatArray], ssr: float,
+                     s2: float) -> None:
     """Refuse a σ the data do not back: the sum of squares must rise on both sides.
 
     For a model linear in its parameters, moving one parameter by 2σ (the others held)

@@ -172,10 +172,6 @@ class TestLine:
         """Path length of the line, mm."""
         return float(self.cum_length_mm[-1])
 
-    def speed_changes_mm(self) -> FloatArray:
-        """Positions where the commanded speed changes (interior move boundaries), mm."""
-        return np.asarray(self.cum_length_mm[1:-1], dtype=np.float64)
-
 
 def _path_kinematics(phases: npt.NDArray[np.void], move: npt.NDArray[np.int64],
                      t_s: FloatArray) -> tuple[FloatArray, FloatArray]:
