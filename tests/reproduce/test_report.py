@@ -24,7 +24,7 @@ def test_write_one_paper(tmp_path: Path) -> None:
     js = tmp_path / "reproduction-greeff2017.json"
     assert report.files[:2] == [md, js]
     figs = sorted(p.name for p in (tmp_path / "figures").iterdir())
-    assert figs == ["greeff2017-slip.png"]
+    assert figs == ["greeff2017-print-job.png", "greeff2017-slip.png"]
     text = md.read_text(encoding="utf-8")
     # the figure is shown and followed by the claims it illustrates
     i_fig = text.index("![")

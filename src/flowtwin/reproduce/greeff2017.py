@@ -19,6 +19,7 @@ from flowtwin.reproduce.claims import Claim, Outcome, rounded, within_abs
 from flowtwin.reproduce.context import ReproContext
 from flowtwin.reproduce.figures import FigureSpec, PaperSection
 from flowtwin.reproduce.greeff2017_printjob import CLAIMS as PRINT_JOB_CLAIMS
+from flowtwin.reproduce.greeff2017_printjob import PRINT_JOB_FIGURE
 from flowtwin.reproduce.greeff2017_printjob import notes as print_job_notes
 from flowtwin.teststand.figures import new_figure
 
@@ -92,6 +93,7 @@ def _fig_slip(ctx: ReproContext) -> Figure:
 FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("slip", "[003 Fig. 6] steady slip against temperature at three feed speeds "
                        "(flowtwin's nozzle and drive models, Greeff's set-up).", _fig_slip),
+    PRINT_JOB_FIGURE,
 )
 
 
