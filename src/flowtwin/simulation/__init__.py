@@ -4,12 +4,14 @@
 (:mod:`flowtwin.planning`), derives the per-move physics from the machine's profiles
 (:mod:`flowtwin.simulation.parameters`), integrates the extrusion state equation with the
 firmware's pressure advance (:mod:`flowtwin.dynamics`) and applies the bead model
-(:mod:`flowtwin.simulation.result`).
+(:mod:`flowtwin.simulation.result`). ``simulate_stream`` does the same chunk by chunk in
+bounded memory and keeps the whole-print aggregates (:mod:`flowtwin.simulation.stream`).
 """
 
 from flowtwin.simulation.parameters import MoveParameters, layer_heights_mm, move_parameters
 from flowtwin.simulation.pipeline import DEFAULT_MACHINE, simulate
 from flowtwin.simulation.result import METRIC_DTYPE, SimulationResult
+from flowtwin.simulation.stream import StreamResult, simulate_stream
 
 __all__ = ["DEFAULT_MACHINE", "METRIC_DTYPE", "MoveParameters", "SimulationResult",
-           "layer_heights_mm", "move_parameters", "simulate"]
+           "StreamResult", "layer_heights_mm", "move_parameters", "simulate", "simulate_stream"]

@@ -253,8 +253,9 @@ def operating_point(machine: Machine, *, feed_mm_s: float, temperature_c: float 
     roller = machine.roller
     fp = machine.drive.pinch_force_n
     if roller.velocity_dependent and _EQ8_PINCH_RANGE_N[0] <= fp <= _EQ8_PINCH_RANGE_N[1]:
-        grad = float(slip_gradient_velocity(feed_mm_s, roller.a_per_n, roller.b_per_n,
-                                            roller.c_s_per_mm))
+        grad = float(slip_gradient_velocity(
+            feed_mm_s, float(roller.a_per_n),  # type: ignore[arg-type]
+            float(roller.b_per_n), float(roller.c_s_per_mm)))  # type: ignore[arg-type]
     else:
         grad = roller.k_s_n / fp ** 2 + roller.k_inf_per_n
     fit = roller.max_feed_force_fit

@@ -1,0 +1,108 @@
+"""Streaming simulation against the whole-table simulation and bounded sections."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtwin.errors import DataError, GcodeError
+from flowtwin.gcode.generator import PrintSpec, write_print
+from flowtwin.gcode.reader import iter_move_chunks
+from flowtwin.planner.klipper import plan_klipper
+from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
+from flowtwin.simulation import simulate, simulate_stream
+from flowtwin.simulation.windows import WindowPlanner
+
+# Whole-print figures are sums over ~1e5 moves of per-move values that agree to rounding:
+# 1e-9 relative leaves room for the summation order and the clock offsets of the windows
+# (1e-10 s on a 4600 s print) while any wrong section border or state carry shows at 1e-6
+# or worse.
+REL = 1e-9
+
+
+def _assert_same(whole: dict[str, object], stream: dict[str, object]) -> None:
+    for key, val in whole.items():
+        if key in ("warnings", "net_filament_mm"):
+            continue
+        got = stream[key]
+        if isinstance(val, float):
+            assert isinstance(got, float), key
+            scale = abs(val) if key != "ooze_volume_mm3" else abs(whole["delivered_volume_mm3"])  # type: ignore[arg-type]
+            assert abs(got - val) <= REL * max(scale, 1e-9), key
+        else:
+            assert got == val, key
+
+
+def _rows_same(a: list[dict[str, object]], b: list[dict[str, object]], total: float) -> None:
+    assert len(a) == len(b)
+    for ra, rb in zip(a, b, strict=True):
+        for key, val in ra.items():
+            if isinstance(val, float):
+                # per-row values relative to the row's command, or the print's for ~0 rows
+                scale = max(abs(float(ra["commanded_mm3"])), 1e-6 * total)  # type: ignore[arg-type]
+                assert abs(float(rb[key]) - val) <= 1e-8 * max(scale, abs(val)), key  # type: ignore[arg-type]
+            else:
+                assert rb[key] == val, key
+
+
+@pytest.fixture(scope="module")
+def gen_gcode(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("stream") / "gen.gcode"
+    write_print(path, PrintSpec(layers=30, infill_density=1.0))
+    return path
+
+
+def test_stream_equals_whole_simulation_on_generated_print(gen_gcode: Path) -> None:
+    whole = simulate(gen_gcode)
+    st = simulate_stream(gen_gcode, chunk_bytes=16 * 1024, section_moves=1000)
+    assert st.sections > 3 and st.windows > 3  # the test crosses many borders
+    assert st.unverified_moves == 0
+    _assert_same(whole.summary(), st.summary())
+    total = float(whole.summary()["commanded_volume_mm3"])  # type: ignore[arg-type]
+    _rows_same(whole.per_layer(), st.per_layer(), total)  # type: ignore[arg-type]
+    _rows_same(whole.per_feature(), st.per_feature(), total)  # type: ignore[arg-type]
+
+
+@pytest.mark.shared
+def test_stream_equals_whole_with_klipper_smoothed_advance(corpus_dir: Path,
+                                                           shared_dir: Path) -> None:
+    path = corpus_dir / "cura_5.9.1.gcode"
+    cfg = shared_dir / "klipper" / "B.cfg"   # pressure_advance 0.04 s, smooth time 0.04 s
+    whole = simulate(path, klipper_config=cfg)
+    st = simulate_stream(path, klipper_config=cfg, chunk_bytes=128 * 1024,
+                         section_moves=5000)
+    assert st.sections > 3
+    assert st.cuts_not_at_rest == 0 and st.unverified_moves == 0
+    _assert_same(whole.summary(), st.summary())
+
+
+@pytest.mark.shared
+def test_windowed_plan_is_bit_identical(corpus_dir: Path, shared_dir: Path) -> None:
+    path = corpus_dir / "orcaslicer_2.3.0b2.gcode"
+    ks = load_printer_cfg(shared_dir / "klipper" / "A.cfg")
+    opts = klipper_read_options(ks)
+    whole = simulate(path, klipper_config=shared_dir / "klipper" / "A.cfg").plan.timeline
+    wp = WindowPlanner(lambda t: plan_klipper(t, ks), str(path), np.zeros(4),
+                       window_moves=5000)
+    spans = []
+    for chunk in iter_move_chunks(path, options=opts, chunk_bytes=64 * 1024):
+        spans += wp.feed(chunk)
+    spans += wp.finish()
+    ph = np.concatenate([s.phases for s in spans])
+    assert wp.windows > 3
+    for name in ("start_v", "cruise_v", "end_v", "accel", "accel_t", "cruise_t", "decel_t"):
+        np.testing.assert_array_equal(ph[name], whole.phases[name])
+    # the clock: windows are shifted by a constant, so times agree to rounding of ~1e4 s
+    np.testing.assert_allclose(ph["t_start"], whole.phases["t_start"], rtol=0, atol=1e-8)
+    assert spans[-1].end_time_s == pytest.approx(whole.total_time_s, rel=1e-12)
+
+
+def test_stream_refusals(gen_gcode: Path, tmp_path: Path) -> None:
+    with pytest.raises(DataError):
+        simulate_stream(gen_gcode, section_moves=10)
+    empty = tmp_path / "empty.gcode"
+    empty.write_text("; nothing\n")
+    with pytest.raises(GcodeError):
+        simulate_stream(empty)
