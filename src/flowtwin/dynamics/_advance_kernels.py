@@ -208,13 +208,15 @@ def marlin_track(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                  rate: npt.NDArray[np.float64], o_t0: npt.NDArray[np.float64],
                  o_dt: npt.NDArray[np.float64], o_v0: npt.NDArray[np.float64],
                  o_a: npt.NDArray[np.float64], o_e0: npt.NDArray[np.float64],
-                 o_src: npt.NDArray[np.int64]) -> int:
+                 o_src: npt.NDArray[np.int64], state: npt.NDArray[np.float64]) -> int:
     """Marlin LA 1.5 advance tracking; returns the number of output segments (≤ 2n).
 
     ``target_max``, ``target_end`` (mm) and ``rate`` (mm/s) per move; ``rate == 0`` marks
     blocks without advance. ``o_src`` gets the base segment each output piece came from.
+    ``state[0]``: the advance (mm) before the first segment, replaced by the one after the
+    last (a feed simulated in pieces carries it).
     """
-    adv = 0.0
+    adv = state[0]
     k = 0
     for j in range(t0.shape[0]):
         m = move[j]
@@ -267,4 +269,5 @@ def marlin_track(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 o_src[k] = j
                 k += 1
             adv = target
+    state[0] = adv
     return k

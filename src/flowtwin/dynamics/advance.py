@@ -50,6 +50,7 @@ __all__ = [
     "advance_eligible",
     "advance_schedule",
     "apply_advance",
+    "apply_advance_carry",
 ]
 
 #: Klipper's default pressure_advance_smooth_time and Prusa's default M572 W, s.
@@ -292,13 +293,24 @@ def apply_advance(feed: CommandedFeed, moves: MoveTable,
     if feed.advance != "none" or np.any(feed.phase == PHASE_MIXED):
         raise ProfileError("feed already carries pressure advance", field="feed.advance",
                            value=feed.advance, allowed="a nominal feed")
+    return apply_advance_carry(feed, moves, settings, np.zeros(1))
+
+
+def apply_advance_carry(feed: CommandedFeed, moves: MoveTable, settings: AdvanceSettings,
+                        marlin_state: npt.NDArray[np.float64]) -> CommandedFeed:
+    """:func:`apply_advance` of one piece of a longer feed: Marlin's tracked advance
+    (``marlin_state[0]``, mm) is taken before the piece and replaced by its value after it.
+
+    For :mod:`flowtwin.simulation.stream`; other firmwares carry no state across moves
+    (Klipper's and Prusa's smoothing is made seamless by where the pieces are cut).
+    """
     sched = advance_schedule(moves, settings)
     fw = settings.firmware
     notes: list[str] = []
     if fw in (Firmware.KLIPPER, Firmware.PRUSA):
         out, notes = _smoothed(feed, sched)
     elif fw is Firmware.MARLIN:
-        out = _marlin(feed, sched)
+        out = _marlin(feed, sched, marlin_state)
     else:
         out = _rrf(feed, sched)
     return CommandedFeed(t0_s=out[0], dt_s=out[1], coef=out[2], e0_mm=out[3], move=out[4],
@@ -332,7 +344,8 @@ def _rrf(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
             feed.phase)
 
 
-def _marlin(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
+def _marlin(feed: CommandedFeed, sched: AdvanceSchedule,
+            state: npt.NDArray[np.float64]) -> _Arrays:
     n = feed.n_moves
     k = sched.k_eff_s
     # per-move E speeds and acceleration from the nominal feed's phases
@@ -364,7 +377,7 @@ def _marlin(feed: CommandedFeed, sched: AdvanceSchedule) -> _Arrays:
     cnt = marlin_track(feed.t0_s, feed.dt_s, np.ascontiguousarray(feed.coef[:, 0]),
                        np.ascontiguousarray(feed.coef[:, 1]), feed.e0_mm, feed.move, feed.gap,
                        feed.phase, k * v_cruise, k * v_end, rate, o[0], o[1], o[2], o[3],
-                       o[4], src)
+                       o[4], src, state)
     coef = np.zeros((cnt, 4))
     coef[:, 0] = o[2][:cnt]
     coef[:, 1] = o[3][:cnt]

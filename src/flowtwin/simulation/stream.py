@@ -23,15 +23,15 @@ Sections end where the result cannot depend on what follows:
 
 Differences to :func:`~flowtwin.simulation.simulate`, by construction: layer heights come
 from the first extrusion of each layer (the reader gives slicer layer markers only at the
-end of a stream); ``use_slicer_limits`` (the slicer's limits sit at the end of the file) and
-Marlin Linear Advance (its advance state would have to cross sections) are refused.
+end of a stream); ``use_slicer_limits`` (the slicer's limits sit at the end of the file) is
+not offered. Marlin Linear Advance carries its tracked advance from section to section.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
 
@@ -43,11 +43,11 @@ from flowtwin.dynamics import (
     AdvanceSettings,
     CommandedFeed,
     Firmware,
-    apply_advance,
     integrate,
     nominal_feed,
     temperature_schedule,
 )
+from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.reader import DEFAULT_CHUNK_BYTES, iter_move_chunks
@@ -132,6 +132,7 @@ class _State:
     first: bool = True
     layer_z: list[float] = field(default_factory=list)
     replay: dict[tuple[str, frozenset[str]], Event] = field(default_factory=dict)
+    marlin_adv: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(1))
 
 
 def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
@@ -166,7 +167,7 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     GcodeError, ProfileError
         Bad G-code or profiles; a file without moves.
     DataError
-        Marlin Linear Advance, or a bad ``section_moves``.
+        A bad ``section_moves``.
     """
     if section_moves < 1000:
         raise DataError("sections must hold at least 1000 moves", field="section_moves",
@@ -201,10 +202,6 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     advance = adv if pressure_advance else None
     label = "off" if advance is None else (
         f"{advance.firmware.value} K={advance.k_s:g} s (+ G-code commands)")
-    if advance is not None and advance.firmware is Firmware.MARLIN and advance.k_s > 0.0:
-        raise DataError("streaming does not carry Marlin Linear Advance across sections",
-                        field="pressure_advance", value=advance.k_s,
-                        allowed="simulate() for Marlin LA, or pressure_advance=False")
     smoothing = advance is not None and advance.firmware in (Firmware.KLIPPER, Firmware.PRUSA)
     start = np.array([*options.start_xyz, 0.0])
     name = _source_name(source)
@@ -220,8 +217,6 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     lines = 0
     features: list[str] = []
     for chunk in iter_move_chunks(source, options=options, chunk_bytes=chunk_bytes):
-        if advance is not None and advance.firmware is Firmware.MARLIN:
-            _refuse_marlin_la(chunk.events, name)
         sim.add(wp.feed(chunk))
         sim.run(final=False, progress=progress)
         lines = chunk.n_lines or lines
@@ -242,15 +237,6 @@ def _source_name(source: object) -> str:
     if isinstance(source, str | os.PathLike):
         return "<stdin>" if os.fspath(source) == "-" else os.fspath(source)
     return "<bytes>" if isinstance(source, bytes | bytearray) else "<stream>"
-
-
-def _refuse_marlin_la(events: Iterable[Event], name: str) -> None:
-    for ev in events:
-        k = ev.params.get("K")
-        if ev.code == "M900" and isinstance(k, float) and k > 0.0:
-            raise DataError("streaming does not carry Marlin Linear Advance across sections",
-                            source=name, line=ev.line, field="M900 K", value=k,
-                            allowed="simulate() for Marlin LA, or pressure_advance=False")
 
 
 def _trim(feed: CommandedFeed, t_a: float, t_b: float) -> CommandedFeed:
@@ -396,7 +382,7 @@ class _Simulator:
         feed = nominal_feed(table, tl, e_start_mm=st.e_mm, tail_s=tail)
         if self.advance is not None:
             t_a, t_b = feed.t_begin_s, feed.t_end_s
-            feed = apply_advance(feed, table, self.advance)
+            feed = apply_advance_carry(feed, table, self.advance, st.marlin_adv)
             # smoothing pads the feed with rest before and after: only the print's own
             # start and end have it
             feed = _trim(feed, -math.inf if st.first else t_a, math.inf if last else t_b)
