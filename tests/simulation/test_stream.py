@@ -106,3 +106,15 @@ def test_stream_refusals(gen_gcode: Path, tmp_path: Path) -> None:
     empty.write_text("; nothing\n")
     with pytest.raises(GcodeError):
         simulate_stream(empty)
+
+
+@pytest.mark.shared
+def test_stream_carries_marlin_linear_advance(corpus_dir: Path) -> None:
+    # the default set-up plans with Marlin; this file sets M900 K0.2 (Linear Advance 1.5):
+    # the tracked advance crosses every section border
+    path = corpus_dir / "prusaslicer_2.7.1_benchy.gcode"
+    whole = simulate(path)
+    assert whole.dynamics.feed.advance == "marlin"
+    st = simulate_stream(path, section_moves=20_000)
+    assert st.sections > 3 and st.unverified_moves == 0
+    _assert_same(whole.summary(), st.summary())
