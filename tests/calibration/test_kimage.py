@@ -122,10 +122,10 @@ def test_bad_images_never_give_a_k(kline7: Pattern, tronvoll: Machine,
 
 
 def test_pattern_must_match_the_machine(kline7: Pattern, tronvoll: Machine) -> None:
-    marlin = generate_pattern("kline", PrintSettings(firmware=Firmware.MARLIN),
-                              {"k_start": 0.02, "k_end": 0.08})
+    klipper = generate_pattern("kline", PrintSettings(firmware=Firmware.KLIPPER),
+                               {"k_start": 0.02, "k_end": 0.08})
     with pytest.raises(CalibrationError, match="another firmware"):
-        analyse_kline_image(np.zeros((50, 50), np.uint8), marlin, machine=tronvoll)
+        analyse_kline_image(np.zeros((50, 50), np.uint8), klipper, machine=tronvoll)
     chevron = generate_pattern("chevron", PrintSettings(firmware=Firmware.PRUSA))
     with pytest.raises(CalibrationError, match="reads K-line patterns"):
         analyse_kline_image(np.zeros((50, 50), np.uint8), chevron, machine=tronvoll)

@@ -37,8 +37,10 @@ def test_bead_widths_are_the_twins(render_kline7: Render, kline7: Pattern,
     model_w = model.widths(LagParams(0.05), [np.clip((x[:, None] + sub).ravel(), 0, 80)]
                            * 7)[3].reshape(-1, 9).mean(axis=1)
     inner = (x > 1.0) & (x < 79.0)
-    # exact coverage rendering, bilinear resampling: well under a tenth of a pixel (8 µm)
-    np.testing.assert_allclose(w[inner], model_w[inner], atol=0.002)
+    # exact coverage rendering, bilinear resampling: well under a tenth of a pixel (8 µm);
+    # Marlin's linear advance (the MK2.5's) makes the width step at a speed change, and the
+    # resampling spreads a step over one pixel: up to 3 µm there
+    np.testing.assert_allclose(w[inner], model_w[inner], atol=0.003)
 
 
 def test_homography_puts_the_lines_where_they_are_drawn(render_kline7: Render) -> None:
