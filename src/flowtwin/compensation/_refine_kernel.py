@@ -1,0 +1,240 @@
+"""Compiled kernels of the refinement: the linear lag model, forward and adjoint.
+
+State ``x`` = filament compression in E grid units (SPEC §3.4 without slip):
+``dx/dt = u(t) − x/K`` with the input ``u = c·v(t)`` on a segment of constant
+acceleration (path speed ``v`` linear from ``v_a`` to ``v_b`` in ``T``, slope ``α``).
+Exactly::
+
+    x(T) = e·x(0) + c·G,   e = exp(−T/K),
+    G = ∫₀ᵀ v(τ)·e^(−(T−τ)/K) dτ = v_b·K·(1 − e) − α·K²·(1 − e·(1 + T/K))
+
+and the melt out of the segment is ``c·L − (x(T) − x(0))`` (mass balance). Every segment is
+therefore the affine map ``x_s = A_s·x_(s−1) + B_s·c_(p(s)) + C_s`` (fixed moves put their
+input into ``C_s``; a retraction holds the state: ``A = 1``). The output of move ``m`` is
+``O_m = Σ_(s∈m) c·L_s − x_end(m) + x_start(m)``; the adjoint pass gives the gradient of
+``Σ_m w_m·(O_m − I_m)²`` with respect to the ratios ``c``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+__all__ = ["lag_gain", "model_pass"]
+
+
+@njit(cache=True)
+def lag_gain(t_s: float, k_s: float, v_a: float, v_b: float) -> tuple[float, float]:
+    """``(e, G)`` of a segment (see the module docstring); stable for ``T ≪ K``."""
+    if t_s <= 0.0:
+        return 1.0, 0.0
+    y = t_s / k_s
+    e = math.exp(-y)
+    one_minus_e = -math.expm1(-y)
+    if y < 1e-3:  # 1 − e(1 + y) = y²/2 − y³/3 + y⁴/8 − …
+        second = y * y * (0.5 - y / 3.0 + y * y / 8.0)
+    else:
+        second = one_minus_e - y * e
+    alpha = (v_b - v_a) / t_s
+    return e, v_b * k_s * one_minus_e - alpha * k_s * k_s * second
+
+
+@njit(cache=True)
+def model_pass(c: npt.NDArray[np.float64], seg_piece: npt.NDArray[np.int64],
+               seg_fixed: npt.NDArray[np.float64], seg_len: npt.NDArray[np.float64],
+               seg_a: npt.NDArray[np.float64], seg_b: npt.NDArray[np.float64],
+               seg_c: npt.NDArray[np.float64], seg_row: npt.NDArray[np.int64],
+               seg_first: npt.NDArray[np.bool_], seg_last: npt.NDArray[np.bool_],
+               intent: npt.NDArray[np.float64], weight: npt.NDArray[np.float64],
+               out_rows: npt.NDArray[np.float64], grad: npt.NDArray[np.float64]) -> float:
+    """Forward model, objective and its gradient.
+
+    Parameters
+    ----------
+    c
+        Ratios of the free pieces, ``(p,)``.
+    seg_piece
+        Free piece of each segment, or −1 (fixed input), ``(s,)``.
+    seg_fixed
+        Ratio of fixed segments, ``(s,)``.
+    seg_len
+        Path length of each segment, ``(s,)``.
+    seg_a, seg_b, seg_c
+        Affine map of each segment (``seg_c`` already holds fixed inputs), ``(s,)``.
+    seg_row
+        Objective move of each segment, or −1, ``(s,)``.
+    seg_first, seg_last
+        Segment is the first / last of its objective move, ``(s,)``.
+    intent
+        Intended E of every objective move, ``(m,)``.
+    weight
+        Weight of each move's squared error, ``(m,)``.
+    out_rows
+        Output: model E out of every objective move, ``(m,)``.
+    grad
+        Output: gradient with respect to ``c``, ``(p,)``.
+
+    Returns
+    -------
+    float
+        ``Σ_m w_m·(O_m − I_m)²``.
+    """
+    n = seg_piece.shape[0]
+    m = intent.shape[0]
+    x_start = np.zeros(m)
+    x_end = np.zeros(m)
+    for k in range(m):
+        out_rows[k] = 0.0
+    x = 0.0
+    for s in range(n):
+        p = seg_piece[s]
+        cv = c[p] if p >= 0 else seg_fixed[s]
+        row = seg_row[s]
+        if row >= 0 and seg_first[s]:
+            x_start[row] = x
+        x = seg_a[s] * x + seg_b[s] * cv + seg_c[s]
+        if row >= 0:
+            out_rows[row] += cv * seg_len[s]
+            if seg_last[s]:
+                x_end[row] = x
+    total = 0.0
+    g_row = np.empty(m)
+    for k in range(m):
+        out_rows[k] -= x_end[k] - x_start[k]
+        r = out_rows[k] - intent[k]
+        total += weight[k] * r * r
+        g_row[k] = 2.0 * weight[k] * r
+    for k in range(grad.shape[0]):
+        grad[k] = 0.0
+    lam = 0.0
+    for s in range(n - 1, -1, -1):
+        row = seg_row[s]
+        p = seg_piece[s]
+        if row >= 0 and seg_last[s]:
+            lam -= g_row[row]
+        if p >= 0:
+            grad[p] += seg_b[s] * lam
+            if row >= 0:
+                grad[p] += g_row[row] * seg_len[s]
+        lam = seg_a[s] * lam
+        if row >= 0 and seg_first[s]:
+            lam += g_row[row]
+    return total
+
+
+@njit(cache=True)
+def segment_maps(t_s: npt.NDArray[np.float64], k_s: npt.NDArray[np.float64],
+                 v_a: npt.NDArray[np.float64], v_b: npt.NDArray[np.float64],
+                 e_out: npt.NDArray[np.float64], g_out: npt.NDArray[np.float64]) -> None:
+    """:func:`lag_gain` of many segments."""
+    for s in range(t_s.shape[0]):
+        e, g = lag_gain(t_s[s], k_s[s], v_a[s], v_b[s])
+        e_out[s] = e
+        g_out[s] = g
+
+
+@njit(cache=True)
+def apply_holds(row_seg0: npt.NDArray[np.int64], row_seg1: npt.NDArray[np.int64],
+                row_free: npt.NDArray[np.bool_], row_de: npt.NDArray[np.float64],
+                row_relief: npt.NDArray[np.bool_], seg_a: npt.NDArray[np.float64],
+                seg_b: npt.NDArray[np.float64], seg_c: npt.NDArray[np.float64]) -> int:
+    """Hold the state through retractions (no backflow [001 Fig. 8]).
+
+    A retraction pulls the filament off the melt: the compression goes negative, nothing
+    flows and nothing decays until the filament is pushed back. From a row with negative
+    E until the E since then adds up to zero again, segments keep the state
+    (``A = 1, B = C = 0``); a surplus of the push-back is added at its end, a deficit
+    at the end of the hold, just before the next printing move. ``row_relief`` marks
+    travels that will carry a pressure-relief retraction whose push-back leaves the
+    column relaxed: the next
+    printing move then starts from ``x = 0``. Rows are given by their segment ranges
+    ``row_seg0[i]:row_seg1[i]``. Returns the number of holds.
+    """
+    holding = False
+    reset = False
+    net = 0.0
+    holds = 0
+    for i in range(row_seg0.shape[0]):
+        s0 = row_seg0[i]
+        s1 = row_seg1[i]
+        if s1 <= s0:
+            if not row_free[i] and holding:
+                net += row_de[i]
+            continue
+        if row_free[i]:
+            if holding and s0 > 0:
+                # end of the hold, on its last (held) segment, so that the printing move's
+                # own start state already includes it
+                if reset:
+                    seg_a[s0 - 1] = 0.0
+                    seg_c[s0 - 1] = 0.0
+                else:
+                    seg_c[s0 - 1] += net
+            holding = False
+            continue
+        if not holding and (row_de[i] < 0.0 or row_relief[i]):
+            holding = True
+            reset = row_relief[i]
+            net = 0.0
+            holds += 1
+        if holding:
+            net += row_de[i]
+            for s in range(s0, s1):
+                seg_a[s] = 1.0
+                seg_b[s] = 0.0
+                seg_c[s] = 0.0
+            if net >= -1e-9 and not reset:
+                seg_c[s1 - 1] = max(net, 0.0)
+                holding = False
+    return holds
+
+
+@njit(cache=True)
+def free_piece_chain(seg_piece: npt.NDArray[np.int64], seg_a: npt.NDArray[np.float64],
+                     seg_b: npt.NDArray[np.float64], seg_c: npt.NDArray[np.float64],
+                     seg_len: npt.NDArray[np.float64], alpha: npt.NDArray[np.float64],
+                     kappa: npt.NDArray[np.float64], e_p: npt.NDArray[np.float64],
+                     b_p: npt.NDArray[np.float64], k_p: npt.NDArray[np.float64],
+                     l_p: npt.NDArray[np.float64]) -> None:
+    """Collapse the segment maps onto the free pieces.
+
+    With ``x_p`` the state after free piece ``p``: the state before it is
+    ``α_p·x_(p−1) + κ_p`` (everything fixed in between composed), and
+    ``x_p = E_p·(α_p·x_(p−1) + κ_p) + B_p·c_p + K_p``; ``L_p`` is its path length.
+    """
+    big_a = 1.0
+    big_k = 0.0
+    cur = -1
+    e = 1.0
+    b = 0.0
+    k = 0.0
+    length = 0.0
+    for s in range(seg_piece.shape[0]):
+        p = seg_piece[s]
+        a = seg_a[s]
+        if p >= 0:
+            if p != cur:
+                alpha[p] = big_a
+                kappa[p] = big_k
+                e = 1.0
+                b = 0.0
+                k = 0.0
+                length = 0.0
+                cur = p
+            e = a * e
+            b = a * b + seg_b[s]
+            k = a * k + seg_c[s]
+            length += seg_len[s]
+            e_p[p] = e
+            b_p[p] = b
+            k_p[p] = k
+            l_p[p] = length
+            big_a = 1.0
+            big_k = 0.0
+        else:
+            big_a = a * big_a
+            big_k = a * big_k + seg_c[s]
+            cur = -1

@@ -1,0 +1,530 @@
+"""Pressure advance baked into the G-code [001 Eqs. 11, 13].
+
+The melt flow lags the commanded flow like ``H(s) = 1/(1 + K·s)`` [001 Eq. 15]. Commanding
+``v_in = v⁰ + K_LA·dv⁰/dt`` [001 Eq. 11] with ``K_LA = K`` makes the output equal the
+intended ``v⁰`` [001]. Integrated over time this says: the extruder should be at the
+*advanced position* ``E*(t) = E⁰(t) + K·v⁰_E(t)`` instead of ``E⁰(t)``.
+
+A G-code move turns its E in proportion to its path, so the firmware can only follow
+``E*`` at the ends of the pieces a move is cut into (:mod:`flowtwin.compensation.pieces`):
+every move is cut at the planner's accel/cruise/decel boundaries and each piece gets
+``E*(end) − E*(start)``. Two laws give ``E*`` at a piece's end:
+
+* ``discrete`` — Tronvoll's discrete law [001 Eq. 13],
+  ``ΔD_n = K_LA·(ΔD⁰_n/Δt_n − ΔD⁰_(n−1)/Δt_(n−1)) + ΔD⁰_n``, summed:
+  ``E*_n = E⁰_n + K_LA·ΔD⁰_n/Δt_n`` (the average rate of the piece just finished);
+* ``smoothed`` — Eq. 11 integrated exactly, ``E* = E⁰ + K·v⁰_E``, with the advance term
+  ``K·v⁰_E`` averaged over a symmetric triangular window of ``smooth_time_s`` (as
+  Klipper smooths its pressure advance), which turns the velocity steps at junctions into
+  ramps the firmware can execute; acceleration phases are cut into several pieces.
+
+A *run* is a stretch of consecutive printing moves (XY motion, positive E). At both ends
+of a run the advanced position equals the intended one, so each run keeps its exact
+commanded E (and the file its total volume); the advance only moves filament in time.
+Within a run the pieces follow ``E*`` as closely as the firmware allows
+(:mod:`flowtwin.compensation.limits`, :mod:`flowtwin.compensation._track_kernel`):
+no piece extrudes less than ``min_flow_fraction`` of its intended ratio (no negative
+extrusion — the ideal command during a deceleration is often negative, which the
+firmware's own advance can do but a G-code cannot [001 Fig. 8]), none more than the
+firmware accepts, and no ratio step exceeds the firmware's jump limit at the planned
+junction speed. Whatever had to be clipped is counted in :class:`AdvanceResult`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation._track_kernel import FLAG_NAMES, track_runs
+from flowtwin.compensation.limits import ExtruderLimits
+from flowtwin.compensation.pieces import Pieces
+from flowtwin.compensation.refine import RefineOptions
+from flowtwin.errors import ProfileError
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.planner.timeline import Timeline
+
+__all__ = ["AdvanceLaw", "AdvanceOptions", "LawResult", "advance_targets", "eligible_rows",
+           "follow_law", "smoothed_advance_term"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+class AdvanceLaw(StrEnum):
+    """Which form of the advance law sets the pieces' E."""
+
+    DISCRETE = "discrete"   #: [001 Eq. 13] on the phase pieces
+    SMOOTHED = "smoothed"   #: [001 Eq. 11] integrated, advance term smoothed
+
+
+@dataclass(frozen=True, slots=True)
+class AdvanceOptions:
+    """How to bake the advance.
+
+    Attributes
+    ----------
+    law
+        :class:`AdvanceLaw`.
+    k_scale
+        ``K_LA = k_scale · K`` with ``K`` the twin's lag factor of each move (1 restores
+        the command [001]).
+    k_s
+        A fixed ``K_LA`` (s) for every move instead of the twin's.
+    smooth_time_s
+        Width of the triangular smoothing window of the smoothed law, s (> 0).
+    accel_pieces
+        Least number of pieces per acceleration/deceleration phase (smoothed law; the
+        discrete law cuts at the phase boundaries only).
+    piece_time_fraction
+        Smoothed law: longest piece in acceleration, deceleration and the cruise edges
+        as a fraction of ``smooth_time_s`` (short pieces keep the ratio steps small).
+    anchor_band
+        Pieces at least ``smooth_time_s`` long keep their ratio within this fraction of
+        the target's; the envelope of the shorter pieces before them is planned so they
+        can (see :mod:`flowtwin.compensation._track_kernel`).
+    min_piece_mm
+        Shortest piece, mm; shorter ones are merged with a neighbour.
+    min_flow_fraction
+        Least E of a piece as a fraction of its intended E (no piece stops extruding).
+    limit_margin
+        Fraction of each firmware limit kept in reserve (0.1: use 90 %).
+    refine
+        Refine the law's pieces with the twin's lag model so every move delivers its own
+        volume (:mod:`flowtwin.compensation.refine`); ``None`` keeps the law as it is.
+    relief
+        Relieve the pressure over travels between printing runs with a retraction of the
+        predicted compression (needs ``refine``; see :mod:`flowtwin.compensation.bake`).
+    """
+
+    law: AdvanceLaw = AdvanceLaw.SMOOTHED
+    k_scale: float = 1.0
+    k_s: float | None = None
+    smooth_time_s: float = 0.02
+    accel_pieces: int = 2
+    piece_time_fraction: float = 0.25
+    anchor_band: float = 0.25
+    min_piece_mm: float = 0.1
+    min_flow_fraction: float = 0.05
+    limit_margin: float = 0.1
+    refine: RefineOptions | None = field(default_factory=RefineOptions)
+    relief: bool = True
+
+    @property
+    def is_identity(self) -> bool:
+        """The options change nothing: no advance, no refinement, no relief."""
+        no_k = self.k_s == 0.0 or (self.k_s is None and self.k_scale == 0.0)
+        return no_k and self.refine is None and not self.relief
+
+    def __post_init__(self) -> None:
+        checks = {
+            "k_scale": (self.k_scale, 0.0 <= self.k_scale <= 10.0, "0 <= k_scale <= 10"),
+            "smooth_time_s": (self.smooth_time_s, 0.0 < self.smooth_time_s <= 0.2,
+                              "0 < t <= 0.2 s"),
+            "accel_pieces": (self.accel_pieces, 1 <= self.accel_pieces <= 16, "1 .. 16"),
+            "piece_time_fraction": (self.piece_time_fraction,
+                                    0.05 <= self.piece_time_fraction <= 1.0, "0.05 .. 1"),
+            "anchor_band": (self.anchor_band, 0.0 <= self.anchor_band <= 10.0, "0 .. 10"),
+            "min_piece_mm": (self.min_piece_mm, 0.0 <= self.min_piece_mm <= 10.0,
+                             "0 .. 10 mm"),
+            "min_flow_fraction": (self.min_flow_fraction,
+                                  0.0 < self.min_flow_fraction <= 1.0, "0 < f <= 1"),
+            "limit_margin": (self.limit_margin, 0.0 <= self.limit_margin < 1.0, "0 <= m < 1"),
+        }
+        if self.k_s is not None:
+            checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")
+        for name, (value, ok, allowed) in checks.items():
+            if not (ok and math.isfinite(float(value))):
+                raise ProfileError("invalid advance option", field=name, value=value,
+                                   allowed=allowed)
+
+
+def eligible_rows(table: MoveTable, row_de_grid: IntArray) -> npt.NDArray[np.bool_]:
+    """Printing moves the advance acts on: XY motion, positive E, written in the G-code."""
+    kind = table.moves["kind"]
+    return (((kind & MoveKind.XY) != 0) & ((kind & MoveKind.FW_RETRACT) == 0)
+            & (row_de_grid > 0))
+
+
+def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
+                          k_la: FloatArray, run_of_row: IntArray, times: FloatArray,
+                          query_run: IntArray, *, smooth_time_s: float) -> FloatArray:
+    """Triangular-window average of ``A(t) = K·r·v(t)`` within each run.
+
+    ``A`` is piecewise linear in time (the planner's phases), zero outside the run's
+    moves. With ``F₁ = ∫A`` and ``F₂ = ∫F₁`` the triangular average of half-width ``h``
+    is exactly ``(F₂(t + h) − 2F₂(t) + F₂(t − h))/h²``.
+
+    Parameters
+    ----------
+    timeline
+        The phases.
+    rows
+        Rows that carry advance, in order, shape ``(m,)``.
+    rate
+        E per path length of each of those rows, shape ``(m,)``.
+    k_la
+        ``K_LA`` of each of those rows, s, shape ``(m,)``.
+    run_of_row
+        Run index of each of those rows (non-decreasing), shape ``(m,)``.
+    times
+        Query times, s, shape ``(q,)``.
+    query_run
+        Run of each query, shape ``(q,)``.
+    smooth_time_s
+        Window width, s.
+
+    Returns
+    -------
+    ndarray
+        Smoothed advance term at the query times (E units of ``rate`` times mm), ``(q,)``.
+    """
+    ph = timeline.phases[rows]
+    t0 = np.asarray(ph["t_start"], dtype=np.float64)
+    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
+    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
+    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
+    sv = np.asarray(ph["start_v"], dtype=np.float64)
+    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
+    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    g = k_la * rate
+    # three segments per row: (start, duration, A at start, slope)
+    starts = np.column_stack([t0, t0 + ta, t0 + ta + tc]).ravel()
+    durs = np.column_stack([ta, tc, td]).ravel()
+    a0 = np.column_stack([g * sv, g * cv, g * cv]).ravel()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.column_stack([np.where(ta > 0, g * (cv - sv) / ta, 0.0), np.zeros_like(g),
+                                 np.where(td > 0, g * (ev - cv) / td, 0.0)]).ravel()
+    seg_run = np.repeat(run_of_row, 3)
+    # F1, F2 at segment starts, restarted at every run
+    f1_len = a0 * durs + 0.5 * slope * durs * durs
+    f2_len = 0.5 * a0 * durs ** 2 + slope * durs ** 3 / 6.0
+    n = starts.size
+    f1 = np.zeros(n)
+    f2 = np.zeros(n)
+    first = np.ones(n, dtype=bool)
+    first[1:] = seg_run[1:] != seg_run[:-1]
+    ends = starts + durs
+    # sequential accumulation (gaps between rows add F1·gap to F2)
+    _accumulate(starts, ends, f1_len, f2_len, first, f1, f2)
+    h = 0.5 * smooth_time_s
+    run_first = np.flatnonzero(first)
+    run_last = np.append(run_first[1:], n) - 1
+
+    def f2_at(t: FloatArray) -> FloatArray:
+        k = np.searchsorted(starts, t, side="right") - 1
+        k = np.clip(k, run_first[query_run], run_last[query_run])
+        u = t - starts[k]
+        inside = np.clip(u, 0.0, durs[k])
+        after = np.maximum(u - durs[k], 0.0)
+        val = (f2[k] + f1[k] * inside + 0.5 * a0[k] * inside ** 2
+               + slope[k] * inside ** 3 / 6.0 + (f1[k] + f1_len[k]) * after)
+        return np.where(u < 0.0, 0.0, val)
+
+    return (f2_at(times + h) - 2.0 * f2_at(times) + f2_at(times - h)) / (h * h)
+
+
+def _accumulate(starts: FloatArray, ends: FloatArray, f1_len: FloatArray, f2_len: FloatArray,
+                first: npt.NDArray[np.bool_], f1: FloatArray, f2: FloatArray) -> None:
+    """Running ``F₁``, ``F₂`` at segment starts (restart where ``first``)."""
+    # F1 is a segmented cumulative sum; F2 adds F1·duration + its own part, and F1·gap.
+    run_id = np.cumsum(first) - 1
+    c1 = np.cumsum(f1_len)
+    base1 = (c1 - f1_len)[first]
+    f1[:] = c1 - f1_len - base1[run_id]
+    prev_end = np.concatenate(([0.0], ends[:-1]))
+    gap = np.where(first, 0.0, starts - prev_end)
+    # F2 increments: before segment k: F1_(k-1)·dur_(k-1) + f2_len_(k-1) + F1_k·gap_k
+    inc = np.zeros_like(f1)
+    inc[1:] = f1[:-1] * (ends[:-1] - starts[:-1]) + f2_len[:-1]
+    inc += f1 * gap
+    inc[first] = 0.0
+    c2 = np.cumsum(inc)
+    base2 = c2[first]
+    f2[:] = c2 - base2[run_id]
+
+
+def advance_targets(pieces: Pieces, timeline: Timeline, rate: FloatArray, k_la: FloatArray,
+                    piece_run: IntArray, run_rows: IntArray, row_run: IntArray,
+                    options: AdvanceOptions) -> FloatArray:
+    """Advance term at the end of every piece (E units of ``rate`` · mm).
+
+    Parameters
+    ----------
+    pieces
+        The pieces of the runs' rows (only pieces with ``piece_run >= 0`` are used).
+    timeline
+        The phases.
+    rate
+        E per path length of every row, shape ``(n_rows,)``.
+    k_la
+        ``K_LA`` per row, s, shape ``(n_rows,)``.
+    piece_run
+        Run of every piece (−1: not in a run), shape ``(n_pieces,)``.
+    run_rows
+        Rows in runs, in order.
+    row_run
+        Run of each of ``run_rows``.
+    options
+        The law and its settings.
+
+    Returns
+    -------
+    ndarray
+        ``E* − E⁰`` at each piece's end, shape ``(n_pieces,)`` (0 outside runs).
+    """
+    out = np.zeros(len(pieces))
+    sel = piece_run >= 0
+    if not np.any(sel):
+        return out
+    r = pieces.row[sel]
+    if options.law is AdvanceLaw.DISCRETE:
+        dt = pieces.t1_s[sel] - pieces.t0_s[sel]
+        de0 = rate[r] * pieces.length_mm[sel]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[sel] = np.where(dt > 0, k_la[r] * de0 / dt, 0.0)
+        return out
+    out[sel] = smoothed_advance_term(
+        timeline, run_rows, rate[run_rows], k_la[run_rows], row_run, pieces.t1_s[sel],
+        piece_run[sel], smooth_time_s=options.smooth_time_s)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class LawResult:
+    """The advance law followed within the firmware's limits, for the pieces of the runs.
+
+    Arrays are over the *run pieces* ``sel`` (pieces of eligible rows, in order).
+
+    Attributes
+    ----------
+    sel
+        Piece indices of the run pieces, shape ``(p,)``.
+    run
+        Run of every run piece (0, 1, …), shape ``(p,)``.
+    run_first, run_last
+        Index (into ``sel``) of the first and last piece of every run, shape ``(r,)``.
+    run_total
+        Exact E of every run, grid units, shape ``(r,)``.
+    e
+        E of every run piece following the law, grid units (floats), shape ``(p,)``.
+    c_min, c_max
+        Ratio box of every run piece (grid units per mm), shape ``(p,)``; the first and
+        last piece of a run also respect the junctions with the moves around the run.
+    jump
+        Largest ratio step at the junction before every run piece, with the previous piece
+        of the same run (``inf`` at run starts and where the speed is 0), shape ``(p,)``.
+    counts
+        How many pieces were moved off the law's target (see
+        :data:`flowtwin.compensation._track_kernel.FLAG_NAMES`).
+    """
+
+    sel: IntArray
+    run: IntArray
+    run_first: IntArray
+    run_last: IntArray
+    run_total: FloatArray
+    e: FloatArray
+    c_min: FloatArray
+    c_max: FloatArray
+    jump: FloatArray
+    counts: dict[str, int]
+
+
+def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
+               row_e: FloatArray, row_e_exact: IntArray, k_la: FloatArray,
+               limits: ExtruderLimits, options: AdvanceOptions, *, e_unit_mm: float,
+               xy_rows: npt.NDArray[np.bool_]) -> LawResult:
+    """E of every piece of the runs by the advance law, within the firmware's limits.
+
+    Parameters
+    ----------
+    pieces
+        Pieces of every row (:func:`~flowtwin.compensation.pieces.split_rows`).
+    timeline
+        The phases (``n_rows``).
+    elig
+        Rows the advance acts on, shape ``(n_rows,)``.
+    row_e
+        Intended E of every row, grid units (floats), shape ``(n_rows,)``: the law's
+        ``E⁰``.
+    row_e_exact
+        E of every row as currently written, grid units, shape ``(n_rows,)``: every run
+        keeps this total exactly.
+    k_la
+        ``K_LA`` of every row, s.
+    limits
+        The firmware's extruder limits.
+    options
+        Law and settings.
+    e_unit_mm
+        Size of one grid unit, mm of filament.
+    xy_rows
+        Rows with XY motion, shape ``(n_rows,)``: a junction with a move without XY
+        motion (an E-only retraction) has no ratio step to limit.
+
+    Returns
+    -------
+    LawResult
+    """
+    n = timeline.phases.shape[0]
+    ph = timeline.phases
+    length_row = pieces.row_length_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = np.where(length_row > 0, row_e / np.where(length_row > 0, length_row, 1.0), 0.0)
+    elig = elig & (length_row > 0)
+    start = elig & ~np.concatenate(([False], elig[:-1]))
+    row_run_all = np.cumsum(start) - 1
+    run_rows = np.flatnonzero(elig)
+    row_run = row_run_all[run_rows]
+    n_runs = int(np.count_nonzero(start))
+    piece_run = np.where(elig[pieces.row], row_run_all[pieces.row], -1)
+    adv = advance_targets(pieces, timeline, rate, k_la, piece_run, run_rows, row_run, options)
+    sel = np.flatnonzero(piece_run >= 0)
+    empty = np.zeros(0)
+    if sel.size == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return LawResult(z, z, z, z, empty, empty, empty, empty, empty,
+                         dict.fromkeys(FLAG_NAMES, 0))
+    pr = pieces.row[sel]
+    length = pieces.length_mm[sel]
+    e0_piece = rate[pr] * length
+    prun = piece_run[sel] - int(piece_run[sel][0])
+    first_flag = np.concatenate(([True], prun[1:] != prun[:-1]))
+    run_first = np.flatnonzero(first_flag)
+    run_last = np.append(run_first[1:], sel.size) - 1
+    run_id = np.cumsum(first_flag) - 1
+    cum = np.cumsum(e0_piece)
+    cum_rel = cum - (cum - e0_piece)[run_first][run_id]
+    target = cum_rel + adv[sel]
+    target[run_last] = cum_rel[run_last]
+    run_total = np.bincount(row_run - row_run[0],
+                            weights=np.asarray(row_e_exact, dtype=np.float64)[run_rows],
+                            minlength=n_runs).astype(np.float64)
+    # ratio box (grid units per mm) from the firmware limits
+    margin = 1.0 - options.limit_margin
+    cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
+    accel = np.asarray(ph["accel"], dtype=np.float64)
+    grid_per_mm = 1.0 / e_unit_mm
+    c_min = options.min_flow_fraction * rate[pr]
+    c_cap = np.full(sel.size, math.inf)
+    if math.isfinite(limits.max_ratio):
+        c_cap = np.minimum(c_cap, margin * limits.max_ratio * grid_per_mm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if math.isfinite(limits.max_e_speed_mm_s):
+            c_cap = np.minimum(c_cap, np.where(cruise[pr] > 0, margin * limits.max_e_speed_mm_s
+                                               * grid_per_mm / cruise[pr], math.inf))
+        if math.isfinite(limits.max_e_accel_mm_s2):
+            c_cap = np.minimum(c_cap, np.where(accel[pr] > 0, margin * limits.max_e_accel_mm_s2
+                                               * grid_per_mm / accel[pr], math.inf))
+    c_max = np.maximum(c_cap, rate[pr])  # never below the intended ratio
+    # jump limit at the junction before each piece (a step the original had is allowed)
+    v_b = pieces.v0_mm_s[sel]
+    jump_grid = margin * limits.jump_mm_s * grid_per_mm
+    prev_rate = np.zeros(sel.size)
+    prev_rate[1:] = rate[pr[:-1]]
+    same_row = np.concatenate(([False], pr[1:] == pr[:-1]))
+    orig_step = np.where(same_row, 0.0, np.abs(rate[pr] - prev_rate))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dc = np.where(v_b > 1e-9, np.maximum(jump_grid, orig_step * v_b) / v_b, math.inf)
+    before = pr[run_first] - 1
+    prev_xy = (before >= 0) & xy_rows[np.maximum(before, 0)]
+    c_prev0 = np.zeros(sel.size)
+    c_prev0[run_first] = np.where(prev_xy, rate[np.maximum(before, 0)], 0.0)
+    dc[run_first] = np.where(prev_xy, dc[run_first], math.inf)
+    after = pr[run_last] + 1
+    v_end = pieces.v1_mm_s[sel][run_last]
+    next_xy = (after < n) & xy_rows[np.minimum(after, n - 1)]
+    next_rate = np.where(next_xy, rate[np.minimum(after, n - 1)], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        allow = np.where((v_end > 1e-9) & next_xy, np.maximum(jump_grid, np.abs(rate[pr[run_last]]
+                                                                    - next_rate) * v_end)
+                         / v_end, math.inf)
+    end_lo = next_rate - allow
+    end_hi = next_rate + allow
+    # anchors: long pieces keep a ratio near their target's
+    prev_target = np.concatenate(([0.0], target[:-1]))
+    prev_target[run_first] = 0.0
+    c_star = (target - prev_target) / length
+    duration = pieces.t1_s[sel] - pieces.t0_s[sel]
+    smoothed = options.law is AdvanceLaw.SMOOTHED
+    anchor = (duration >= options.smooth_time_s) if smoothed else np.zeros(sel.size, bool)
+    band = options.anchor_band * np.abs(c_star)
+    env_lo = np.where(anchor, c_star - band, c_min)
+    env_hi = np.where(anchor, c_star + band, c_max)
+    out = np.empty(sel.size)
+    flags = np.zeros(sel.size, dtype=np.int8)
+    run_start = np.append(run_first, sel.size).astype(np.int64)
+    track_runs(length, target, c_min, c_max, env_lo, env_hi, c_prev0, dc, run_start, run_total,
+               end_lo, end_hi, out, flags)
+    counts = {name: int(np.count_nonzero(flags == code)) for code, name in enumerate(FLAG_NAMES)}
+    prev = np.concatenate(([0.0], out[:-1]))
+    prev[run_first] = 0.0
+    e_law = out - prev
+    # boxes of the run ends include the junctions around the run
+    lo = c_min.copy()
+    hi = c_max.copy()
+    f_lo = c_prev0[run_first] - dc[run_first]
+    f_hi = c_prev0[run_first] + dc[run_first]
+    lo[run_first] = np.maximum(lo[run_first], np.minimum(f_lo, hi[run_first]))
+    hi[run_first] = np.minimum(hi[run_first], np.maximum(f_hi, lo[run_first]))
+    lo[run_last] = np.maximum(lo[run_last], np.minimum(end_lo, hi[run_last]))
+    hi[run_last] = np.minimum(hi[run_last], np.maximum(end_hi, lo[run_last]))
+    jump = np.where(first_flag, math.inf, dc)
+    return LawResult(sel, run_id.astype(np.int64), run_first.astype(np.int64),
+                     run_last.astype(np.int64), run_total, e_law, lo, hi, jump, counts)
+
+
+def round_runs(e: FloatArray, run_first: IntArray, run_last: IntArray,
+               run_total: FloatArray) -> IntArray:
+    """Piece E in whole grid units; every run keeps its exact total.
+
+    The cumulative E at interior piece ends is rounded to the nearest grid unit (the
+    rounding residue of one piece is carried into the next); the last end of each run is
+    the run's exact total. A piece that would round to less than one unit borrows it from
+    its neighbour, so no printing piece stops printing.
+
+    Parameters
+    ----------
+    e
+        E of every run piece (floats), shape ``(p,)``.
+    run_first, run_last
+        First and last piece of every run, shape ``(r,)``.
+    run_total
+        Exact (integral) E of every run, shape ``(r,)``.
+
+    Returns
+    -------
+    ndarray of int64
+        Shape ``(p,)``.
+    """
+    first = np.zeros(e.size, dtype=bool)
+    first[run_first] = True
+    run_id = np.cumsum(first) - 1
+    cum = np.cumsum(e)
+    cum = cum - (cum - e)[run_first][run_id]
+    pos = np.rint(cum).astype(np.int64)
+    pos[run_last] = np.rint(run_total).astype(np.int64)
+    prev = np.zeros(e.size, dtype=np.int64)
+    prev[1:] = pos[:-1]
+    prev[run_first] = 0
+    out = pos - prev
+    for j in np.flatnonzero(out < 1).tolist():  # rare
+        if out[j] >= 1:
+            continue
+        r = int(run_id[j])
+        lo, hi = int(run_first[r]), int(run_last[r])
+        donors = [k for k in (j + 1, j - 1) if lo <= k <= hi and out[k] > 1]
+        if not donors and hi > lo:
+            k = lo + int(np.argmax(out[lo:hi + 1]))
+            donors = [k] if out[k] > 1 else []
+        if donors:
+            need = 1 - int(out[j])
+            k = donors[0]
+            give = min(need, int(out[k]) - 1)
+            out[j] += give
+            out[k] -= give
+    return out

@@ -1,0 +1,315 @@
+"""One pass of the advance transformation over a draft.
+
+The draft's rendered file has been read and planned: its rows are the draft's pieces.
+A pass
+
+1. cuts the printing rows at their phase boundaries (first pass only;
+   :mod:`flowtwin.compensation.pieces`),
+2. gives every piece its E by the advance law within the firmware's limits
+   (:func:`flowtwin.compensation.advance.follow_law`),
+3. optionally refines the E with the twin's lag model so that every *original* move
+   delivers its own volume (:mod:`flowtwin.compensation.refine`),
+4. optionally relieves the pressure over travels between printing runs (first pass only):
+   the advance law [001 Eq. 11] commands ``−K·v⁰_E`` where the flow stops, which a G-code
+   can only do as a retraction. The travel after a run retracts the compression the twin
+   predicts at the run's end, the travel's end pushes the same length back (net E zero),
+   so the melt does not ooze away during the travel [001 Fig. 8].
+
+Every run of printing pieces keeps its exact E, so the file keeps its total.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation.advance import (
+    AdvanceLaw,
+    AdvanceOptions,
+    eligible_rows,
+    follow_law,
+    round_runs,
+)
+from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.limits import ExtruderLimits
+from flowtwin.compensation.pieces import Pieces, split_rows
+from flowtwin.compensation.refine import LagModel, build_lag_model, refine_qp
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.planner.timeline import Timeline
+
+__all__ = ["PassReport", "advance_pass"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: Relief is added only when the compression at a run's end is at least this many mm.
+_MIN_RELIEF_MM = 0.002
+#: Retract this many times the predicted compression, so the melt stops early in the move.
+_RELIEF_MARGIN = 2.0
+#: Speed of the relief retraction and push-back, mm/s (capped by the firmware's limit).
+_RELIEF_SPEED_MM_S = 35.0
+
+
+@dataclass(slots=True)
+class PassReport:
+    """What one pass did.
+
+    Attributes
+    ----------
+    pieces
+        Pieces after the pass (relief retractions included).
+    runs
+        Printing runs.
+    law_counts
+        Pieces moved off the law's target by the limits (see ``follow_law``).
+    refinement
+        Figures of the refinement (empty without it).
+    relief_travels
+        Travels given a pressure-relief retraction.
+    relief_mm
+        Total length retracted (and pushed back) by the reliefs, mm of filament.
+    """
+
+    pieces: int = 0
+    runs: int = 0
+    law_counts: dict[str, int] = field(default_factory=dict)
+    refinement: dict[str, float] = field(default_factory=dict)
+    relief_travels: int = 0
+    relief_mm: float = 0.0
+
+
+def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
+              row_e: IntArray) -> list[tuple[int, int]]:
+    """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
+
+    An interim qualifies when it lies between two printing rows, moves no E itself and
+    has at least one XY travel; ``first``/``last`` are its first and last XY travels.
+    """
+    n = elig.shape[0]
+    out: list[tuple[int, int]] = []
+    i = 0
+    while i < n:
+        if elig[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and not elig[j]:
+            j += 1
+        # rows i .. j-1 are between run ending at i-1 and run starting at j
+        if i > 0 and j < n and np.all(row_e[i:j] == 0):
+            xy = [k for k in range(i, j) if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
+            if xy:
+                out.append((xy[0], xy[-1]))
+        i = j
+    return out
+
+
+def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: FloatArray,
+                 limits: ExtruderLimits, options: AdvanceOptions, *, e_unit_mm: float,
+                 split: bool, relief: bool) -> tuple[Draft, PassReport]:
+    """Give the draft's printing pieces their advanced E (see the module docstring).
+
+    Parameters
+    ----------
+    draft
+        The draft; its rendered file's rows are ``table``.
+    table, timeline
+        The rendered draft read and planned (``len(table) == len(draft)``).
+    lag_k_s
+        The twin's lag factor of every row, s.
+    limits
+        The firmware's extruder limits.
+    options
+        Law and settings.
+    e_unit_mm
+        Size of one E grid unit, mm.
+    split
+        Cut printing rows at their phase boundaries.
+    relief
+        Add pressure relief on travels between runs.
+
+    Returns
+    -------
+    tuple
+        The new draft and a :class:`PassReport`.
+    """
+    n = len(table)
+    kind = np.asarray(table.moves["kind"], dtype=np.uint8)
+    group = draft.row
+    orig_elig = eligible_rows(draft.table, draft.row_e)
+    cur_e = draft.e_grid
+    elig = orig_elig[group] & ((kind & MoveKind.XY) != 0) & (cur_e > 0)
+    smoothed = options.law is AdvanceLaw.SMOOTHED
+    w = options.smooth_time_s
+    pieces = split_rows(timeline, elig if split else np.zeros(n, dtype=bool),
+                        accel_pieces=options.accel_pieces if smoothed else 1,
+                        max_piece_s=options.piece_time_fraction * w if smoothed else 0.0,
+                        cruise_edge_s=0.5 * w if smoothed else 0.0,
+                        min_piece_mm=options.min_piece_mm)
+    # the law's E⁰: each original move's intent spread over its rows by planned length
+    row_len = pieces.row_length_mm
+    group_len = np.bincount(group, weights=np.where(elig, row_len, 0.0), minlength=draft.n_rows)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        intent_row = np.where(elig & (group_len[group] > 0),
+                              draft.row_e[group] * row_len / group_len[group],
+                              cur_e.astype(np.float64))
+    k_la = (np.full(n, options.k_s) if options.k_s is not None
+            else options.k_scale * np.asarray(lag_k_s, dtype=np.float64))
+    law = follow_law(pieces, timeline, elig, intent_row, cur_e, k_la, limits, options,
+                     e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0)
+    report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
+    e_run = law.e
+    interims = _interims(elig, kind, cur_e) if relief else []
+    holds = np.zeros(n, dtype=bool)
+    for a, _b in interims:
+        holds[a] = True
+    elig_orig_rows = np.flatnonzero(orig_elig)
+    group_index = np.full(draft.n_rows, -1, dtype=np.int64)
+    group_index[elig_orig_rows] = np.arange(elig_orig_rows.size)
+    row_group = np.where(elig, group_index[group], -1)
+    model = None
+    if options.refine is not None and law.sel.size:
+        free = np.zeros(len(pieces), dtype=bool)
+        free[law.sel] = True
+        row_phys = cur_e.astype(np.float64)
+        plen = pieces.row_length_mm[pieces.row]
+        ratio = np.where(plen > 0, row_phys[pieces.row] / np.where(plen > 0, plen, 1.0), 0.0)
+        model = build_lag_model(pieces, timeline, np.asarray(lag_k_s, dtype=np.float64), free,
+                                ratio, row_phys, row_group, int(elig_orig_rows.size),
+                                travel_holds=holds)
+        intent = draft.row_e[elig_orig_rows].astype(np.float64)
+        # a first pass starts from the law; later passes from the draft's own E (already
+        # refined, now re-planned), so they only correct what the new timing changed
+        start_e = law.e if split else cur_e[pieces.row[law.sel]].astype(np.float64)
+        e_run, report.refinement = refine_qp(model, pieces, start_e, intent,
+                                             row_group[pieces.row[law.sel]], law.c_min,
+                                             law.c_max, options.refine)
+    e_piece = cur_e[pieces.row].astype(np.int64)
+    reliefs = _relief_amounts(interims, model, pieces, e_run, e_unit_mm=e_unit_mm)
+    if law.sel.size:
+        if model is None:  # the law keeps every run's E exactly
+            e_piece[law.sel] = round_runs(e_run, law.run_first, law.run_last, law.run_total)
+        else:  # the refinement moves E between runs; the file keeps its total
+            net = sum(back - ret for _a, _b, ret, back in reliefs)
+            total = int(np.sum(cur_e[elig])) - net
+            e_piece[law.sel] = round_total(e_run, total)
+    # geometry of the pieces
+    mv = table.moves
+    end = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
+    start = np.empty((n, 3))
+    if n:
+        start[0] = table.start_xyze[:3]
+        start[1:] = end[:-1]
+    f = pieces.fraction_end
+    xyz = start[pieces.row] + f[:, None] * (end[pieces.row] - start[pieces.row])
+    last = pieces.offsets[1:] - 1
+    xyz[last] = end
+    piece_of = pieces.row.copy()
+    feed = draft.piece_feed_mm_min[piece_of].copy()
+    if reliefs:
+        piece_of, xyz, e_piece, feed = _insert_relief(reliefs, piece_of, xyz, e_piece, feed,
+                                                      start, end, limits, report,
+                                                      e_unit_mm=e_unit_mm)
+    report.pieces = int(piece_of.size)
+    return draft.split(piece_of, xyz, e_piece, feed), report
+
+
+def _relief_amounts(interims: list[tuple[int, int]], model: LagModel | None, pieces: Pieces,
+                    e_run: FloatArray, *, e_unit_mm: float) -> list[tuple[int, int, int, int]]:
+    """Retraction and push-back of every relieved interim, grid units.
+
+    The lag model gives the compression ``x`` at the end of the run before the interim;
+    the retraction takes twice that (so the melt stops at once), the push-back returns all
+    but ``x`` (the next run starts relaxed, as the model assumed, and builds its pressure
+    from its own E).
+
+    Returns
+    -------
+    list of tuple
+        ``(first row, last row, retraction, push-back)`` per relieved interim.
+    """
+    if model is None or not interims:
+        return []
+    ratios = e_run / pieces.length_mm[model.free_pieces]
+    states = model.states(ratios)
+    owners = model.seg_owner
+    last_seg: dict[int, int] = {}
+    change = np.flatnonzero(np.concatenate((owners[1:] != owners[:-1], [True])))
+    for s in change.tolist():
+        last_seg[int(owners[s])] = s
+    out: list[tuple[int, int, int, int]] = []
+    for a, b in interims:
+        seg = last_seg.get(a - 1)
+        if seg is None:
+            continue
+        x_end = max(float(states[seg]), 0.0)
+        retract = int(math.ceil(_RELIEF_MARGIN * x_end)) + 1
+        if retract * e_unit_mm < _MIN_RELIEF_MM:
+            continue
+        out.append((a, b, retract, retract - int(round(x_end))))
+    return out
+
+
+def round_total(e: FloatArray, total: int) -> IntArray:
+    """Piece E in whole grid units adding up to exactly ``total``.
+
+    ``e`` is scaled to the total, the cumulative sums are rounded (each piece carries the
+    rounding residue of the one before), and a piece that would get less than one unit
+    borrows it from the largest piece.
+    """
+    s = float(np.sum(e))
+    scaled = e * (total / s) if s > 0 else np.full(e.size, total / max(e.size, 1))
+    pos = np.rint(np.cumsum(scaled)).astype(np.int64)
+    if pos.size:
+        pos[-1] = total
+    out = np.diff(np.concatenate(([0], pos)))
+    low = np.flatnonzero(out < 1)
+    for j in low.tolist():
+        k = int(np.argmax(out))
+        need = 1 - int(out[j])
+        if out[k] - need < 1:
+            break
+        out[j] += need
+        out[k] -= need
+    return out
+
+
+def _insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
+                   xyz: FloatArray, e_piece: IntArray, feed: FloatArray, start: FloatArray,
+                   end: FloatArray, limits: ExtruderLimits, report: PassReport, *,
+                   e_unit_mm: float) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
+    """Insert an E-only retraction before each relieved interim's first travel and the
+    push-back after its last one."""
+    speed = min(_RELIEF_SPEED_MM_S, 0.9 * limits.e_only_speed_mm_s)
+    feed_mm_min = 60.0 * speed
+    before = {a: -retract for a, _b, retract, _back in reliefs}
+    after = {b: back for _a, b, _retract, back in reliefs}
+    report.relief_travels += len(reliefs)
+    report.relief_mm += sum(r for _a, _b, r, _back in reliefs) * e_unit_mm
+    rows: list[int] = []
+    pts: list[FloatArray] = []
+    es: list[int] = []
+    fs: list[float] = []
+    for k in range(piece_of.size):
+        r = int(piece_of[k])
+        first_of_row = k == 0 or piece_of[k - 1] != r
+        last_of_row = k == piece_of.size - 1 or piece_of[k + 1] != r
+        if first_of_row and r in before:
+            rows.append(r)
+            pts.append(start[r])
+            es.append(before[r])
+            fs.append(feed_mm_min)
+        rows.append(r)
+        pts.append(xyz[k])
+        es.append(int(e_piece[k]))
+        fs.append(float(feed[k]))
+        if last_of_row and after.get(r, 0) > 0:
+            rows.append(r)
+            pts.append(end[r])
+            es.append(after[r])
+            fs.append(feed_mm_min)
+    return (np.asarray(rows, dtype=np.int64), np.vstack(pts) if pts else xyz,
+            np.asarray(es, dtype=np.int64), np.asarray(fs, dtype=np.float64))

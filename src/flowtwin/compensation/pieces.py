@@ -1,0 +1,251 @@
+"""Splitting moves at the planner's phase boundaries.
+
+The planner gives every move a trapezoid: accelerate for ``accel_t``, cruise for
+``cruise_t``, decelerate for ``decel_t`` (:class:`~flowtwin.planner.timeline.Timeline`).
+A firmware turns the E of one ``G1`` in proportion to the path it covers, so the only way
+to give an accelerating stretch more filament than the cruising one is to cut the move
+there: each piece then gets its own E. :func:`split_rows` cuts every selected move at its
+phase boundaries, optionally into ``n`` equal-time sub-pieces per acceleration and
+deceleration phase, and merges pieces shorter than a minimum length into their neighbour
+(so no piece is too short for a stepper driver or the reader's row rules).
+
+Within a phase of constant acceleration ``a`` starting at speed ``v₀`` the path covered
+after ``τ`` is ``s = v₀·τ + a·τ²/2``; the distances are computed with the planner's own
+phase speeds, so the pieces of a move add up to the move's planned length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.errors import DataError
+from flowtwin.planner.timeline import Timeline
+
+__all__ = ["Pieces", "phase_distance_mm", "split_rows"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: At most this many pieces per acceleration or deceleration phase.
+_MAX_PIECES_PER_PHASE = 12
+
+
+@dataclass(frozen=True, slots=True)
+class Pieces:
+    """Pieces of moves, in move order (rows not split are one piece).
+
+    Attributes
+    ----------
+    row
+        Move row each piece belongs to, shape ``(n,)``.
+    t0_s, t1_s
+        Start and end of each piece on the printer clock, s, shape ``(n,)``.
+    s0_mm, s1_mm
+        Path distance from the start of the row at the piece's start and end, mm.
+    v0_mm_s, v1_mm_s
+        Path speed at the piece's start and end, mm/s (linear in time in between only
+        when the piece lies in one phase).
+    offsets
+        ``offsets[i]:offsets[i + 1]`` are the pieces of row ``i``, shape ``(n_rows + 1,)``.
+    row_length_mm
+        Planned path length of every row, mm, shape ``(n_rows,)``.
+    """
+
+    row: IntArray
+    t0_s: FloatArray
+    t1_s: FloatArray
+    s0_mm: FloatArray
+    s1_mm: FloatArray
+    v0_mm_s: FloatArray
+    v1_mm_s: FloatArray
+    offsets: IntArray
+    row_length_mm: FloatArray
+
+    def __len__(self) -> int:
+        return int(self.row.shape[0])
+
+    @property
+    def counts(self) -> IntArray:
+        """Pieces per row, shape ``(n_rows,)``."""
+        return np.diff(self.offsets)
+
+    @property
+    def length_mm(self) -> FloatArray:
+        """Path length of each piece, mm."""
+        return self.s1_mm - self.s0_mm
+
+    @property
+    def fraction_end(self) -> FloatArray:
+        """Share of its row's path covered at each piece's end (1 for the last piece)."""
+        length = self.row_length_mm[self.row]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.where(length > 0, self.s1_mm / length, 1.0)
+        last = self.offsets[1:] - 1
+        f[last[self.counts > 0]] = 1.0
+        return np.asarray(f)
+
+
+def phase_distance_mm(start_v: FloatArray, cruise_v: FloatArray, end_v: FloatArray,
+                      accel_t: FloatArray, cruise_t: FloatArray, decel_t: FloatArray,
+                      tau_s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Path distance and speed ``τ`` after the start of a trapezoid move.
+
+    Parameters
+    ----------
+    start_v, cruise_v, end_v
+        Trapezoid speeds, mm/s, shape ``(n,)``.
+    accel_t, cruise_t, decel_t
+        Phase durations, s, shape ``(n,)``.
+    tau_s
+        Time since the move's start, s, shape ``(n,)``, clipped to the move.
+
+    Returns
+    -------
+    tuple of ndarray
+        Distance (mm) and speed (mm/s), shape ``(n,)``. Accelerations are taken from the
+        phase speeds and durations (``(v_c − v_s)/t_a``), so the distances match the
+        planner's own lengths exactly.
+    """
+    tau = np.clip(tau_s, 0.0, accel_t + cruise_t + decel_t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_up = np.where(accel_t > 0, (cruise_v - start_v) / accel_t, 0.0)
+        a_dn = np.where(decel_t > 0, (cruise_v - end_v) / decel_t, 0.0)
+    ta = np.minimum(tau, accel_t)
+    d = start_v * ta + 0.5 * a_up * ta * ta
+    v = start_v + a_up * ta
+    tc = np.clip(tau - accel_t, 0.0, cruise_t)
+    d = d + cruise_v * tc
+    td = np.clip(tau - accel_t - cruise_t, 0.0, decel_t)
+    d = d + cruise_v * td - 0.5 * a_dn * td * td
+    in_cruise = tau > accel_t
+    v = np.where(in_cruise, cruise_v - a_dn * td, v)
+    return np.asarray(d), np.asarray(v)
+
+
+def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_pieces: int = 1,
+               max_piece_s: float = 0.0, cruise_edge_s: float = 0.0,
+               min_piece_mm: float = 0.1,
+               phase_only: npt.NDArray[np.bool_] | None = None) -> Pieces:
+    """Cut the selected moves at their accel/cruise/decel boundaries.
+
+    Parameters
+    ----------
+    timeline
+        The planner's phases, ``n_rows`` moves.
+    select
+        Which rows to cut, shape ``(n_rows,)``; the others stay one piece.
+    accel_pieces
+        Least number of equal-time pieces per acceleration and deceleration phase (≥ 1).
+    max_piece_s
+        Longest piece within acceleration and deceleration phases and within the cruise
+        edges, s (0: no limit).
+    cruise_edge_s
+        Also cut the first and last ``cruise_edge_s`` of a cruise into pieces of at most
+        ``max_piece_s`` (0: no); used by the smoothed advance, whose target bends there.
+    min_piece_mm
+        Pieces shorter than this are merged into a neighbour, mm (≥ 0).
+    phase_only
+        Rows cut at their phase boundaries only (no sub-pieces), shape ``(n_rows,)``.
+
+    Returns
+    -------
+    Pieces
+    """
+    ph = timeline.phases
+    n = ph.shape[0]
+    if select.shape != (n,):
+        raise DataError("selection does not match the timeline", field="select",
+                        value=select.shape, allowed=f"({n},)")
+    if accel_pieces < 1:
+        raise DataError("accel_pieces must be at least 1", field="accel_pieces",
+                        value=accel_pieces, allowed=">= 1")
+    sv = np.asarray(ph["start_v"], dtype=np.float64)
+    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
+    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
+    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
+    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
+    t_start = np.asarray(ph["t_start"], dtype=np.float64)
+    duration = ta + tc + td
+    length, _ = phase_distance_mm(sv, cv, ev, ta, tc, td, duration)
+
+    # candidate cut times (relative to the move start) per selected row
+    cand: list[FloatArray] = []
+    ones = np.ones(n)
+    n_acc = np.maximum(accel_pieces, np.ceil(ta / max_piece_s) if max_piece_s > 0 else ones)
+    n_dec = np.maximum(accel_pieces, np.ceil(td / max_piece_s) if max_piece_s > 0 else ones)
+    n_acc = np.minimum(n_acc, _MAX_PIECES_PER_PHASE)
+    n_dec = np.minimum(n_dec, _MAX_PIECES_PER_PHASE)
+    coarse = np.zeros(n, dtype=bool) if phase_only is None else phase_only & ~select
+    n_acc = np.where(coarse, 1.0, n_acc)
+    n_dec = np.where(coarse, 1.0, n_dec)
+    edge_ok = ~coarse
+    k_max = int(max(np.max(n_acc[select], initial=1), np.max(n_dec[select], initial=1)))
+    for k in range(1, k_max):
+        cand.append(np.where((ta > 0) & (k < n_acc), k / n_acc * ta, np.nan))
+        cand.append(np.where((td > 0) & (k < n_dec), ta + tc + k / n_dec * td, np.nan))
+    cand.append(np.where((ta > 0) & (tc + td > 0), ta, np.nan))
+    cand.append(np.where((tc > 0) & (td > 0), ta + tc, np.nan))
+    if cruise_edge_s > 0:
+        step = max_piece_s if max_piece_s > 0 else cruise_edge_s
+        m_edge = int(np.ceil(cruise_edge_s / step - 1e-9))
+        for k in range(1, m_edge + 1):
+            off = min(k * step, cruise_edge_s)
+            inside = (tc > 2.0 * off) & edge_ok
+            cand.append(np.where(inside, ta + off, np.nan))
+            cand.append(np.where(inside, ta + tc - off, np.nan))
+    cuts = np.column_stack(cand) if cand else np.empty((n, 0))
+    cut_rows = select | coarse
+    cuts[~cut_rows] = np.nan
+    cuts = np.sort(cuts, axis=1)  # NaN last
+
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    k_valid = np.sum(np.isfinite(cuts), axis=1)
+    sel_idx = np.flatnonzero(cut_rows & (k_valid > 0))
+    # distances of every candidate cut
+    dist = np.full(cuts.shape, np.nan)
+    for j in range(cuts.shape[1]):
+        col = cuts[:, j]
+        ok = np.isfinite(col)
+        if np.any(ok):
+            d, _ = phase_distance_mm(sv[ok], cv[ok], ev[ok], ta[ok], tc[ok], td[ok], col[ok])
+            dist[ok, j] = d
+    keep_cuts: dict[int, list[float]] = {}
+    for i in sel_idx.tolist():
+        kept: list[float] = []
+        last_d = 0.0
+        total = float(length[i])
+        for tj, dj in zip(cuts[i].tolist(), dist[i].tolist(), strict=True):
+            if not np.isfinite(tj):
+                break
+            if dj - last_d >= min_piece_mm and total - dj >= min_piece_mm:
+                kept.append(tj)
+                last_d = dj
+        if kept:
+            keep_cuts[i] = kept
+    counts = np.ones(n, dtype=np.int64)
+    for i, kept in keep_cuts.items():
+        counts[i] = len(kept) + 1
+    offsets[1:] = np.cumsum(counts)
+    total_pieces = int(offsets[-1])
+    rows_arr = np.repeat(np.arange(n, dtype=np.int64), counts)
+    tau0 = np.zeros(total_pieces)
+    tau1 = np.repeat(duration, counts)
+    for i, kept in keep_cuts.items():
+        o = int(offsets[i])
+        cut = np.asarray(kept)
+        tau0[o + 1:o + 1 + cut.size] = cut
+        tau1[o:o + cut.size] = cut
+    r = rows_arr
+    s0, v0 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau0)
+    s1, v1 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau1)
+    # exact ends: first piece starts at 0 with start_v, last ends at the row's length/end_v
+    first = offsets[:-1]
+    last = offsets[1:] - 1
+    s0[first], v0[first] = 0.0, sv
+    s1[last], v1[last] = length, ev
+    return Pieces(row=rows_arr, t0_s=t_start[r] + tau0, t1_s=t_start[r] + tau1, s0_mm=s0,
+                  s1_mm=s1, v0_mm_s=v0, v1_mm_s=v1, offsets=offsets, row_length_mm=length)

@@ -1,0 +1,390 @@
+"""``compensate``: make a G-code extrude what it means, on a given machine.
+
+Stages, each optional, each composed on a :class:`~flowtwin.compensation.draft.Draft` of
+the original file (untouched lines stay byte for byte):
+
+1. **trajectory** [004] — nozzle paths that lay the intended road at corners
+   (:mod:`flowtwin.compensation.trajectory`);
+2. **guard** [000 §4] — slower moves where the feed force would grind the filament
+   (:mod:`flowtwin.compensation.guard`);
+3. **advance** [001 Eqs. 11, 13] — pressure advance baked into the E of pieces cut at the
+   planner's phase boundaries, refined with the twin's lag model, in two passes (the
+   second on the re-planned first result) (:mod:`flowtwin.compensation.bake`);
+4. **slip** [000 §6] — E scaled by ``1/(1 − s)`` with the slip the twin predicts
+   (:mod:`flowtwin.compensation.slip`).
+
+Every stage that needs the twin renders the draft to a temporary file and simulates it
+(:func:`flowtwin.simulation.simulate`), so it always sees what the firmware will plan.
+The original and the result are simulated on the same machine and compared move by move
+against the original intent (:mod:`flowtwin.compensation.metrics`).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
+from flowtwin.compensation.bake import PassReport, advance_pass
+from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.guard import GuardOptions, guard_feeds
+from flowtwin.compensation.limits import extruder_limits
+from flowtwin.compensation.metrics import FlowFigures, flow_figures
+from flowtwin.compensation.slip import SlipOptions, slip_feedforward
+from flowtwin.compensation.source import ScannedSource, read_source, row_e_grid, scan_source
+from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
+from flowtwin.errors import DataError, GcodeError
+from flowtwin.gcode.moves import MoveKind
+from flowtwin.planner.from_profile import read_options
+from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
+from flowtwin.profiles.machine import Machine, load_machine
+from flowtwin.profiles.setup import SetupProfile
+from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
+
+__all__ = ["CompensationReport", "compensate"]
+
+Progress = Callable[[str], None]
+
+
+@dataclass(slots=True)
+class CompensationReport:
+    """What ``compensate`` did and what the twin predicts before and after.
+
+    Attributes
+    ----------
+    source, destination
+        The files.
+    machine
+        Name of the set-up simulated.
+    firmware_pressure_advance
+        Whether the simulations include the firmware's own pressure advance.
+    transformations
+        Names of the stages that ran.
+    before, after
+        Flow figures of the original and of the compensated file, both against the
+        original intent (:class:`~flowtwin.compensation.metrics.FlowFigures`).
+    time_before_s, time_after_s
+        Planned print time, s.
+    commanded_e_before_mm, commanded_e_after_mm
+        Total E written in the G-code (before M221), mm of filament.
+    added_volume_mm3
+        Volume the slip feed-forward added (mm³ of melt; 0 without it).
+    slowed_moves
+        Source lines the grinding guard slowed.
+    guard_time_cost_s
+        Print time the guard added (planned with and without it), s.
+    grinding_moves_before, grinding_moves_after
+        Moves the twin flags as grinding.
+    max_force_before_n, max_force_after_n
+        Largest predicted feed force, N.
+    advance
+        Figures of the advance passes (pieces, runs, clipping counts, refinement).
+    trajectory
+        Figures of the trajectory stage, or ``None``.
+    limits
+        The firmware limits the advance respected.
+    lines_rewritten
+        Source lines replaced (motion lines only).
+    warnings
+        Everything the user should know.
+    seconds
+        Wall time of the compensation.
+    """
+
+    source: str
+    destination: str
+    machine: str
+    firmware_pressure_advance: bool
+    transformations: list[str]
+    before: FlowFigures
+    after: FlowFigures
+    time_before_s: float
+    time_after_s: float
+    commanded_e_before_mm: float
+    commanded_e_after_mm: float
+    added_volume_mm3: float = 0.0
+    slowed_moves: list[int] = field(default_factory=list)
+    guard_time_cost_s: float = 0.0
+    grinding_moves_before: int = 0
+    grinding_moves_after: int = 0
+    max_force_before_n: float = 0.0
+    max_force_after_n: float = 0.0
+    advance: list[dict[str, object]] = field(default_factory=list)
+    trajectory: dict[str, object] | None = None
+    limits: dict[str, object] = field(default_factory=dict)
+    lines_rewritten: int = 0
+    warnings: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def summary(self) -> dict[str, object]:
+        """The figures as plain JSON-able values (the ``--json`` object)."""
+        def ratio(a: float, b: float) -> float | None:
+            return a / b if b > 0 else None
+
+        return {
+            "file": self.source, "output": self.destination, "machine": self.machine,
+            "firmware_pressure_advance": self.firmware_pressure_advance,
+            "transformations": list(self.transformations),
+            "rms_flow_error_before": self.before.rms_flow_error,
+            "rms_flow_error_after": self.after.rms_flow_error,
+            "rms_improvement": ratio(self.before.rms_flow_error, self.after.rms_flow_error),
+            "peak_overextrusion_before": self.before.peak_overextrusion,
+            "peak_overextrusion_after": self.after.peak_overextrusion,
+            "peak_improvement": ratio(self.before.peak_overextrusion,
+                                      self.after.peak_overextrusion),
+            "peak_underextrusion_before": self.before.peak_underextrusion,
+            "peak_underextrusion_after": self.after.peak_underextrusion,
+            "delivered_volume_before_mm3": self.before.delivered_volume_mm3,
+            "delivered_volume_after_mm3": self.after.delivered_volume_mm3,
+            "intended_volume_mm3": self.before.intended_volume_mm3,
+            "commanded_e_before_mm": self.commanded_e_before_mm,
+            "commanded_e_after_mm": self.commanded_e_after_mm,
+            "added_volume_mm3": self.added_volume_mm3,
+            "slowed_moves": len(self.slowed_moves),
+            "slowed_lines": list(self.slowed_moves[:1000]),
+            "guard_time_cost_s": self.guard_time_cost_s,
+            "time_before_s": self.time_before_s, "time_after_s": self.time_after_s,
+            "grinding_moves_before": self.grinding_moves_before,
+            "grinding_moves_after": self.grinding_moves_after,
+            "max_force_before_n": self.max_force_before_n,
+            "max_force_after_n": self.max_force_after_n,
+            "advance": list(self.advance), "trajectory": self.trajectory,
+            "limits": dict(self.limits), "lines_rewritten": self.lines_rewritten,
+            "warnings": list(self.warnings), "seconds": self.seconds,
+        }
+
+
+def _option(value: object, cls: type) -> object | None:
+    if value is None or value is False:
+        return None
+    if value is True:
+        return cls()
+    if not isinstance(value, cls):
+        raise DataError("invalid option object", field=cls.__name__, value=type(value).__name__,
+                        allowed=f"True, False, None or a {cls.__name__}")
+    return value
+
+
+def _printing(sim: SimulationResult, draft: Draft) -> npt.NDArray[np.bool_]:
+    """Pieces that print: of a printing original move, with XY motion and positive E."""
+    kind = sim.plan.table.moves["kind"]
+    orig = eligible_rows(draft.table, draft.row_e)
+    return orig[draft.row] & ((kind & MoveKind.XY) != 0) & (draft.e_grid > 0)
+
+
+def _checked(sim: SimulationResult, draft: Draft, path: Path) -> SimulationResult:
+    if len(sim.plan.table) != len(draft):
+        raise GcodeError("the rewritten file does not read back as the pieces written "
+                         f"({len(sim.plan.table)} moves, {len(draft)} pieces)", source=path,
+                         allowed="a reader/writer round trip that keeps every piece")
+    return sim
+
+
+def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[str], *,
+               machine: Machine | SetupProfile | str | os.PathLike[str] | None = None,
+               klipper_config: str | os.PathLike[str] | None = None,
+               advance: AdvanceOptions | bool | None = None,
+               slip: SlipOptions | bool | None = None,
+               guard: GuardOptions | bool | None = None,
+               trajectory: TrajectoryOptions | bool | None = None,
+               firmware_pressure_advance: bool | None = None, advance_passes: int = 2,
+               progress: Progress | None = None) -> CompensationReport:
+    """Compensate ``source`` for ``machine`` and write ``destination`` (atomically).
+
+    Parameters
+    ----------
+    source
+        The G-code to compensate (plain or gzip; a path).
+    destination
+        Where to write the result (may be ``source``); written atomically.
+    machine
+        The set-up (object, built-in name or TOML); default the twin's
+        (:data:`flowtwin.simulation.DEFAULT_MACHINE`).
+    klipper_config
+        Plan with this Klipper ``printer.cfg`` instead of the set-up's printer.
+    advance, slip, guard, trajectory
+        ``True`` (defaults), an options object, or ``None``/``False`` (off). With all off
+        the output is a byte-identical copy.
+    firmware_pressure_advance
+        Simulate the firmware's own pressure advance; default: off when the advance is
+        baked into the file (the firmware's must then be off), else on.
+    advance_passes
+        Advance passes (1 or 2; the second corrects for the re-planned timing).
+    progress
+        Called with the name of each stage as it starts.
+
+    Returns
+    -------
+    CompensationReport
+
+    Raises
+    ------
+    GcodeError, ProfileError
+        Unreadable or unsupported G-code, bad profiles or options.
+    """
+    t_start = time.perf_counter()
+    step = progress or (lambda _name: None)
+    adv = _option(advance, AdvanceOptions)
+    sl = _option(slip, SlipOptions)
+    gd = _option(guard, GuardOptions)
+    tr = _option(trajectory, TrajectoryOptions)
+    assert adv is None or isinstance(adv, AdvanceOptions)
+    assert sl is None or isinstance(sl, SlipOptions)
+    assert gd is None or isinstance(gd, GuardOptions)
+    assert tr is None or isinstance(tr, TrajectoryOptions)
+    if advance_passes not in (1, 2, 3):
+        raise DataError("advance passes must be 1, 2 or 3", field="advance_passes",
+                        value=advance_passes, allowed="1, 2, 3")
+    m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
+    pa = (adv is None) if firmware_pressure_advance is None else bool(firmware_pressure_advance)
+    src = Path(source)
+    dst = Path(destination)
+
+    def sim(path: Path) -> SimulationResult:
+        return simulate(path, machine=m, klipper_config=klipper_config, pressure_advance=pa)
+
+    step("simulate original")
+    original = sim(src)
+    table = original.plan.table
+    text = read_source(src)
+    if klipper_config is not None:
+        home = klipper_read_options(load_printer_cfg(klipper_config)).home_xyz
+    else:
+        home = read_options(m.printer).home_xyz
+    scanned = scan_source(text, table, home_xyz=home)
+    row_e = row_e_grid(scanned, table)
+    draft = Draft.identity(scanned, table, row_e)
+    limits = extruder_limits(original.plan.settings)
+    names: list[str] = []
+    warnings: list[str] = []
+    advance_reports: list[dict[str, object]] = []
+    traj_report: TrajectoryReport | None = None
+    slowed = np.zeros(len(table), dtype=bool)
+    guard_cost = 0.0
+    added_grid = 0
+    with tempfile.TemporaryDirectory(prefix="flowtwin-compensate-") as tmpdir:
+        work = Path(tmpdir) / ("draft" + "".join(src.suffixes[-1:]) if src.suffix else "draft")
+        current = original
+
+        def refresh(d: Draft) -> SimulationResult:
+            d.render(work)
+            return _checked(sim(work), d, work)
+
+        if tr is not None and not tr.is_identity:
+            step("trajectory")
+            names.append("trajectory")
+            draft, traj_report = bend_paths(draft, current, tr)
+            current = refresh(draft)
+        if gd is not None:
+            step("guard")
+            names.append("guard")
+            time0 = current.plan.timeline.total_time_s
+            for _ in range(gd.iterations):
+                draft, now = _guard_step(draft, current, scanned, gd)
+                if not np.any(now):
+                    break
+                slowed |= now
+                current = refresh(draft)
+            guard_cost = current.plan.timeline.total_time_s - time0
+        if adv is not None and not adv.is_identity:
+            step("advance")
+            # the advance is computed for the file without the firmware's own advance
+            cur = current if not pa else simulate(work if names else src, machine=m,
+                                                  klipper_config=klipper_config,
+                                                  pressure_advance=False)
+            names.append("advance")
+            for k in range(advance_passes):
+                draft, rep = advance_pass(draft, cur.plan.table, cur.plan.timeline,
+                                          cur.parameters.params.lag_k_s, limits, adv,
+                                          e_unit_mm=scanned.e_unit, split=k == 0,
+                                          relief=(k == 0 and adv.relief))
+                advance_reports.append(_pass_dict(rep))
+                draft.render(work)
+                cur = _checked(simulate(work, machine=m, klipper_config=klipper_config,
+                                        pressure_advance=False), draft, work)
+            current = cur if not pa else refresh(draft)
+        if sl is not None and not sl.is_identity:
+            step("slip")
+            names.append("slip")
+            base = draft.e_grid.copy()
+            printing = _printing(current, draft)
+            for _ in range(sl.iterations):
+                draft = slip_feedforward(draft, base, printing,
+                                         current.dynamics.moves["slip"], sl)
+                current = refresh(draft)
+            added_grid = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
+        step("write")
+        result = draft.render(dst)
+        step("simulate result")
+        after_sim = _checked(sim(dst), draft, dst)
+    before = flow_figures(original, original, np.arange(len(table), dtype=np.int64))
+    after = flow_figures(original, after_sim, draft.row)
+    area = m.filament.area_mm2
+    flow = after_sim.plan.table.moves["flow"].astype(np.float64)
+    pr = _printing(after_sim, draft)
+    summary0 = original.summary()
+    summary1 = after_sim.summary()
+    warnings.extend(str(w) for w in after_sim.warnings if w not in original.warnings)
+    if adv is not None and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(original)):
+        warnings.append("the advance is baked into the file: turn the firmware's pressure "
+                        "advance off (M900 K0 / M572 S0 / SET_PRESSURE_ADVANCE ADVANCE=0) "
+                        "when printing it")
+    return CompensationReport(
+        source=str(src), destination=str(dst), machine=m.name,
+        firmware_pressure_advance=pa, transformations=names, before=before, after=after,
+        time_before_s=float(original.plan.timeline.total_time_s),
+        time_after_s=float(after_sim.plan.timeline.total_time_s),
+        commanded_e_before_mm=float(np.sum(row_e) * scanned.e_unit),
+        commanded_e_after_mm=float(np.sum(draft.e_grid) * scanned.e_unit),
+        added_volume_mm3=float(added_grid * scanned.e_unit * area
+                               * (float(np.mean(flow[pr])) if np.any(pr) else 1.0)),
+        slowed_moves=[int(x) for x in table.moves["line"][slowed].tolist()],
+        guard_time_cost_s=float(guard_cost),
+        grinding_moves_before=int(summary0["grinding_moves"]),  # type: ignore[call-overload]
+        grinding_moves_after=int(summary1["grinding_moves"]),  # type: ignore[call-overload]
+        max_force_before_n=float(summary0["max_feed_force_n"]),  # type: ignore[arg-type]
+        max_force_after_n=float(summary1["max_feed_force_n"]),  # type: ignore[arg-type]
+        advance=advance_reports,
+        trajectory=None if traj_report is None else traj_report.as_dict(),
+        limits=limits.as_dict(), lines_rewritten=result.lines_rewritten,
+        warnings=warnings, seconds=time.perf_counter() - t_start)
+
+
+def _has_pa_commands(sim: SimulationResult) -> bool:
+    for ev in sim.plan.table.events:
+        if ev.code in ("M900", "M572", "SET_PRESSURE_ADVANCE"):
+            return True
+    return False
+
+
+def _pass_dict(rep: PassReport) -> dict[str, object]:
+    return {"pieces": rep.pieces, "runs": rep.runs, "law_clipping": dict(rep.law_counts),
+            "refinement": dict(rep.refinement), "relief_travels": rep.relief_travels,
+            "relief_mm": rep.relief_mm}
+
+
+def _guard_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
+                options: GuardOptions) -> tuple[Draft, npt.NDArray[np.bool_]]:
+    d = sim.dynamics.moves
+    ph = sim.plan.timeline.phases
+    printing = _printing(sim, draft)
+    length = np.maximum(sim.plan.timeline.move_time_s, 0.0)
+    mv = sim.plan.table.moves
+    path = np.hypot(np.diff(np.concatenate(([sim.plan.table.start_xyze[0]], mv["x"]))),
+                    np.diff(np.concatenate(([sim.plan.table.start_xyze[1]], mv["y"]))))
+    cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        flow = np.where((path > 0) & (length > 0), d["cmd_mm3"] / path * cruise, 0.0)
+    lines = draft.table.moves["line"]
+    speed_factor = np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
+                             else 1.0 for ln in lines.tolist()])
+    return guard_feeds(draft, cruise, d["peak_force_n"], sim.parameters.params.max_feed_force_n,
+                       flow, printing, speed_factor, options)
+

@@ -1,0 +1,342 @@
+"""Refining the advanced E with the twin's lag model: every move delivers its own volume.
+
+The advance laws [001 Eqs. 11, 13] assume the firmware can follow ``E* = E⁰ + K·v⁰_E``;
+a G-code cannot command negative extrusion, and the ratio steps are limited
+(:mod:`flowtwin.compensation.limits`), so where the law is clipped (mostly in
+decelerations, where the ideal command is negative) the melt runs late and moves near
+corners and stops over-extrude. The twin scores a move by ``delivered / commanded − 1``,
+so the refinement chooses the pieces' ratios ``c`` to minimise, under the linear lag model
+of :mod:`flowtwin.compensation._refine_kernel` (exact for ``dx/dt = u − x/K`` on every
+segment of constant acceleration)::
+
+    J = ½·Σ_m (O_m − I_m)²/I_m                     (volume-weighted squared flow error)
+      + ½·λ·Σ_j (E_j − E^law_j)²/I_(m(j))           (stay near the advance law's E)
+
+over the ratio box ``c_min ≤ c ≤ c_max`` (no piece below ``min_flow_fraction`` of its
+intent, none above the firmware's limits). With the states after the pieces as unknowns
+the problem is a banded convex QP, solved by an interior-point method
+(:func:`refine_qp`). Retractions hold the state (no backflow [001 Fig. 8]); gaps and
+travels let it decay (ooze); a pressure-relief travel leaves it relaxed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation._refine_kernel import apply_holds, model_pass, segment_maps
+from flowtwin.compensation.pieces import Pieces, phase_distance_mm
+from flowtwin.errors import CalibrationError, ProfileError
+from flowtwin.planner.timeline import Timeline
+
+__all__ = ["LagModel", "RefineOptions", "build_lag_model", "refine_qp"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True, slots=True)
+class RefineOptions:
+    """Weight and stopping rule of the refinement (see the module docstring).
+
+    Attributes
+    ----------
+    track_weight
+        ``λ``: pull of every piece's E towards the advance law's (> 0; it also makes the
+        pieces within a move, which the flow error alone cannot tell apart, unique).
+    max_iterations
+        Interior-point iterations at most.
+    """
+
+    track_weight: float = 0.02
+    max_iterations: int = 80
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.track_weight <= 100.0):
+            raise ProfileError("invalid refinement weight", field="track_weight",
+                               value=self.track_weight, allowed="0 < λ <= 100")
+        if not (5 <= self.max_iterations <= 1000):
+            raise ProfileError("invalid iteration limit", field="max_iterations",
+                               value=self.max_iterations, allowed="5 .. 1000")
+
+
+@dataclass(frozen=True, slots=True)
+class LagModel:
+    """Segments of the linear lag model over a whole file (see ``_refine_kernel``).
+
+    Attributes
+    ----------
+    seg_piece, seg_fixed, seg_len, seg_a, seg_b, seg_c, seg_row, seg_first, seg_last
+        Per segment: free piece (or −1), fixed ratio, path length, affine map, objective
+        row (or −1), first/last segment of its objective row.
+    free_pieces
+        Piece index of every free variable, shape ``(p,)``.
+    objective_rows
+        Group of every objective entry (``0 … m−1``), shape ``(m,)``.
+    holds
+        Retractions that hold the state.
+    seg_owner
+        Row each segment belongs to (a gap: the row after it), shape ``(s,)``.
+    seg_t_s
+        Duration of each segment, s.
+    """
+
+    seg_piece: IntArray
+    seg_fixed: FloatArray
+    seg_len: FloatArray
+    seg_a: FloatArray
+    seg_b: FloatArray
+    seg_c: FloatArray
+    seg_row: IntArray
+    seg_first: BoolArray
+    seg_last: BoolArray
+    free_pieces: IntArray
+    objective_rows: IntArray
+    holds: int
+    seg_owner: IntArray
+    seg_t_s: FloatArray
+
+    def states(self, ratios: FloatArray) -> FloatArray:
+        """Model state (compression, grid units) at the end of every segment."""
+        x = 0.0
+        out = np.empty(self.seg_piece.shape[0])
+        for s in range(out.shape[0]):
+            p = int(self.seg_piece[s])
+            cv = float(ratios[p]) if p >= 0 else float(self.seg_fixed[s])
+            x = float(self.seg_a[s]) * x + float(self.seg_b[s]) * cv + float(self.seg_c[s])
+            out[s] = x
+        return out
+
+    def evaluate(self, ratios: FloatArray, intent: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Model output per objective row and the gradient of ``Σ (O − I)²`` (unit weights).
+
+        Parameters
+        ----------
+        ratios
+            Ratio of every free piece, shape ``(p,)``.
+        intent
+            Intended E of every objective row, shape ``(m,)``.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``O`` shape ``(m,)``, gradient shape ``(p,)``.
+        """
+        out = np.zeros(intent.shape[0])
+        grad = np.zeros(ratios.shape[0])
+        model_pass(np.ascontiguousarray(ratios, dtype=np.float64), self.seg_piece,
+                   self.seg_fixed, self.seg_len, self.seg_a, self.seg_b, self.seg_c,
+                   self.seg_row, self.seg_first, self.seg_last,
+                   np.ascontiguousarray(intent, dtype=np.float64), np.ones(intent.shape[0]),
+                   out, grad)
+        return out, grad
+
+
+def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
+                    free_piece: BoolArray, piece_ratio: FloatArray, row_de: FloatArray,
+                    row_group: IntArray, n_groups: int, *,
+                    travel_holds: BoolArray | None = None) -> LagModel:
+    """Segments of the lag model for every piece of every move, and the gaps between.
+
+    Parameters
+    ----------
+    pieces
+        All rows' pieces.
+    timeline
+        The phases (``n_rows``).
+    lag_k_s
+        Lag factor of every row, s.
+    free_piece
+        Pieces whose ratio is optimised, shape ``(n_pieces,)``.
+    piece_ratio
+        Ratio of every piece (fixed pieces keep it), E grid units per mm.
+    row_de
+        E of every row in grid units (physical E, retractions included).
+    row_group
+        Objective group of every row (the original move it is a piece of), or −1 for rows
+        whose output does not count, shape ``(n_rows,)``; a group's rows are consecutive.
+    n_groups
+        Number of groups.
+    travel_holds
+        Rows (travels) that start a hold like a retraction, shape ``(n_rows,)``.
+
+    Returns
+    -------
+    LagModel
+    """
+    ph = timeline.phases
+    n_rows = ph.shape[0]
+    sv = np.asarray(ph["start_v"], dtype=np.float64)
+    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
+    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
+    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
+    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
+    t0_row = np.asarray(ph["t_start"], dtype=np.float64)
+    r = pieces.row
+    tau0 = pieces.t0_s - t0_row[r]
+    tau1 = pieces.t1_s - t0_row[r]
+    b = np.column_stack([tau0, np.clip(ta[r], tau0, tau1), np.clip(ta[r] + tc[r], tau0, tau1),
+                         tau1])
+    d = np.empty_like(b)
+    v = np.empty_like(b)
+    for k in range(4):
+        d[:, k], v[:, k] = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], b[:, k])
+    dur = np.diff(b, axis=1)
+    keep = dur > 0.0
+    keep[:, 0] |= ~np.any(keep, axis=1)  # a zero-duration piece keeps one (empty) segment
+    n_p = len(pieces)
+    piece_idx = np.repeat(np.arange(n_p), 3).reshape(n_p, 3)[keep]
+    seg_t = dur[keep]
+    seg_len = np.diff(d, axis=1)[keep]
+    seg_va = v[:, :3][keep]
+    seg_vb = v[:, 1:][keep]
+    # gaps: rest time before every row (after the previous row's end)
+    end_row = t0_row + ta + tc + td
+    gap = np.zeros(n_rows)
+    gap[1:] = np.maximum(t0_row[1:] - end_row[:-1], 0.0)
+    first_piece = pieces.offsets[:-1]
+    seg_is_first_of_piece = np.concatenate(([True], piece_idx[1:] != piece_idx[:-1]))
+    # interleave: one gap segment before the first segment of every row with a gap
+    first_seg_of_row = np.flatnonzero(seg_is_first_of_piece
+                                      & np.isin(piece_idx, first_piece[gap > 0]))
+    gap_rows = r[piece_idx[first_seg_of_row]]
+    ins = first_seg_of_row
+    seg_piece_of = np.insert(piece_idx, ins, -1)
+    seg_t = np.insert(seg_t, ins, gap[gap_rows])
+    seg_len = np.insert(seg_len, ins, 0.0)
+    seg_va = np.insert(seg_va, ins, 0.0)
+    seg_vb = np.insert(seg_vb, ins, 0.0)
+    is_gap = seg_piece_of < 0
+    owner_row = np.where(is_gap, 0, r[np.maximum(seg_piece_of, 0)])
+    owner_row[is_gap] = gap_rows
+    seg_k = np.asarray(lag_k_s, dtype=np.float64)[owner_row]
+    if np.any(~(seg_k > 0)):
+        raise CalibrationError("lag factor must be positive for every move",
+                               field="lag_k_s", value=float(np.min(seg_k)), allowed="> 0 s")
+    n_s = seg_t.shape[0]
+    e = np.empty(n_s)
+    g = np.empty(n_s)
+    segment_maps(seg_t, seg_k, seg_va, seg_vb, e, g)
+    free_idx = np.flatnonzero(free_piece)
+    var_of_piece = np.full(n_p, -1, dtype=np.int64)
+    var_of_piece[free_idx] = np.arange(free_idx.size)
+    seg_var = np.where(is_gap, -1, var_of_piece[np.maximum(seg_piece_of, 0)])
+    ratio = np.where(is_gap, 0.0, piece_ratio[np.maximum(seg_piece_of, 0)])
+    seg_a = e
+    seg_b = np.where(seg_var >= 0, g, 0.0)
+    seg_c = np.where(seg_var >= 0, 0.0, g * ratio)
+    # holds through retractions: units = gaps and rows in time order
+    change = np.ones(n_s, dtype=bool)
+    change[1:] = (is_gap[1:] != is_gap[:-1]) | (owner_row[1:] != owner_row[:-1])
+    unit_start = np.flatnonzero(change)
+    unit_end = np.append(unit_start[1:], n_s)
+    unit_is_gap = is_gap[unit_start]
+    unit_row = owner_row[unit_start]
+    row_free = np.zeros(n_rows, dtype=bool)
+    row_free[r[free_idx]] = True
+    unit_free = np.where(unit_is_gap, False, row_free[unit_row])
+    unit_de = np.where(unit_is_gap, 0.0, np.asarray(row_de, dtype=np.float64)[unit_row])
+    hold_rows = np.zeros(n_rows, dtype=bool) if travel_holds is None else travel_holds
+    unit_hold = np.where(unit_is_gap, False, hold_rows[unit_row])
+    holds = apply_holds(unit_start.astype(np.int64), unit_end.astype(np.int64), unit_free,
+                        unit_de, unit_hold, seg_a, seg_b, seg_c)
+    # objective: the groups
+    obj_rows = np.arange(n_groups, dtype=np.int64)
+    seg_row = np.where(is_gap, -1, np.asarray(row_group, dtype=np.int64)[owner_row])
+    valid = seg_row >= 0
+    first = np.zeros(n_s, dtype=bool)
+    last = np.zeros(n_s, dtype=bool)
+    idx = np.flatnonzero(valid)
+    if idx.size:
+        rows_v = seg_row[idx]
+        starts = np.concatenate(([True], rows_v[1:] != rows_v[:-1]))
+        ends = np.concatenate((rows_v[1:] != rows_v[:-1], [True]))
+        first[idx[starts]] = True
+        last[idx[ends]] = True
+    return LagModel(seg_var.astype(np.int64), ratio, seg_len, seg_a, seg_b, seg_c,
+                    seg_row.astype(np.int64), first, last, free_idx.astype(np.int64),
+                    obj_rows.astype(np.int64), int(holds), owner_row.astype(np.int64), seg_t)
+
+
+def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: FloatArray,
+              piece_group: IntArray, c_min: FloatArray, c_max: FloatArray,
+              options: RefineOptions) -> tuple[FloatArray, dict[str, float]]:
+    """Optimise the free pieces' E as a sparse quadratic program in the states.
+
+    With the state ``x_p`` after every free piece as the unknowns, each piece's ratio is
+    ``c_p = (x_p − E_p·(α_p·x_(p−1) + κ_p) − K_p)/B_p`` (:func:`free_piece_chain`) and each
+    move's output ``O_g = Σ_(p∈g) L_p·c_p − x_last(g) + x_before(g)``: both are linear with
+    a band structure, so ``½ Σ_g (O_g − I_g)²/I_g + ½ λ Σ_p (L_p (c_p − ĉ_p))²/I_g`` over
+    the ratio box is a banded convex QP (:func:`flowtwin.compensation._qp.solve_box_qp`).
+
+    Returns
+    -------
+    tuple
+        E of every free piece (grid units, floats) and figures.
+    """
+    import scipy.sparse as sp
+
+    from flowtwin.compensation._qp import solve_box_qp
+    from flowtwin.compensation._refine_kernel import free_piece_chain
+
+    n = model.free_pieces.size
+    alpha = np.zeros(n)
+    kappa = np.zeros(n)
+    e_p = np.ones(n)
+    b_p = np.zeros(n)
+    k_p = np.zeros(n)
+    l_p = np.zeros(n)
+    free_piece_chain(model.seg_piece, model.seg_a, model.seg_b, model.seg_c, model.seg_len,
+                     alpha, kappa, e_p, b_p, k_p, l_p)
+    b_p = np.maximum(b_p, 1e-12)
+    idx = np.arange(n)
+    # c = Cx + c0
+    rows = np.concatenate((idx, idx[1:]))
+    cols = np.concatenate((idx, idx[1:] - 1))
+    vals = np.concatenate((1.0 / b_p, -(e_p[1:] * alpha[1:]) / b_p[1:]))
+    c_mat = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+    c0 = -(e_p * kappa + k_p) / b_p
+    # x_pre = P x + kappa, P has alpha on the sub-diagonal
+    p_mat = sp.csr_matrix((alpha[1:], (idx[1:], idx[1:] - 1)), shape=(n, n))
+    grp = np.asarray(piece_group, dtype=np.int64)
+    m = intent.size
+    g_mat = sp.csr_matrix((np.ones(n), (grp, idx)), shape=(m, n))
+    first = np.concatenate(([True], grp[1:] != grp[:-1]))
+    last = np.concatenate((grp[1:] != grp[:-1], [True]))
+    s_last = sp.csr_matrix((np.ones(int(last.sum())), (grp[last], idx[last])), shape=(m, n))
+    s_first = sp.csr_matrix((np.ones(int(first.sum())), (grp[first], idx[first])), shape=(m, n))
+    r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
+    r0 = g_mat @ (l_p * c0) + s_first @ kappa - intent
+    w = 1.0 / np.maximum(intent, 1e-9)
+    v = options.track_weight * l_p ** 2 * w[grp]
+    c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
+    h = r_mat.T @ sp.diags(w) @ r_mat + c_mat.T @ sp.diags(v) @ c_mat
+    g = r_mat.T @ (w * r0) + c_mat.T @ (v * (c0 - c_hat))
+    scale = float(np.mean(np.abs(h.diagonal()))) or 1.0
+    hi = np.where(np.isfinite(c_max), np.maximum(c_max, c_min * (1 + 1e-6) + 1e-9), np.inf)
+
+    def objective(x: FloatArray) -> float:
+        r = r_mat @ x + r0
+        c = c_mat @ x + c0
+        return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2))
+
+    x_start = np.zeros(n)
+    # state of the initial E (to report the objective before)
+    x_prev = 0.0
+    for p in range(n):
+        x_pre = alpha[p] * x_prev + kappa[p]
+        x_prev = e_p[p] * x_pre + b_p[p] * c_hat[p] + k_p[p]
+        x_start[p] = x_prev
+    before = objective(x_start)
+    x, iterations, _mu = solve_box_qp(h / scale, g / scale, c_mat, c0, c_min, hi,
+                                     max_iterations=options.max_iterations)
+    c = np.clip(c_mat @ x + c0, c_min, hi)
+    e_new = c * l_p
+    after = objective(x)
+    total = float(np.sum(intent))
+    return e_new, {"flow_before": 2.0 * before / total, "flow_after": 2.0 * after / total,
+                   "iterations": float(iterations)}
