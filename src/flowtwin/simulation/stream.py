@@ -50,7 +50,7 @@ from flowtwin.dynamics import (
 from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
-from flowtwin.gcode.reader import DEFAULT_CHUNK_BYTES, iter_move_chunks
+from flowtwin.gcode.reader import iter_move_chunks
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
@@ -65,10 +65,13 @@ from flowtwin.simulation.pipeline import _FIRMWARE, DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
 from flowtwin.simulation.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
 
-__all__ = ["MAX_SECTION_FACTOR", "SECTION_MOVES", "StreamResult", "simulate_stream"]
+__all__ = ["MAX_SECTION_FACTOR", "SECTION_MOVES", "STREAM_CHUNK_BYTES", "StreamResult",
+           "simulate_stream"]
 
+#: Bytes read at a time (the reader's default is 16 MB; smaller chunks keep less in memory).
+STREAM_CHUNK_BYTES = 4 * 1024 * 1024
 #: Moves per simulated section (and per planning window).
-SECTION_MOVES = 200_000
+SECTION_MOVES = 100_000
 #: A section without a rest to cut at grows to this many times :data:`SECTION_MOVES`.
 MAX_SECTION_FACTOR = 4
 #: Rest needed on each side of a cut with smoothed advance: Klipper's largest half window.
@@ -139,7 +142,7 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                     machine: Machine | SetupProfile | str | os.PathLike[str] | None = None,
                     klipper_config: str | os.PathLike[str] | None = None,
                     pressure_advance: bool = True, temperature_c: float | None = None,
-                    chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+                    chunk_bytes: int = STREAM_CHUNK_BYTES,
                     section_moves: int = SECTION_MOVES,
                     progress: Callable[[int], None] | None = None) -> StreamResult:
     """Simulate ``source`` on ``machine`` chunk by chunk, in memory bounded by the chunk and
