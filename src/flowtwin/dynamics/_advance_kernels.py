@@ -34,7 +34,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-__all__ = ["klipper_smooth", "marlin_track", "merge_breakpoints"]
+__all__ = ["klipper_smooth", "marlin_moves", "marlin_track", "merge_breakpoints"]
 
 
 @njit(cache=True)
@@ -271,3 +271,43 @@ def marlin_track(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
             adv = target
     state[0] = adv
     return k
+
+
+@njit(cache=True)
+def marlin_moves(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
+                 phase: npt.NDArray[np.int8], v0: npt.NDArray[np.float64],
+                 a: npt.NDArray[np.float64], dt: npt.NDArray[np.float64], n: int,
+                 v_cruise: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
+                 a_e: npt.NDArray[np.float64]) -> None:
+    """Per-move E cruise speed, end speed and acceleration from the nominal feed's phases
+    (``v_cruise``: the cruise speed, raised to the end of acceleration and the start of
+    deceleration; ``v_end``: the end of deceleration, else ``v_cruise``; ``a_e``: the
+    largest ``|a|`` of the two ramps). Outputs of length ``n``, filled here."""
+    nb = move.shape[0]
+    has_dec = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        v_cruise[i] = 0.0
+        v_end[i] = 0.0
+        a_e[i] = 0.0
+    for j in range(nb):
+        if not gap[j] and move[j] >= 0 and phase[j] == 1:
+            v_cruise[move[j]] = v0[j]
+    for j in range(nb):
+        m = move[j]
+        if gap[j] or m < 0:
+            continue
+        if phase[j] == 0:
+            v_cruise[m] = max(v_cruise[m], v0[j] + a[j] * dt[j])
+            a_e[m] = abs(a[j])
+    for j in range(nb):
+        m = move[j]
+        if gap[j] or m < 0:
+            continue
+        if phase[j] == 2:
+            v_cruise[m] = max(v_cruise[m], v0[j])
+            v_end[m] = v0[j] + a[j] * dt[j]
+            a_e[m] = max(a_e[m], abs(a[j]))
+            has_dec[m] = True
+    for i in range(n):
+        if not has_dec[i]:
+            v_end[i] = v_cruise[i]

@@ -37,7 +37,12 @@ from enum import StrEnum
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.dynamics._advance_kernels import klipper_smooth, marlin_track, merge_breakpoints
+from flowtwin.dynamics._advance_kernels import (
+    klipper_smooth,
+    marlin_moves,
+    marlin_track,
+    merge_breakpoints,
+)
 from flowtwin.dynamics.feed import PHASE_GAP, PHASE_MIXED, CommandedFeed
 from flowtwin.errors import ProfileError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
@@ -348,28 +353,16 @@ def _marlin(feed: CommandedFeed, sched: AdvanceSchedule,
             state: npt.NDArray[np.float64]) -> _Arrays:
     n = feed.n_moves
     k = sched.k_eff_s
+    if not np.any(k > 0.0):
+        # no block is advanced: the tracked advance is held, every segment passes unchanged
+        return (feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm + float(state[0]), feed.move,
+                feed.gap, feed.phase)
     # per-move E speeds and acceleration from the nominal feed's phases
-    v_cruise = np.zeros(n)
-    v_end = np.zeros(n)
-    a_e = np.zeros(n)
-    mv = ~feed.gap & (feed.move >= 0)
-    idx = feed.move[mv]
-    ph = feed.phase[mv]
-    v0 = feed.coef[mv, 0]
-    a = feed.coef[mv, 1]
-    dt = feed.dt_s[mv]
-    cru = ph == 1
-    v_cruise[idx[cru]] = v0[cru]
-    acc_ph = ph == 0
-    v_cruise[idx[acc_ph]] = np.maximum(v_cruise[idx[acc_ph]], v0[acc_ph] + a[acc_ph] * dt[acc_ph])
-    a_e[idx[acc_ph]] = np.abs(a[acc_ph])
-    dec = ph == 2
-    v_cruise[idx[dec]] = np.maximum(v_cruise[idx[dec]], v0[dec])
-    v_end[idx[dec]] = v0[dec] + a[dec] * dt[dec]
-    a_e[idx[dec]] = np.maximum(a_e[idx[dec]], np.abs(a[dec]))
-    no_dec = np.ones(n, dtype=bool)
-    no_dec[idx[dec]] = False
-    v_end[no_dec] = v_cruise[no_dec]
+    v_cruise = np.empty(n)
+    v_end = np.empty(n)
+    a_e = np.empty(n)
+    marlin_moves(feed.move, feed.gap, feed.phase, np.ascontiguousarray(feed.coef[:, 0]),
+                 np.ascontiguousarray(feed.coef[:, 1]), feed.dt_s, n, v_cruise, v_end, a_e)
     rate = k * a_e
     nb = feed.n_segments
     o = [np.empty(2 * nb) for _ in range(5)]
