@@ -18,14 +18,10 @@ scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools
 from __future__ import annotations
 
 import functools
-import gzip
-import io
 import math
 import os
-import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
@@ -34,6 +30,7 @@ from flowtwin.errors import GcodeError
 from flowtwin.gcode import _kernel as K
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
+from flowtwin.gcode.source import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.words import parse_line
 
 __all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]
@@ -62,9 +59,6 @@ NUMERIC_PARAMS: dict[str, frozenset[str]] = {
     "SET_PRESSURE_ADVANCE": frozenset({"ADVANCE", "SMOOTH_TIME"}),
 }
 
-_GZIP_MAGIC = b"\x1f\x8b"
-_BGCODE_MAGIC = b"GCDE"
-DEFAULT_CHUNK_BYTES = 16 * 1024 * 1024
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,60 +113,6 @@ class ReadOptions:
         if not self.arc_tolerance_mm > 0:
             raise GcodeError("arc tolerance must be positive", field="arc_tolerance_mm",
                              value=self.arc_tolerance_mm, allowed="> 0 mm")
-
-
-# ----------------------------------------------------------------------------- input ---
-
-def _open(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[BinaryIO, str]:
-    """Return a binary stream (gzip transparently decompressed) and a display name."""
-    if isinstance(source, bytes | bytearray | memoryview):
-        raw: BinaryIO = io.BytesIO(bytes(source))
-        name = "<bytes>"
-    elif isinstance(source, str | os.PathLike):
-        name = os.fspath(source)
-        if name == "-":
-            raw = sys.stdin.buffer
-            name = "<stdin>"
-        else:
-            try:
-                raw = open(name, "rb")
-            except OSError as exc:
-                raise GcodeError(f"cannot open G-code file: {exc.strerror}",
-                                 source=name) from exc
-    else:
-        raw = source
-        name = getattr(source, "name", "<stream>")
-        name = name if isinstance(name, str) else "<stream>"
-    peek = raw.peek(4)[:4] if hasattr(raw, "peek") else b""
-    if not peek and isinstance(raw, io.BytesIO):
-        peek = raw.getvalue()[:4]
-    if peek[:2] == _GZIP_MAGIC:
-        return gzip.GzipFile(fileobj=raw, mode="rb"), name  # type: ignore[return-value]
-    if peek == _BGCODE_MAGIC:
-        raise GcodeError("this is a binary G-code (.bgcode) file, not text G-code",
-                         source=name, allowed="text G-code (export as .gcode)")
-    return raw, name
-
-
-def _chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes]:
-    """Yield pieces of ``stream`` that end on a line break (the last may not)."""
-    rest = b""
-    while True:
-        try:
-            block = stream.read(chunk_bytes)
-        except (OSError, EOFError, gzip.BadGzipFile) as exc:
-            raise GcodeError(f"cannot read G-code: {exc}", source=name) from exc
-        if not block:
-            if rest:
-                yield rest
-            return
-        data = rest + block
-        cut = data.rfind(b"\n")
-        if cut < 0:
-            rest = data
-            continue
-        rest = data[cut + 1:]
-        yield data[:cut + 1]
 
 
 # ------------------------------------------------------------------------ the reader ---
@@ -588,11 +528,11 @@ def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         chunks). The last table carries the file's metadata, unknown commands and warnings.
     """
     options = options or ReadOptions()
-    stream, name = _open(source)
+    stream, name = open_source(source)
     reader = _Reader(name, options)
     last: MoveTable | None = None
     try:
-        for piece in _chunks(stream, name, chunk_bytes):
+        for piece in line_chunks(stream, name, chunk_bytes):
             if last is not None:
                 yield last
             last = reader.chunk(piece)
@@ -656,10 +596,3 @@ def read_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                           source=last.source, n_lines=last.n_lines)
     table.start_xyze = np.array([*options.start_xyz, 0.0])
     return table
-
-
-def source_name(source: str | os.PathLike[str] | bytes | BinaryIO) -> str:
-    """Display name of a source (for messages)."""
-    if isinstance(source, str | os.PathLike):
-        return "<stdin>" if os.fspath(source) == "-" else str(Path(source))
-    return "<bytes>" if isinstance(source, bytes | bytearray) else "<stream>"

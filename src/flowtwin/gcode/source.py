@@ -1,0 +1,90 @@
+"""Where G-code comes from: a path (plain or gzip), standard input, bytes or a stream.
+
+:func:`open_source` gives a binary stream (gzip is recognised by its magic bytes, Prusa's
+binary ``.bgcode`` is refused with a clear message) and :func:`line_chunks` cuts it into
+pieces that end on a line break, so the reader's memory stays bounded.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import BinaryIO
+
+from flowtwin.errors import GcodeError
+
+__all__ = ["DEFAULT_CHUNK_BYTES", "line_chunks", "open_source", "source_name"]
+
+_GZIP_MAGIC = b"\x1f\x8b"
+_BGCODE_MAGIC = b"GCDE"
+#: Bytes read per chunk.
+DEFAULT_CHUNK_BYTES = 16 * 1024 * 1024
+
+
+def open_source(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[BinaryIO, str]:
+    """Return a binary stream (gzip transparently decompressed) and a display name.
+
+    Raises
+    ------
+    GcodeError
+        The file cannot be opened, or it is a binary ``.bgcode``.
+    """
+    if isinstance(source, bytes | bytearray | memoryview):
+        raw: BinaryIO = io.BytesIO(bytes(source))
+        name = "<bytes>"
+    elif isinstance(source, str | os.PathLike):
+        name = os.fspath(source)
+        if name == "-":
+            raw = sys.stdin.buffer
+            name = "<stdin>"
+        else:
+            try:
+                raw = open(name, "rb")
+            except OSError as exc:
+                raise GcodeError(f"cannot open G-code file: {exc.strerror}",
+                                 source=name) from exc
+    else:
+        raw = source
+        name = getattr(source, "name", "<stream>")
+        name = name if isinstance(name, str) else "<stream>"
+    peek = raw.peek(4)[:4] if hasattr(raw, "peek") else b""
+    if not peek and isinstance(raw, io.BytesIO):
+        peek = raw.getvalue()[:4]
+    if peek[:2] == _GZIP_MAGIC:
+        return gzip.GzipFile(fileobj=raw, mode="rb"), name  # type: ignore[return-value]
+    if peek == _BGCODE_MAGIC:
+        raise GcodeError("this is a binary G-code (.bgcode) file, not text G-code",
+                         source=name, allowed="text G-code (export as .gcode)")
+    return raw, name
+
+
+def line_chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes]:
+    """Yield pieces of ``stream`` that end on a line break (the last may not)."""
+    rest = b""
+    while True:
+        try:
+            block = stream.read(chunk_bytes)
+        except (OSError, EOFError, gzip.BadGzipFile) as exc:
+            raise GcodeError(f"cannot read G-code: {exc}", source=name) from exc
+        if not block:
+            if rest:
+                yield rest
+            return
+        data = rest + block
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            rest = data
+            continue
+        rest = data[cut + 1:]
+        yield data[:cut + 1]
+
+
+def source_name(source: str | os.PathLike[str] | bytes | BinaryIO) -> str:
+    """Display name of a source (for messages)."""
+    if isinstance(source, str | os.PathLike):
+        return "<stdin>" if os.fspath(source) == "-" else str(Path(source))
+    return "<bytes>" if isinstance(source, bytes | bytearray) else "<stream>"
