@@ -15,6 +15,7 @@ from flowtwin.dynamics import DynamicsResult
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.planning import PlanResult
+from flowtwin.simulation._deposit_kernel import bead_metrics
 from flowtwin.simulation.parameters import MoveParameters
 
 __all__ = ["METRIC_DTYPE", "SimulationResult"]
@@ -221,25 +222,17 @@ def deposition_metrics(plan: PlanResult, dyn: DynamicsResult, params: MoveParame
     m = plan.table.moves
     n = len(m)
     out = np.zeros(n, METRIC_DTYPE)
-    start = np.empty((n, 3))
-    if n:
-        start[0] = plan.table.start_xyze[:3]
-        start[1:, 0], start[1:, 1], start[1:, 2] = m["x"][:-1], m["y"][:-1], m["z"][:-1]
-    length = np.hypot(m["x"] - start[:, 0], m["y"] - start[:, 1])
-    h = params.layer_height_mm
     d = dyn.moves
-    duration = d["duration_s"]
-    bead = ((m["kind"] & MoveKind.EXTRUDE) != 0) & (length > 1e-9) & (duration > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        area_nom = np.where(bead, d["cmd_mm3"] / length, np.nan)
-        area_out = np.where(bead, d["out_mm3"] / length, np.nan)
-        speed = np.where(bead, length / duration, np.nan)
-        out["width_nominal_mm"] = area_nom / h + _BEAD * h
-        out["width_mean_mm"] = area_out / h + _BEAD * h
-        out["width_min_mm"] = d["q_min_mm3_s"] / (h * speed) + _BEAD * h
-        out["width_max_mm"] = d["q_max_mm3_s"] / (h * speed) + _BEAD * h
-        out["flow_error"] = np.where(bead & (d["cmd_mm3"] > 0),
-                                     d["out_mm3"] / d["cmd_mm3"] - 1.0, 0.0)
-    out["force_margin_n"] = params.params.max_feed_force_n - d["peak_force_n"]
-    out["narrow"] = bead & (out["width_mean_mm"] < h)
+
+    def col(a: npt.NDArray[np.generic]) -> npt.NDArray[np.float64]:
+        return np.ascontiguousarray(a, dtype=np.float64)
+
+    bead_metrics(col(m["x"]), col(m["y"]), float(plan.table.start_xyze[0]),
+                 float(plan.table.start_xyze[1]), np.ascontiguousarray(m["kind"]),
+                 int(MoveKind.EXTRUDE), col(d["cmd_mm3"]), col(d["out_mm3"]),
+                 col(d["duration_s"]), col(d["q_min_mm3_s"]), col(d["q_max_mm3_s"]),
+                 col(d["peak_force_n"]), col(params.layer_height_mm),
+                 col(params.params.max_feed_force_n), _BEAD, out["width_nominal_mm"],
+                 out["width_mean_mm"], out["width_min_mm"], out["width_max_mm"],
+                 out["flow_error"], out["force_margin_n"], out["narrow"])
     return out
