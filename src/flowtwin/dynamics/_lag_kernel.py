@@ -59,6 +59,7 @@ __all__ = [
     "A_CMD", "A_FED", "A_FMAX", "A_FWD", "A_GRIND", "A_GTIME", "A_OUT", "A_QMAX", "A_QMIN",
     "A_SLIP", "A_TIME", "N_ACC", "N_SER", "S_E", "S_F", "S_Q", "S_SLIP", "S_T", "S_VCMD",
     "S_VFIL", "S_X", "acc_totals", "fill_move_results", "integrate_kernel", "prepare_segments",
+    "stop_rows",
 ]
 
 # Accumulator columns (per move, per stop): filament lengths in mm, times in s.
@@ -546,19 +547,21 @@ def fill_move_results(acc: npt.NDArray[np.float64], area: float,
                       q_min: npt.NDArray[np.float64], q_max: npt.NDArray[np.float64],
                       peak: npt.NDArray[np.float64], slip: npt.NDArray[np.float64],
                       slip_loss: npt.NDArray[np.float64], grind_loss: npt.NDArray[np.float64],
-                      grinding: npt.NDArray[np.bool_], duration: npt.NDArray[np.float64]
-                      ) -> None:
+                      grinding: npt.NDArray[np.bool_], duration: npt.NDArray[np.float64],
+                      stop_row: npt.NDArray[np.int64]) -> None:
     """Per-move results (the columns of ``result.MOVE_RESULT_DTYPE``, as strided views of
     one record array) from the accumulators.
 
-    Row ``i`` of ``acc`` is move ``i``; row ``n + 1 + i`` the stop after it. One pass,
+    Row ``i`` of ``acc`` is move ``i``; row ``stop_row[i]`` the stop after it (``-1``: no
+    stop). One pass,
     element by element (no record objects: numba would reference-count each).
     """
     n = move_de.shape[0]
     for i in range(n):
         d = move_t1[i] - move_t0[i]
         o = area * acc[i, A_OUT]
-        so = area * acc[n + 1 + i, A_OUT]
+        r = stop_row[i]
+        so = area * acc[r, A_OUT] if r >= 0 else 0.0
         cmd[i] = area * move_de[i]
         fed_cmd[i] = area * acc[i, A_CMD]
         fed[i] = area * acc[i, A_FED]
@@ -572,22 +575,39 @@ def fill_move_results(acc: npt.NDArray[np.float64], area: float,
         slip[i] = acc[i, A_SLIP] / acc[i, A_FWD] if acc[i, A_FWD] > 0.0 else 0.0
         slip_loss[i] = area * acc[i, A_SLIP]
         grind_loss[i] = area * acc[i, A_GRIND]
-        grinding[i] = acc[i, A_GTIME] > 0.0 or acc[n + 1 + i, A_GTIME] > 0.0
+        grinding[i] = acc[i, A_GTIME] > 0.0 or (r >= 0 and acc[r, A_GTIME] > 0.0)
         duration[i] = d
+
+
+@njit(cache=True)
+def stop_rows(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_], n: int,
+              stop_row: npt.NDArray[np.int64]) -> int:
+    """Accumulator rows of the stops: ``stop_row[i]`` for the stop after move ``i``
+    (``n + 1``, ``n + 2``, ... in order of appearance; ``-1``: none). Returns the number of
+    rows needed (moves, the stop before the first move at row ``n``, the stops)."""
+    for i in range(n):
+        stop_row[i] = -1
+    rows = n + 1
+    for j in range(move.shape[0]):
+        m = move[j]
+        if gap[j] and 0 <= m < n and stop_row[m] < 0:
+            stop_row[m] = rows
+            rows += 1
+    return rows
 
 
 @njit(cache=True)
 def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
                      dt: npt.NDArray[np.float64], coef: npt.NDArray[np.float64], n: int,
-                     seg_param: npt.NDArray[np.int64], seg_slot: npt.NDArray[np.int64],
-                     acc: npt.NDArray[np.float64]) -> bool:
+                     stop_row: npt.NDArray[np.int64], seg_param: npt.NDArray[np.int64],
+                     seg_slot: npt.NDArray[np.int64], acc: npt.NDArray[np.float64]) -> bool:
     """Check a feed and set up the kernel's inputs in one pass.
 
     Segment ``i`` takes the parameters of move ``clip(move[i], 0, n - 1)`` and accumulates
-    into slot ``move[i]`` (a move) or ``n + 1 + move[i]`` (the stop after it; ``n`` is the
-    stop before the first move). ``acc`` (slots × N_ACC) is zeroed (``A_QMIN`` = inf).
-    Returns False when a move index is out of ``[-1, n)``, a move segment has none, a
-    duration is not > 0 or a coefficient is not finite.
+    into row ``move[i]`` (a move), ``n`` (the stop before the first move) or
+    ``stop_row[move[i]]`` (the stop after it, :func:`stop_rows`). ``acc`` (rows × N_ACC) is
+    zeroed (``A_QMIN`` = inf). Returns False when a move index is out of ``[-1, n)``, a move
+    segment has none, a duration is not > 0 or a coefficient is not finite.
     """
     for i in range(move.shape[0]):
         m = move[i]
@@ -597,7 +617,12 @@ def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
                 and math.isfinite(coef[i, 2]) and math.isfinite(coef[i, 3])):
             return False
         seg_param[i] = min(max(m, 0), n - 1)
-        seg_slot[i] = n + 1 + m if gap[i] else m
+        if not gap[i]:
+            seg_slot[i] = m
+        elif m < 0:
+            seg_slot[i] = n
+        else:
+            seg_slot[i] = stop_row[m]
     for r in range(acc.shape[0]):
         for q in range(N_ACC):
             acc[r, q] = 0.0

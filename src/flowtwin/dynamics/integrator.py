@@ -59,6 +59,7 @@ from flowtwin.dynamics._lag_kernel import (
     fill_move_results,
     integrate_kernel,
     prepare_segments,
+    stop_rows,
 )
 from flowtwin.dynamics.feed import CommandedFeed
 from flowtwin.dynamics.params import ExtrusionParams
@@ -172,14 +173,16 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         e0 = np.append(e0, feed.e_end_mm())
         move = np.append(move, n - 1)
         gap = np.append(gap, True)
+    move = np.ascontiguousarray(move, dtype=np.int64)
+    gap = np.ascontiguousarray(gap, dtype=np.bool_)
+    stop_row = np.empty(n, dtype=np.int64)
+    rows = stop_rows(move, gap, n, stop_row)
     seg_param = np.empty(move.shape[0], dtype=np.int64)
     seg_slot = np.empty(move.shape[0], dtype=np.int64)
-    acc = np.empty((2 * n + 1, N_ACC))
-    if not prepare_segments(np.ascontiguousarray(move, dtype=np.int64),
-                            np.ascontiguousarray(gap, dtype=np.bool_),
-                            np.ascontiguousarray(dt, dtype=np.float64),
-                            np.ascontiguousarray(coef, dtype=np.float64), n, seg_param,
-                            seg_slot, acc):
+    acc = np.empty((rows, N_ACC))
+    if not prepare_segments(move, gap, np.ascontiguousarray(dt, dtype=np.float64),
+                            np.ascontiguousarray(coef, dtype=np.float64), n, stop_row,
+                            seg_param, seg_slot, acc):
         raise DataError("commanded feed is inconsistent (move index out of range, segment "
                         "without a move, non-positive duration or non-finite speed)",
                         field="feed", value=feed.n_segments,
@@ -197,7 +200,7 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         p.max_feed_force_n, float(p.grind_release_fraction), float(initial_compression_mm),
         bool(initially_grinding), float(stiffness), int(min_stages), sample_t, samples, acc)
     area = p.filament_area_mm2
-    moves = _per_move(feed, acc, area)
+    moves = _per_move(feed, acc, area, stop_row)
     before = np.zeros(1, dtype=MOVE_RESULT_DTYPE)
     pre = acc[n]
     before["cmd_mm3"] = 0.0
@@ -245,14 +248,15 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                           final_grinding=bool(grind_end), feed=feed, warnings=feed.warnings)
 
 
-def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64],
-              area: float) -> npt.NDArray[np.void]:
+def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64], area: float,
+              stop_row: npt.NDArray[np.int64]) -> npt.NDArray[np.void]:
     res = np.zeros(feed.n_moves, dtype=MOVE_RESULT_DTYPE)
     cols = [res[name] for name in ("cmd_mm3", "fed_cmd_mm3", "fed_mm3", "out_mm3",
                                    "stop_out_mm3", "ooze_mm3", "q_mean_mm3_s", "q_min_mm3_s",
                                    "q_max_mm3_s", "peak_force_n", "slip", "slip_loss_mm3",
                                    "grind_loss_mm3", "grinding", "duration_s")]
-    fill_move_results(acc, float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
-                      np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
-                      np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), *cols)
+    fill_move_results(  # type: ignore[call-arg]
+        acc, float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
+        np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
+        np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), *cols, stop_row)
     return res
