@@ -68,10 +68,19 @@ def resolve_per_move(value: ParamSpec, n_moves: int, *, name: str,
     else:
         arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 0:
-        arr = np.full(n_moves, float(arr))
+        # one value for every move: check it once (a bad one is reported at move 0)
+        _check_range(arr.reshape(1), name=name, lo=lo, hi=hi, lo_open=lo_open,
+                     allow_inf=allow_inf)
+        return np.full(n_moves, float(arr))
     if arr.shape != (n_moves,):
         raise ProfileError("parameter has the wrong shape", field=name, value=arr.shape,
                            allowed=f"a number or shape ({n_moves},)")
+    _check_range(arr, name=name, lo=lo, hi=hi, lo_open=lo_open, allow_inf=allow_inf)
+    return arr
+
+
+def _check_range(arr: npt.NDArray[np.float64], *, name: str, lo: float, hi: float,
+                 lo_open: bool, allow_inf: bool) -> None:
     ok = ~np.isnan(arr)
     ok &= np.isfinite(arr) | (allow_inf & (arr == math.inf))
     ok &= (arr > lo) if lo_open else (arr >= lo)
@@ -81,7 +90,6 @@ def resolve_per_move(value: ParamSpec, n_moves: int, *, name: str,
         rng = f"{lo!r} {'<' if lo_open else '<='} {name} <= {hi!r}"
         raise ProfileError(f"parameter out of range at move {i}", field=name,
                            value=float(arr[i]), allowed=rng)
-    return arr
 
 
 @dataclass(frozen=True, slots=True)
