@@ -380,7 +380,8 @@ class _Reader:
         n_lines = buf.count(b"\n") + 1
         # arcs become several rows: reserve a few per arc so the buffer rarely grows
         n_arcs = buf.count(b"G2 ") + buf.count(b"G3 ")
-        rows = _Rows.make(n_lines + 4 * n_arcs + 16, max(64, n_lines // 4))
+        # comments and other commands are a minority of lines; their buffers grow if needed
+        rows = _Rows.make(n_lines + 4 * n_arcs + 16, max(256, n_lines // 32))
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other = K.scan(
