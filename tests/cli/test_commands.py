@@ -95,3 +95,12 @@ def test_missing_file_and_unknown_profile_exit_2(tmp_path: Path,
         main(["plan", str(gcode), "--profile", "no-such-printer"])
     assert exc.value.code == 2
     assert "no-such-printer" in capsys.readouterr().err
+
+
+def test_simulate_stream_equals_whole_simulation(small_gcode: Path) -> None:
+    whole = json.loads(runner.invoke(app, ["simulate", str(small_gcode), "--json"]).stdout)
+    res = runner.invoke(app, ["simulate", str(small_gcode), "--json", "--stream"])
+    assert res.exit_code == 0, res.output
+    streamed = json.loads(res.stdout)
+    for key in ("commanded_volume_mm3", "delivered_volume_mm3", "total_time_s"):
+        assert streamed[key] == pytest.approx(whole[key], rel=1e-9)

@@ -10,6 +10,7 @@ from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeEl
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
+from flowtwin.errors import FlowtwinError
 from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
 
 __all__ = ["register", "render_simulation", "run_simulation"]
@@ -52,6 +53,14 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
             result.write_series(series)
         bar.update(task, completed=len(_STAGES))
     return result
+
+
+class _quiet:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *args: object) -> None:
+        return None
 
 
 def _json_default(value: object) -> object:
@@ -123,9 +132,30 @@ def register(app: typer.Typer) -> None:
         slicer_limits: Annotated[bool, typer.Option(
             "--slicer-limits", help="Marlin-style firmware: plan with the slicer's machine "
             "limits.")] = False,
+        stream: Annotated[bool, typer.Option(
+            "--stream", help="Bounded memory for multi-GB files: whole-print figures only "
+            "(no report, series or per-move tables).")] = False,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Predict what a G-code really extrudes: flow, bead width, slip, force, grinding."""
+        if stream:
+            if out is not None or series is not None:
+                raise FlowtwinError("--stream gives whole-print figures only",
+                                    field="--stream", allowed="without --out and --series")
+            from flowtwin.simulation import simulate_stream
+
+            with console.status("simulating (streaming)…") if not json_out else _quiet():
+                streamed = simulate_stream(str(gcode), machine=profile,
+                                           klipper_config=klipper_config,
+                                           pressure_advance=not no_pa)
+            summary = streamed.summary()
+            if json_out:
+                print_json(summary)
+            else:
+                console.print(table_from_rows("Simulation (streamed)", ["", ""],
+                                              [(k, v) for k, v in summary.items()
+                                               if not isinstance(v, dict | list)]))
+            return
         result = run_simulation(str(gcode), machine=profile, klipper_config=klipper_config,
                                 out_dir=out, series=series, pressure_advance=not no_pa,
                                 slicer_limits=slicer_limits, show_progress=not json_out)
