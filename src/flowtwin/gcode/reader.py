@@ -166,9 +166,12 @@ class _Rows:
 class _Reader:
     """State of one read across chunks."""
 
-    def __init__(self, name: str, options: ReadOptions) -> None:
+    def __init__(self, name: str, options: ReadOptions, *, accumulate: bool = False) -> None:
         self.name = name
         self.options = options
+        self.accumulate = accumulate
+        self.rows: _Rows | None = None
+        self._offset = 0
         s = np.zeros(K.N_STATE)
         s[K.S_X:K.S_Z + 1] = options.start_xyz
         s[K.S_FEED] = 25.0  # 1500 mm/min until the file says otherwise
@@ -236,7 +239,7 @@ class _Reader:
             raise GcodeError("malformed move", source=self.name, line=line, value=text)
         if code.startswith("T") and code[1:].isdigit():
             s[K.S_TOOL] = float(code[1:])
-            self._event(Event(self.n_moves + rows.n, line, code, p))
+            self._event(Event(self._offset + rows.n, line, code, p))
             return
         if code == "G28":
             axes = [a for a in "XYZ" if a in p]
@@ -280,7 +283,7 @@ class _Reader:
             else:
                 self.warnings.append(f"{self.name}:{line}: '{text.strip()}' does not set the "
                                      "flow of the active tool; ignored")
-        self._record(parsed.code, p, parsed.comment, line, self.n_moves + rows.n, text)
+        self._record(parsed.code, p, parsed.comment, line, self._offset + rows.n, text)
 
     def _check_numeric(self, code: str, params: dict[str, float | str], line: int,
                        text: str | _Span) -> None:
@@ -340,7 +343,7 @@ class _Reader:
 
     def _other_lines(self, buf: bytes, rows: _Rows) -> None:
         feed = self.comments.feed
-        base = self.n_moves
+        base = self._offset
         n = rows.n_other
         other = rows.other[:n]
         numeric = np.flatnonzero(other[:, 4] == K.OTHER_NUMERIC)
@@ -366,10 +369,15 @@ class _Reader:
             text = text.rstrip("\r")
             parsed = parse_line(text, source=self.name, line=lineno)
             self._record(parsed.code, parsed.params, parsed.comment, lineno,
-                         self.n_moves + move_index, text)
+                         self._offset + move_index, text)
 
     # -- one chunk -------------------------------------------------------------------------
-    def chunk(self, buf: bytes) -> MoveTable:
+    def chunk(self, buf: bytes, *, capacity_hint: int = 0) -> MoveTable:
+        """Read one piece of the file (ending on a line break) and return its moves.
+
+        With ``accumulate`` the rows go on filling one buffer across chunks (the whole-file
+        read: no copies); otherwise each chunk has its own (streaming: bounded memory).
+        """
         self.events: list[Event] = []
         arr = np.frombuffer(buf, dtype=np.uint8)
         if arr.size and not np.all(arr):  # a NUL byte: binary data
@@ -380,8 +388,18 @@ class _Reader:
         n_lines = buf.count(b"\n") + 1
         # arcs become several rows: reserve a few per arc so the buffer rarely grows
         n_arcs = buf.count(b"G2 ") + buf.count(b"G3 ")
-        # comments and other commands are a minority of lines; their buffers grow if needed
-        rows = _Rows.make(n_lines + 4 * n_arcs + 16, max(256, n_lines // 32))
+        need = n_lines + 4 * n_arcs + 16
+        rows = self.rows if self.accumulate else None
+        if rows is None:
+            # comments and other commands are a minority of lines; their buffers grow
+            rows = _Rows.make(max(need, capacity_hint), max(256, n_lines // 32))
+            if self.accumulate:
+                self.rows = rows
+        elif rows.moves.shape[0] - rows.n < need:
+            rows.grow_moves(need)
+        rows.n_other = 0
+        start_n = rows.n
+        self._offset = self.n_moves - start_n
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other = K.scan(
@@ -407,14 +425,18 @@ class _Reader:
                 pos = end + 1
         self._other_lines(buf, rows)
         self.last_byte_newline = buf.endswith(b"\n")
-        return self._table(rows)
+        return self._table(rows, start_n)
 
-    def _table(self, rows: _Rows) -> MoveTable:
+    def _table(self, rows: _Rows, start_n: int = 0) -> MoveTable:
         n = rows.n
-        # keep the kernel's buffer when it is mostly full, else copy to release the rest
-        moves = rows.moves[:n] if n >= 0.6 * rows.moves.shape[0] else rows.moves[:n].copy()
+        if self.accumulate:
+            moves = rows.moves[start_n:n]  # filled in place; the whole read takes the buffer
+        else:
+            # keep the kernel's buffer when it is mostly full, else copy to release the rest
+            moves = (rows.moves[:n] if n >= 0.6 * rows.moves.shape[0]
+                     else rows.moves[:n].copy())
         # cumulative E per tool, continuing across chunks
-        e = np.empty(n)
+        e = np.empty(n - start_n)
         tools = moves["tool"]
         for tool in np.unique(tools).tolist():
             sel = tools == tool
@@ -427,7 +449,7 @@ class _Reader:
         self._assign_layers(moves)
         table = MoveTable(moves=moves, events=self.events,
                           start_xyze=np.zeros(4), source=self.name)
-        self.n_moves += n
+        self.n_moves += n - start_n
         return table
 
     def _assign_features(self, moves: np.ndarray) -> None:
@@ -528,37 +550,56 @@ def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         Moves and events of one chunk (move rows, features and layers continue across
         chunks). The last table carries the file's metadata, unknown commands and warnings.
     """
-    options = options or ReadOptions()
+    yield from _drive(source, options or ReadOptions(), chunk_bytes, accumulate=False)[1]
+
+
+def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptions,
+           chunk_bytes: int, *, accumulate: bool) -> tuple[_Reader, Iterator[MoveTable]]:
+    """The reader of ``source`` and the generator of its chunk tables."""
     stream, name = open_source(source)
-    reader = _Reader(name, options)
-    last: MoveTable | None = None
-    try:
-        for piece in line_chunks(stream, name, chunk_bytes):
-            if last is not None:
-                yield last
-            last = reader.chunk(piece)
-    finally:
-        if isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
-            stream.close()
-    if last is None:
-        last = reader._table(_Rows.make(0, 0)) if hasattr(reader, "events") else _empty(reader)
-    n_lines = int(reader.state[K.S_LINE])
-    if not reader.last_byte_newline and n_lines:
-        reader.warnings.append(f"{name}:{n_lines}: file does not end with a line break "
-                               "(truncated?)")
-    last.metadata = reader.comments.finish()
-    last.metadata.pop("_layer_mode", None)
-    last.features = list(reader.comments.features)
-    last.layer_z = list(reader.layer_z)
-    last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))
-    last.warnings = list(reader.warnings)
-    last.n_lines = n_lines
-    yield last
+    reader = _Reader(name, options, accumulate=accumulate)
+    hint = 0
+    if accumulate and isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
+        try:
+            # about one row per 25 bytes of G-code; growth covers the rest
+            hint = os.path.getsize(source) // 25
+        except OSError:
+            hint = 0
+
+    def tables() -> Iterator[MoveTable]:
+        last: MoveTable | None = None
+        try:
+            for piece in line_chunks(stream, name, chunk_bytes):
+                if last is not None:
+                    yield last
+                last = reader.chunk(piece, capacity_hint=hint)
+        finally:
+            if isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
+                stream.close()
+        if last is None:
+            last = _empty(reader)
+        n_lines = int(reader.state[K.S_LINE])
+        if not reader.last_byte_newline and n_lines:
+            reader.warnings.append(f"{name}:{n_lines}: file does not end with a line break "
+                                   "(truncated?)")
+        last.metadata = reader.comments.finish()
+        last.metadata.pop("_layer_mode", None)
+        last.features = list(reader.comments.features)
+        last.layer_z = list(reader.layer_z)
+        last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))
+        last.warnings = list(reader.warnings)
+        last.n_lines = n_lines
+        yield last
+
+    return reader, tables()
 
 
 def _empty(reader: _Reader) -> MoveTable:
     reader.events = []
-    return reader._table(_Rows.make(0, 0))
+    rows = _Rows.make(0, 0)
+    if reader.accumulate:
+        reader.rows = rows
+    return reader._table(rows)
 
 
 def read_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
@@ -584,16 +625,17 @@ def read_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         and line).
     """
     options = options or ReadOptions()
-    chunks = list(iter_move_chunks(source, options=options))
+    reader, tables = _drive(source, options, DEFAULT_CHUNK_BYTES, accumulate=True)
+    chunks = list(tables)
     last = chunks[-1]
-    if len(chunks) == 1:
-        table = last
-    else:
-        table = MoveTable(moves=np.concatenate([c.moves for c in chunks]),
-                          events=[e for c in chunks for e in c.events],
-                          start_xyze=chunks[0].start_xyze, features=last.features,
-                          layer_z=last.layer_z, metadata=last.metadata,
-                          unknown_commands=last.unknown_commands, warnings=last.warnings,
-                          source=last.source, n_lines=last.n_lines)
-    table.start_xyze = np.array([*options.start_xyz, 0.0])
+    rows = reader.rows
+    assert rows is not None
+    n = rows.n
+    # every chunk was written into one buffer: take it (copy only to release much slack)
+    moves = rows.moves[:n] if n >= 0.6 * rows.moves.shape[0] else rows.moves[:n].copy()
+    table = MoveTable(moves=moves, events=[e for c in chunks for e in c.events],
+                      start_xyze=np.array([*options.start_xyz, 0.0]), features=last.features,
+                      layer_z=last.layer_z, metadata=last.metadata,
+                      unknown_commands=last.unknown_commands, warnings=last.warnings,
+                      source=last.source, n_lines=last.n_lines)
     return table
