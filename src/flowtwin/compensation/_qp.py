@@ -9,7 +9,8 @@ with ``H`` symmetric positive (semi)definite and ``H + Cᵀ·D·C`` positive def
 positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
 ``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``;
 every Newton step solves ``(H + Cᵀ(z/s + w/t)C)·Δx = r``, which keeps the sparsity
-(banded for the lag model) and is factorised by SuperLU. Nocedal & Wright, *Numerical
+(banded for the lag model): a banded Cholesky factorisation (LAPACK ``pbtrf``), or
+SuperLU when the band is wide. Nocedal & Wright, *Numerical
 Optimization* (2nd ed.), §16.6.
 """
 
@@ -20,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
+from scipy.linalg import cho_solve_banded, cholesky_banded
 from scipy.sparse.linalg import splu
 
 __all__ = ["solve_box_qp"]
@@ -61,6 +63,86 @@ def _newton(lu: object, c: sp.csr_matrix, ct: sp.csc_matrix, st: _State, sigma_m
     return dx, ds, dt, dz, dw
 
 
+class _Kkt:
+    """Factorisations of ``H + Cᵀ·diag(D)·C`` for changing ``D``.
+
+    When the band is narrow the matrix is assembled straight into LAPACK's upper band
+    storage (``ab[b − k, j] = M[j − k, j]``) from precomputed index pairs of ``C``'s rows,
+    and factorised by banded Cholesky (``pbtrf``); otherwise by SuperLU.
+    """
+
+    def __init__(self, h: sp.csc_matrix, c: sp.csr_matrix) -> None:
+        self.h = h
+        self.c = c
+        self.ct = sp.csc_matrix(c.T)
+        n = h.shape[0]
+        hc = h.tocoo()
+        cc = c.tocoo()
+        # pairs (i ≤ j) of columns sharing a row of C
+        order = np.argsort(cc.row, kind="stable")
+        rows, cols, vals = cc.row[order], cc.col[order], cc.data[order]
+        starts = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
+        counts = np.diff(np.append(starts, rows.size))
+        pr: list[npt.NDArray[np.int64]] = []
+        pi: list[npt.NDArray[np.int64]] = []
+        pj: list[npt.NDArray[np.int64]] = []
+        pv: list[FloatArray] = []
+        for width in np.unique(counts).tolist():
+            sel = starts[counts == width]
+            for u in range(width):
+                for v in range(width):
+                    ii = cols[sel + u]
+                    jj = cols[sel + v]
+                    keep = ii <= jj
+                    pr.append(rows[sel + u][keep])
+                    pi.append(ii[keep])
+                    pj.append(jj[keep])
+                    pv.append((vals[sel + u] * vals[sel + v])[keep])
+        self.p_row = np.concatenate(pr) if pr else np.zeros(0, dtype=np.int64)
+        p_i = np.concatenate(pi) if pi else np.zeros(0, dtype=np.int64)
+        p_j = np.concatenate(pj) if pj else np.zeros(0, dtype=np.int64)
+        self.p_val = np.concatenate(pv) if pv else np.zeros(0)
+        upper = hc.row <= hc.col
+        band_h = int(np.max(hc.col[upper] - hc.row[upper], initial=0))
+        band_c = int(np.max(p_j - p_i, initial=0))
+        self.b = max(band_h, band_c)
+        self.n = n
+        self.banded = self.b * self.b * n <= 5e9 and self.b < n // 2 + 1
+        if self.banded:
+            b = self.b
+            self.h_band = np.zeros((b + 1) * n)
+            np.add.at(self.h_band, (b - (hc.col[upper] - hc.row[upper])) * n + hc.col[upper],
+                      hc.data[upper])
+            self.p_index = (b - (p_j - p_i)) * n + p_j
+
+    def factor(self, dd: FloatArray) -> object:
+        """Factorise ``H + Cᵀ·diag(dd)·C + δ·I``; ``δ`` (1e-13 of the largest diagonal,
+        raised if needed) only guards against round-off making the matrix indefinite."""
+        if self.banded:
+            band = self.h_band + np.bincount(self.p_index, weights=dd[self.p_row] * self.p_val,
+                                             minlength=self.h_band.size)
+            ab = band.reshape(self.b + 1, self.n)
+            delta = 1e-13 * float(np.max(np.abs(ab[self.b])))
+            for _ in range(4):
+                reg = ab.copy()
+                reg[self.b] += delta
+                try:
+                    return _BandedFactor(cholesky_banded(reg, lower=False, check_finite=False))
+                except np.linalg.LinAlgError:
+                    delta *= 1e3
+        m = sp.csc_matrix(self.h + self.ct @ sp.diags(dd) @ self.c)
+        return splu(m + sp.identity(self.n, format="csc")
+                    * (1e-13 * float(np.max(np.abs(m.diagonal())))))
+
+
+class _BandedFactor:
+    def __init__(self, factor: FloatArray) -> None:
+        self.factor = factor
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        return np.asarray(cho_solve_banded((self.factor, False), rhs, check_finite=False))
+
+
 def _step_to_boundary(v: FloatArray, dv: FloatArray) -> float:
     neg = dv < 0.0
     if not np.any(neg):
@@ -70,7 +152,7 @@ def _step_to_boundary(v: FloatArray, dv: FloatArray) -> float:
 
 def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, lo: FloatArray,
                  hi: FloatArray, *, max_iterations: int = 60, tolerance: float = 1e-9,
-                 ) -> tuple[FloatArray, int, float]:
+                 x0: FloatArray | None = None) -> tuple[FloatArray, int, float]:
     """Solve the program of the module docstring.
 
     Parameters
@@ -82,11 +164,15 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     c, d
         Constraint map ``C`` (sparse ``(m, n)``) and offset ``d`` ``(m,)``.
     lo, hi
-        Bounds of ``C·x + d``, ``(m,)``; ``lo < hi`` (``hi`` may be ``inf``).
+        Bounds of ``C·x + d``, ``(m,)``; ``lo < hi``; either may be infinite (a row with
+        both infinite is ignored).
     max_iterations
         Newton steps at most.
     tolerance
         Stop when the duality gap per constraint and the scaled residuals are below it.
+    x0
+        Starting point (default: least squares towards the middle of the bounds); the
+        slacks start at least 0.1 % of each bound interval inside.
 
     Returns
     -------
@@ -94,25 +180,41 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
         ``x`` ``(n,)``, iterations, final mean complementarity.
     """
     n = h.shape[0]
+    c = sp.csr_matrix(c)
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    # rows bounded above only: negate them (−hi ≤ −C·x − d); unbounded rows: drop
+    upper_only = ~np.isfinite(lo) & np.isfinite(hi)
+    keep = np.isfinite(lo) | upper_only
+    if np.any(upper_only) or not np.all(keep):
+        sign = np.where(upper_only, -1.0, 1.0)
+        c = sp.csr_matrix(sp.diags(sign) @ c)[keep]
+        d = (sign * d)[keep]
+        lo, hi = np.where(upper_only, -hi, lo)[keep], np.where(upper_only, np.inf, hi)[keep]
     m = c.shape[0]
     h = sp.csc_matrix(h)
-    c = sp.csr_matrix(c)
     ct = sp.csc_matrix(c.T)
     finite_hi = np.isfinite(hi)
     span = np.where(finite_hi, hi - lo, np.inf)
     # start: a point with C·x + d strictly inside the bounds (least squares towards the
     # middle of each interval, or just above lo where hi is infinite)
     target = np.where(finite_hi, lo + 0.5 * span, lo + np.maximum(1.0, np.abs(lo)) * 0.5)
-    reg = sp.identity(n, format="csc") * 1e-12
-    x = splu(sp.csc_matrix(ct @ c + reg)).solve(ct @ (target - d))
+    if x0 is not None:
+        x = np.asarray(x0, dtype=np.float64).copy()
+    else:
+        reg = sp.identity(n, format="csc") * 1e-12
+        x = splu(sp.csc_matrix(ct @ c + reg)).solve(ct @ (target - d))
     y = c @ x + d
     s = np.maximum(y - lo, 1e-3 * np.where(finite_hi, span, 1.0))
     t = np.where(finite_hi, np.maximum(hi - y, 1e-3 * np.where(finite_hi, span, 1.0)), 1.0)
     z = np.ones(m)
     w = np.where(finite_hi, 1.0, 0.0)
+    kkt = _Kkt(h, c)
     scale = max(1.0, float(np.max(np.abs(g))) if g.size else 1.0)
     it = 0
     mu = float(np.mean(s * z + t * w))
+    mu0 = max(mu, 1e-300)
     while it < max_iterations:
         it += 1
         y = c @ x + d
@@ -120,13 +222,21 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
         r_l = y - lo - s                          # primal residuals
         r_u = np.where(finite_hi, hi - y - t, 0.0)
         mu = float(np.sum(s * z + t * w) / max(m + int(np.count_nonzero(finite_hi)), 1))
-        if (mu < tolerance and float(np.max(np.abs(r_d), initial=0.0)) < tolerance * scale
-                and float(np.max(np.abs(r_l), initial=0.0)) < tolerance * (1 + np.max(np.abs(lo)))):
-            break
+        primal_ok = (float(np.max(np.abs(r_l), initial=0.0))
+                     < tolerance * (1.0 + float(np.max(np.abs(lo)))))
+        dual = float(np.max(np.abs(r_d), initial=0.0))
+        if primal_ok and (mu < tolerance or mu < 1e-12 * mu0):
+            # converged; with barrier terms spanning many decades the dual residual of the
+            # last Newton steps only reaches the accuracy of the factorisation
+            if dual < tolerance * scale or (mu < 1e-3 * tolerance and dual < 1e-3 * scale):
+                break
         dz_s = z / s
         dw_t = np.where(finite_hi, w / t, 0.0)
-        kkt = sp.csc_matrix(h + ct @ sp.diags(dz_s + dw_t) @ c)
-        lu = splu(kkt)
+        dd = dz_s + dw_t
+        try:
+            lu = kkt.factor(dd)
+        except (RuntimeError, np.linalg.LinAlgError):  # numerically singular: done
+            break
 
         zero = np.zeros(m)
         state = _State(s, t, z, w, r_d, r_l, r_u, finite_hi)

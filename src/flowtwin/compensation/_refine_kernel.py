@@ -238,3 +238,15 @@ def free_piece_chain(seg_piece: npt.NDArray[np.int64], seg_a: npt.NDArray[np.flo
             big_a = a * big_a
             big_k = a * big_k + seg_c[s]
             cur = -1
+
+
+@njit(cache=True)
+def chain_states(alpha: npt.NDArray[np.float64], kappa: npt.NDArray[np.float64],
+                 e_p: npt.NDArray[np.float64], b_p: npt.NDArray[np.float64],
+                 k_p: npt.NDArray[np.float64], c: npt.NDArray[np.float64],
+                 out: npt.NDArray[np.float64]) -> None:
+    """``x_p = E_p·(α_p·x_(p−1) + κ_p) + B_p·c_p + K_p`` for every free piece, ``x_(−1) = 0``."""
+    x = 0.0
+    for p in range(c.shape[0]):
+        x = e_p[p] * (alpha[p] * x + kappa[p]) + b_p[p] * c[p] + k_p[p]
+        out[p] = x

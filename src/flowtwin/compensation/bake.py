@@ -109,7 +109,8 @@ def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
 
 def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: FloatArray,
                  limits: ExtruderLimits, options: AdvanceOptions, *, e_unit_mm: float,
-                 split: bool, relief: bool) -> tuple[Draft, PassReport]:
+                 split: bool, relief: bool, state_max: FloatArray | None = None
+                 ) -> tuple[Draft, PassReport]:
     """Give the draft's printing pieces their advanced E (see the module docstring).
 
     Parameters
@@ -130,6 +131,9 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         Cut printing rows at their phase boundaries.
     relief
         Add pressure relief on travels between runs.
+    state_max
+        Largest compression of the column during every row, grid units (the feed force
+        at which the drive would grind, with a margin); ``None``: no cap.
 
     Returns
     -------
@@ -184,9 +188,10 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         # a first pass starts from the law; later passes from the draft's own E (already
         # refined, now re-planned), so they only correct what the new timing changed
         start_e = law.e if split else cur_e[pieces.row[law.sel]].astype(np.float64)
+        cap = None if state_max is None else np.asarray(state_max)[pieces.row[law.sel]]
         e_run, report.refinement = refine_qp(model, pieces, start_e, intent,
                                              row_group[pieces.row[law.sel]], law.c_min,
-                                             law.c_max, options.refine)
+                                             law.c_max, options.refine, state_max=cap)
     e_piece = cur_e[pieces.row].astype(np.int64)
     reliefs = _relief_amounts(interims, model, pieces, e_run, e_unit_mm=e_unit_mm)
     if law.sel.size:

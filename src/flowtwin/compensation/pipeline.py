@@ -52,6 +52,9 @@ __all__ = ["CompensationReport", "compensate"]
 
 Progress = Callable[[str], None]
 
+#: The advance keeps the predicted feed force below this share of the grinding limit.
+_GRIND_MARGIN = 0.9
+
 
 @dataclass(slots=True)
 class CompensationReport:
@@ -301,10 +304,14 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                                                   pressure_advance=False)
             names.append("advance")
             for k in range(advance_passes):
+                pp = cur.parameters.params
+                # compression at which the feed force reaches the grinding limit (margin)
+                cap = (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
+                       * np.asarray(pp.compliance_mm_per_n, dtype=np.float64) / scanned.e_unit)
                 draft, rep = advance_pass(draft, cur.plan.table, cur.plan.timeline,
-                                          cur.parameters.params.lag_k_s, limits, adv,
-                                          e_unit_mm=scanned.e_unit, split=k == 0,
-                                          relief=(k == 0 and adv.relief))
+                                          pp.lag_k_s, limits, adv, e_unit_mm=scanned.e_unit,
+                                          split=k == 0, relief=(k == 0 and adv.relief),
+                                          state_max=cap)
                 advance_reports.append(_pass_dict(rep))
                 draft.render(work)
                 cur = _checked(simulate(work, machine=m, klipper_config=klipper_config,

@@ -47,17 +47,24 @@ class RefineOptions:
     track_weight
         ``λ``: pull of every piece's E towards the advance law's (> 0; it also makes the
         pieces within a move, which the flow error alone cannot tell apart, unique).
+    peak_weight
+        ``μ``: weight of the squared relative error of every move (next to the
+        volume-weighted one), against large relative errors of small moves.
     max_iterations
         Interior-point iterations at most.
     """
 
     track_weight: float = 0.02
-    max_iterations: int = 80
+    peak_weight: float = 0.05
+    max_iterations: int = 150
 
     def __post_init__(self) -> None:
         if not (0.0 < self.track_weight <= 100.0):
             raise ProfileError("invalid refinement weight", field="track_weight",
                                value=self.track_weight, allowed="0 < λ <= 100")
+        if not (0.0 <= self.peak_weight <= 100.0):
+            raise ProfileError("invalid peak weight", field="peak_weight",
+                               value=self.peak_weight, allowed="0 <= μ <= 100")
         if not (5 <= self.max_iterations <= 1000):
             raise ProfileError("invalid iteration limit", field="max_iterations",
                                value=self.max_iterations, allowed="5 .. 1000")
@@ -264,14 +271,38 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
 
 def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: FloatArray,
               piece_group: IntArray, c_min: FloatArray, c_max: FloatArray,
-              options: RefineOptions) -> tuple[FloatArray, dict[str, float]]:
+              options: RefineOptions, *, state_max: FloatArray | None = None
+              ) -> tuple[FloatArray, dict[str, float]]:
     """Optimise the free pieces' E as a sparse quadratic program in the states.
 
     With the state ``x_p`` after every free piece as the unknowns, each piece's ratio is
     ``c_p = (x_p − E_p·(α_p·x_(p−1) + κ_p) − K_p)/B_p`` (:func:`free_piece_chain`) and each
     move's output ``O_g = Σ_(p∈g) L_p·c_p − x_last(g) + x_before(g)``: both are linear with
-    a band structure, so ``½ Σ_g (O_g − I_g)²/I_g + ½ λ Σ_p (L_p (c_p − ĉ_p))²/I_g`` over
-    the ratio box is a banded convex QP (:func:`flowtwin.compensation._qp.solve_box_qp`).
+    a band structure, so ``½ Σ_g w_g (O_g − I_g)² + ½ λ Σ_p (L_p (c_p − ĉ_p))²/I_g`` with
+    ``w_g = 1/I_g + μ·Ī/I_g²`` (the volume-weighted squared flow error, plus ``μ`` times the
+    squared *relative* error, which keeps small moves from carrying large relative errors)
+    over the ratio box and under the state cap ``x_p ≤ x_max`` (the compression at which the
+    feed force reaches the grinding limit) is a banded convex QP
+    (:func:`flowtwin.compensation._qp.solve_box_qp`).
+
+    Parameters
+    ----------
+    model
+        The lag model.
+    pieces
+        All pieces.
+    initial_e
+        E of every free piece of the law (grid units): the starting and reference point.
+    intent
+        Intended E of every group, grid units.
+    piece_group
+        Group of every free piece.
+    c_min, c_max
+        Ratio box of every free piece.
+    options
+        Weights and iterations.
+    state_max
+        Largest compression after every free piece, grid units (``inf``: none).
 
     Returns
     -------
@@ -311,8 +342,9 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     s_first = sp.csr_matrix((np.ones(int(first.sum())), (grp[first], idx[first])), shape=(m, n))
     r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
     r0 = g_mat @ (l_p * c0) + s_first @ kappa - intent
-    w = 1.0 / np.maximum(intent, 1e-9)
-    v = options.track_weight * l_p ** 2 * w[grp]
+    inv = 1.0 / np.maximum(intent, 1e-9)
+    w = inv + options.peak_weight * float(np.mean(intent)) * inv * inv
+    v = options.track_weight * l_p ** 2 * inv[grp]
     c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
     h = r_mat.T @ sp.diags(w) @ r_mat + c_mat.T @ sp.diags(v) @ c_mat
     g = r_mat.T @ (w * r0) + c_mat.T @ (v * (c0 - c_hat))
@@ -324,19 +356,34 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         c = c_mat @ x + c0
         return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2))
 
-    x_start = np.zeros(n)
-    # state of the initial E (to report the objective before)
-    x_prev = 0.0
-    for p in range(n):
-        x_pre = alpha[p] * x_prev + kappa[p]
-        x_prev = e_p[p] * x_pre + b_p[p] * c_hat[p] + k_p[p]
-        x_start[p] = x_prev
+    # states of the law's E (clipped into the box): the objective before, and the start
+    c_start = np.clip(c_hat, c_min, hi)
+    x_start = _chain_states(alpha, kappa, e_p, b_p, k_p, c_start)
     before = objective(x_start)
-    x, iterations, _mu = solve_box_qp(h / scale, g / scale, c_mat, c0, c_min, hi,
-                                     max_iterations=options.max_iterations)
+    con, d_con, lo_con, hi_con = c_mat, c0, c_min, hi
+    if state_max is not None and np.any(np.isfinite(state_max)):
+        cap = np.isfinite(state_max)
+        rows_x = sp.csr_matrix((np.ones(int(cap.sum())), (np.arange(int(cap.sum())),
+                                                          idx[cap])), shape=(int(cap.sum()), n))
+        con = sp.vstack([c_mat, rows_x], format="csr")
+        d_con = np.concatenate((c0, np.zeros(int(cap.sum()))))
+        lo_con = np.concatenate((c_min, np.full(int(cap.sum()), -np.inf)))
+        hi_con = np.concatenate((hi, state_max[cap]))
+    x, iterations, _mu = solve_box_qp(h / scale, g / scale, con, d_con, lo_con, hi_con,
+                                     max_iterations=options.max_iterations, x0=x_start)
     c = np.clip(c_mat @ x + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
     total = float(np.sum(intent))
     return e_new, {"flow_before": 2.0 * before / total, "flow_after": 2.0 * after / total,
                    "iterations": float(iterations)}
+
+
+def _chain_states(alpha: FloatArray, kappa: FloatArray, e_p: FloatArray, b_p: FloatArray,
+                  k_p: FloatArray, c: FloatArray) -> FloatArray:
+    """States after every free piece for the ratios ``c`` (see :func:`refine_qp`)."""
+    from flowtwin.compensation._refine_kernel import chain_states
+
+    out = np.empty(c.size)
+    chain_states(alpha, kappa, e_p, b_p, k_p, np.ascontiguousarray(c, dtype=np.float64), out)
+    return out

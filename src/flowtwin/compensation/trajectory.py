@@ -158,10 +158,15 @@ def road_deviation(nozzle_xy_mm: FloatArray, road_xy_mm: FloatArray, *,
     Returns
     -------
     tuple of float
-        Max and mean distance, mm (pursuit model, :func:`flowtwin.physics.pursuit.laid_road`).
+        Max and mean distance, mm (pursuit model, :func:`flowtwin.physics.pursuit.laid_road`),
+        over the road laid once the nozzle has moved ``L`` (before that the strand of the
+        model is still hanging from where the nozzle started).
     """
     laid = laid_road(nozzle_xy_mm, lag_mm=lag_mm, samples_per_segment=8)
-    d = polyline_distance_mm(laid.road_xy_mm, road_xy_mm)
+    keep = laid.nozzle_s_mm >= lag_mm * (1.0 - 1e-9)
+    if not np.any(keep):
+        return 0.0, 0.0
+    d = polyline_distance_mm(laid.road_xy_mm[keep], road_xy_mm)
     return float(np.max(d)), float(np.mean(d))
 
 

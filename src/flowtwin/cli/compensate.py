@@ -1,0 +1,188 @@
+"""``flowtwin compensate`` and ``flowtwin tune``: fix the G-code, or set the firmware.
+
+Thin layer over :func:`flowtwin.compensation.compensate`,
+:func:`flowtwin.compensation.best_pressure_advance` and
+:func:`flowtwin.compensation.adaptive_pa_table`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from flowtwin.calibration.adaptive_pa import write_orca_model
+from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
+from flowtwin.compensation import (
+    AdvanceLaw,
+    AdvanceOptions,
+    CompensationReport,
+    GuardOptions,
+    RefineOptions,
+    SlipOptions,
+    TrajectoryOptions,
+    adaptive_pa_table,
+    best_pressure_advance,
+    compensate,
+)
+from flowtwin.simulation import DEFAULT_MACHINE
+
+__all__ = ["register", "render_report"]
+
+
+def _pct(v: float) -> str:
+    return f"{100.0 * v:.2f} %"
+
+
+def _times(a: float, b: float) -> str:
+    if b <= 0:
+        return "∞" if a > 0 else "-"
+    return f"{a / b:.1f}×"
+
+
+def render_report(report: CompensationReport) -> None:
+    """Print the before/after figures of one compensated file with rich."""
+    s = report.summary()
+    b, a = report.before, report.after
+    rows = [
+        ("RMS flow error", _pct(b.rms_flow_error), _pct(a.rms_flow_error),
+         _times(b.rms_flow_error, a.rms_flow_error)),
+        ("peak over-extrusion", _pct(b.peak_overextrusion), _pct(a.peak_overextrusion),
+         _times(b.peak_overextrusion, a.peak_overextrusion)),
+        ("peak under-extrusion", _pct(b.peak_underextrusion), _pct(a.peak_underextrusion),
+         _times(b.peak_underextrusion, a.peak_underextrusion)),
+        ("delivered / intended (mm³)",
+         f"{b.delivered_volume_mm3:.1f} / {b.intended_volume_mm3:.1f}",
+         f"{a.delivered_volume_mm3:.1f} / {a.intended_volume_mm3:.1f}", ""),
+        ("commanded E (mm)", f"{report.commanded_e_before_mm:.5f}",
+         f"{report.commanded_e_after_mm:.5f}", ""),
+        ("print time", fmt_duration(report.time_before_s), fmt_duration(report.time_after_s),
+         ""),
+        ("max feed force (N)", f"{report.max_force_before_n:.1f}",
+         f"{report.max_force_after_n:.1f}", ""),
+        ("grinding moves", str(report.grinding_moves_before),
+         str(report.grinding_moves_after), ""),
+    ]
+    console.print(table_from_rows(
+        f"{report.source} → {report.destination} ({report.machine}; "
+        f"{', '.join(report.transformations) or 'no transformation'})",
+        ["", "before", "after", "better"], rows))
+    notes = [f"lines rewritten: {report.lines_rewritten:,}"]
+    if "slip" in report.transformations:
+        notes.append(f"slip feed-forward added {report.added_volume_mm3:.2f} mm³")
+    if "guard" in report.transformations:
+        notes.append(f"guard slowed {len(report.slowed_moves)} moves "
+                     f"(+{report.guard_time_cost_s:.1f} s)")
+    for p in report.advance:
+        notes.append(f"advance pass: {p['pieces']:,} pieces in {p['runs']:,} runs, "
+                     f"{p['relief_travels']} relief retractions")
+    if report.trajectory:
+        t = report.trajectory
+        notes.append(f"trajectory: L = {t['lag_mm']:.3f} mm, {t['pivots']} pivots, laid road "
+                     f"within {t['road_deviation_before_mm']:.3f} → "
+                     f"{t['road_deviation_after_mm']:.3f} mm of the intended one")
+    for n in notes:
+        console.print(n)
+    for w in s["warnings"]:  # type: ignore[attr-defined]
+        err_console.print(f"[yellow]warning:[/] {w}", markup=True)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``flowtwin compensate`` and ``flowtwin tune``."""
+
+    @app.command("compensate")
+    def compensate_cmd(
+        gcode: Annotated[Path, typer.Argument(help="G-code file to compensate.")],
+        output: Annotated[Path, typer.Option("--output", "-o", help="Where to write the "
+                                             "compensated G-code.")],
+        profile: Annotated[str, typer.Option(
+            "--profile", "-p", help="Machine set-up: built-in name or set-up TOML."
+        )] = DEFAULT_MACHINE,
+        klipper_config: Annotated[Path | None, typer.Option(
+            "--klipper-config", help="Plan with this Klipper printer.cfg.")] = None,
+        advance: Annotated[bool, typer.Option(
+            "--advance", help="Bake pressure advance into the G-code [001].")] = False,
+        slip: Annotated[bool, typer.Option(
+            "--slip", help="Feed the predicted drive slip forward [000 §6].")] = False,
+        guard: Annotated[bool, typer.Option(
+            "--guard", help="Slow moves that would grind the filament [000 §4].")] = False,
+        trajectory: Annotated[bool, typer.Option(
+            "--trajectory", help="Nozzle paths that lay the intended road [004].")] = False,
+        law: Annotated[str, typer.Option(
+            "--law", help="Advance law: smoothed ([001 Eq. 11]) or discrete ([001 Eq. 13])."
+        )] = "smoothed",
+        k_scale: Annotated[float, typer.Option(
+            "--k-scale", help="K_LA as a multiple of the twin's lag factor.")] = 1.0,
+        refine: Annotated[bool, typer.Option(
+            "--refine/--no-refine", help="Refine the law with the twin's lag model.")] = True,
+        relief: Annotated[bool, typer.Option(
+            "--relief/--no-relief", help="Relieve the pressure over travels.")] = True,
+        safety: Annotated[float, typer.Option(
+            "--safety", help="Guard: allowed share of the maximum feed force.")] = 0.8,
+        max_flow: Annotated[float | None, typer.Option(
+            "--max-flow", help="Guard: largest volumetric flow, mm³/s.")] = None,
+        max_shift: Annotated[float, typer.Option(
+            "--max-shift", help="Trajectory: largest path displacement, mm.")] = 0.5,
+        json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    ) -> None:
+        """Rewrite a G-code so the printer extrudes what it means (nothing without a flag)."""
+        adv = AdvanceOptions(law=AdvanceLaw(law), k_scale=k_scale,
+                             refine=RefineOptions() if refine else None,
+                             relief=relief and refine) if advance else None
+        report = compensate(
+            gcode, output, machine=profile, klipper_config=klipper_config, advance=adv,
+            slip=SlipOptions() if slip else None,
+            guard=GuardOptions(safety=safety, max_flow_mm3_s=max_flow) if guard else None,
+            trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None)
+        if json_out:
+            print_json(report.summary())
+        else:
+            render_report(report)
+
+    @app.command("tune")
+    def tune_cmd(
+        gcode: Annotated[Path | None, typer.Argument(
+            help="Print to fit on (default: the built-in example print).")] = None,
+        profile: Annotated[str, typer.Option(
+            "--profile", "-p", help="Machine set-up: built-in name or set-up TOML."
+        )] = DEFAULT_MACHINE,
+        klipper_config: Annotated[Path | None, typer.Option(
+            "--klipper-config", help="Plan with this Klipper printer.cfg.")] = None,
+        adaptive: Annotated[bool, typer.Option(
+            "--adaptive", help="Also compute OrcaSlicer's adaptive PA table.")] = False,
+        table_out: Annotated[Path | None, typer.Option(
+            "--table-out", help="Write the adaptive table (PA, flow, accel) to this file."
+        )] = None,
+        flows: Annotated[str, typer.Option(
+            "--flows", help="Adaptive table flows, mm³/s, comma-separated.")] = "2,5,8,12,16",
+        accels: Annotated[str, typer.Option(
+            "--accels", help="Adaptive table accelerations, mm/s², comma-separated."
+        )] = "1000,3000,6000",
+        json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    ) -> None:
+        """The firmware's pressure advance that best fits the machine, and why."""
+        fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
+        out: dict[str, object] = {"best": fit.as_dict()}
+        table_text = None
+        if adaptive or table_out is not None:
+            table, _fits = adaptive_pa_table(
+                machine=profile, klipper_config=klipper_config,
+                flows_mm3_s=[float(v) for v in flows.split(",") if v.strip()],
+                accels_mm_s2=[float(v) for v in accels.split(",") if v.strip()])
+            table_text = table.to_orca_text()
+            out["adaptive_table"] = table_text
+            out["adaptive_notes"] = table.orca_warnings()
+            if table_out is not None:
+                write_orca_model(table_out, table)
+        if json_out:
+            print_json(out)
+            return
+        console.print(table_from_rows("Pressure advance", ["", ""], [
+            ("best K", f"{fit.k_s:g} s"), ("command", fit.command),
+            ("RMS flow error", f"{_pct(fit.rms_at_best)} (without {_pct(fit.rms_without)})"),
+            ("twin lag factor", f"{fit.lag_k_s:.4f} s"), ("fitted on", fit.source)]))
+        console.print(fit.explanation)
+        if table_text is not None:
+            console.print("OrcaSlicer adaptive pressure advance (PA, flow, accel):")
+            console.print(table_text.rstrip())

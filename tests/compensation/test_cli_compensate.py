@@ -1,0 +1,71 @@
+"""``flowtwin compensate`` / ``flowtwin tune`` through their own typer app."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+from typer.testing import CliRunner
+
+from flowtwin.cli.compensate import register
+
+runner = CliRunner()
+
+
+def app() -> typer.Typer:
+    application = typer.Typer(pretty_exceptions_enable=False)
+    register(application)
+    return application
+
+
+def test_no_flag_changes_nothing(example: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.gcode"
+    res = runner.invoke(app(), ["compensate", str(example), "-o", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    assert out.read_bytes() == example.read_bytes()
+    assert s["transformations"] == [] and s["slowed_moves"] == 0
+    assert s["rms_flow_error_after"] == s["rms_flow_error_before"]
+
+
+def test_json_keys_and_figures(example: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.gcode"
+    res = runner.invoke(app(), ["compensate", str(example), "-o", str(out), "--advance",
+                                "--slip", "--guard", "--json"])
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    for key in ("rms_flow_error_before", "rms_flow_error_after", "peak_overextrusion_before",
+                "peak_overextrusion_after", "added_volume_mm3", "slowed_moves"):
+        assert key in s
+    assert s["transformations"] == ["guard", "advance", "slip"]
+    assert s["rms_flow_error_after"] * 5 <= s["rms_flow_error_before"]
+    assert s["added_volume_mm3"] > 0
+
+
+def test_table_output_prints_before_and_after(example: Path, tmp_path: Path) -> None:
+    res = runner.invoke(app(), ["compensate", str(example), "-o", str(tmp_path / "o.gcode"),
+                                "--advance", "--law", "discrete", "--no-refine"])
+    assert res.exit_code == 0, res.output
+    assert "before" in res.stdout and "after" in res.stdout and "RMS flow error" in res.stdout
+
+
+def test_tune_json_and_table_file(tmp_path: Path) -> None:
+    table = tmp_path / "pa.txt"
+    res = runner.invoke(app(), ["tune", "--json", "--table-out", str(table), "--flows", "3,9",
+                                "--accels", "1000,4000"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["best"]["command"].startswith("M900 K")
+    rows = table.read_text().splitlines()
+    assert len(rows) == 4 and all(len(r.split(",")) == 3 for r in rows)
+
+
+def test_bad_input_exits_with_the_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.gcode"
+    bad.write_text("G1 X1 E0.1 F600\nG20\n")
+    res = runner.invoke(app(), ["compensate", str(bad), "-o", str(tmp_path / "o.gcode"),
+                                "--advance"])
+    assert res.exit_code != 0
+    assert "inch" in str(res.exception) and ":2" in str(res.exception)
+    assert not (tmp_path / "o.gcode").exists()
