@@ -2,13 +2,15 @@
 
 When the feed force exceeds the roller's maximum feed force the teeth eat into the
 filament and feeding stops [000 §4, 003]. The force follows the melt flow (Hagen–Poiseuille
-[002, 001 Eq. 4]: ``F ∝ Q``), so a move whose predicted peak force ``F_peak`` exceeds
-``safety · F_max`` is slowed by the factor ``safety · F_max / F_peak`` — its flow falls in
-proportion, and so does the force. A user limit on the volumetric flow ``Q_max`` (mm³/s)
-slows a move by ``Q_max / Q`` likewise. The planner's own speed of the move is the
-starting point (a feed rate the printer never reaches is not a speed to scale), and only
-ever lowered. Because the force also depends on what came before (the pressure builds
-over several moves), the check is repeated on the slowed file.
+[002, 001 Eq. 4]: ``F ∝ Q``), so a move whose force ``F`` — the larger of the twin's
+predicted peak and the steady force ``K·v_E/k`` of its intended flow (the predicted peak
+saturates where the drive grinds) — exceeds ``safety · F_max`` is slowed by the factor
+``safety · F_max / F`` — its flow falls in proportion, and so does the force. A user
+limit on the volumetric flow ``Q_max`` (mm³/s) slows a move by ``Q_max / Q`` likewise.
+The planner's own speed of the move is the starting point (a feed rate the printer never
+reaches is not a speed to scale), and only ever lowered. Because the force also depends
+on what came before (the pressure builds over several moves), the check is repeated on the
+slowed file.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ class GuardOptions:
 
 
 def guard_feeds(draft: Draft, cruise_mm_s: FloatArray, peak_force_n: FloatArray,
-                max_force_n: FloatArray, flow_mm3_s: FloatArray,
+                steady_force_n: FloatArray, max_force_n: FloatArray, flow_mm3_s: FloatArray,
                 printing: npt.NDArray[np.bool_], speed_factor: FloatArray,
                 options: GuardOptions) -> tuple[Draft, npt.NDArray[np.bool_]]:
     """Lower the feed of the original moves whose pieces exceed the limits.
@@ -76,6 +78,10 @@ def guard_feeds(draft: Draft, cruise_mm_s: FloatArray, peak_force_n: FloatArray,
         Planned top speed of every piece, mm/s.
     peak_force_n
         Predicted peak feed force of every piece, N.
+    steady_force_n
+        Feed force the piece's intended flow needs once the pressure has settled,
+        ``F = K·v_E/k`` (SPEC §3.4), N — the twin's peak saturates at the limit where the
+        drive grinds, so the larger of the two sets the slowdown.
     max_force_n
         The roller's maximum feed force during every piece, N (``inf``: unknown).
     flow_mm3_s
@@ -93,10 +99,10 @@ def guard_feeds(draft: Draft, cruise_mm_s: FloatArray, peak_force_n: FloatArray,
         The draft with lowered feeds and the original rows slowed in this step.
     """
     factor = np.ones(len(draft))
+    force = np.maximum(peak_force_n, steady_force_n)
     with np.errstate(divide="ignore", invalid="ignore"):
-        over_f = printing & np.isfinite(max_force_n) & (peak_force_n
-                                                        > options.safety * max_force_n)
-        factor = np.where(over_f, options.safety * max_force_n / peak_force_n, factor)
+        over_f = printing & np.isfinite(max_force_n) & (force > options.safety * max_force_n)
+        factor = np.where(over_f, options.safety * max_force_n / force, factor)
         if options.max_flow_mm3_s is not None:
             over_q = printing & (flow_mm3_s > options.max_flow_mm3_s)
             factor = np.minimum(factor, np.where(over_q, options.max_flow_mm3_s / flow_mm3_s,

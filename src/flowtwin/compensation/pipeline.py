@@ -302,7 +302,9 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
             cur = current if not pa else simulate(work if names else src, machine=m,
                                                   klipper_config=klipper_config,
                                                   pressure_advance=False)
-            names.append("advance")
+            pre_advance = draft
+            kept_draft, kept_sim = draft, cur
+            kept_rms = flow_figures(original, cur, draft.row).rms_flow_error
             for k in range(advance_passes):
                 pp = cur.parameters.params
                 # compression at which the feed force reaches the grinding limit (margin)
@@ -312,21 +314,45 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                                           pp.lag_k_s, limits, adv, e_unit_mm=scanned.e_unit,
                                           split=k == 0, relief=(k == 0 and adv.relief),
                                           state_max=cap)
-                advance_reports.append(_pass_dict(rep))
                 draft.render(work)
                 cur = _checked(simulate(work, machine=m, klipper_config=klipper_config,
                                         pressure_advance=False), draft, work)
-            current = cur if not pa else refresh(draft)
+                rms = flow_figures(original, cur, draft.row).rms_flow_error
+                entry = _pass_dict(rep)
+                entry["rms_flow_error"] = rms
+                advance_reports.append(entry)
+                if rms <= kept_rms:
+                    kept_draft, kept_sim, kept_rms = draft, cur, rms
+                else:
+                    entry["kept"] = False
+                    warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
+                                    f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
+                                    "its result is not used")
+                    draft, cur = kept_draft, kept_sim
+                    break
+            if kept_draft is not pre_advance:
+                names.append("advance")
+            draft = kept_draft
+            current = kept_sim if not pa else refresh(draft)
         if sl is not None and not sl.is_identity:
             step("slip")
-            names.append("slip")
             base = draft.e_grid.copy()
             printing = _printing(current, draft)
+            before_slip = (draft, current)
+            rms0 = flow_figures(original, current, draft.row).rms_flow_error
             for _ in range(sl.iterations):
                 draft = slip_feedforward(draft, base, printing,
                                          current.dynamics.moves["slip"], sl)
                 current = refresh(draft)
-            added_grid = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
+            rms1 = flow_figures(original, current, draft.row).rms_flow_error
+            if rms1 > rms0:
+                warnings.append(f"the slip feed-forward raised the twin's RMS flow error (to "
+                                f"{100 * rms1:.2f} % from {100 * rms0:.2f} %; the drive is "
+                                "near grinding, try --guard): it is not used")
+                draft, current = before_slip
+            else:
+                names.append("slip")
+                added_grid = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
         step("write")
         result = draft.render(dst)
         step("simulate result")
@@ -392,6 +418,11 @@ def _guard_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
     lines = draft.table.moves["line"]
     speed_factor = np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
                              else 1.0 for ln in lines.tolist()])
-    return guard_feeds(draft, cruise, d["peak_force_n"], sim.parameters.params.max_feed_force_n,
-                       flow, printing, speed_factor, options)
+    pp = sim.parameters.params
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_e = np.where(path > 0, draft.e_grid * scanned.e_unit / path * cruise, 0.0)
+    steady = np.asarray(pp.lag_k_s, dtype=np.float64) * v_e / np.asarray(
+        pp.compliance_mm_per_n, dtype=np.float64)
+    return guard_feeds(draft, cruise, d["peak_force_n"], steady, pp.max_feed_force_n, flow,
+                       printing, speed_factor, options)
 
