@@ -20,8 +20,8 @@ from flowtwin.errors import FlowtwinError
 __all__ = ["app", "main"]
 
 #: Modules under ``flowtwin.cli`` that contribute commands (each has ``register(app)``).
-COMMAND_MODULES = ("plan", "simulate", "demo", "batch", "profiles", "calibrate",
-                   "teststand", "reproduce", "control", "vision")
+COMMAND_MODULES = ("plan", "simulate", "compensate", "demo", "batch", "profiles",
+                   "calibrate", "teststand", "reproduce", "control", "vision")
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
