@@ -98,6 +98,8 @@ class AdvanceOptions:
     relief
         Relieve the pressure over travels between printing runs with a retraction of the
         predicted compression (needs ``refine``; see :mod:`flowtwin.compensation.bake`).
+    relief_min_lags
+        Relieve only travels lasting at least this many lag factors ``K``.
     """
 
     law: AdvanceLaw = AdvanceLaw.SMOOTHED
@@ -112,6 +114,7 @@ class AdvanceOptions:
     limit_margin: float = 0.1
     refine: RefineOptions | None = field(default_factory=RefineOptions)
     relief: bool = True
+    relief_min_lags: float = 0.5
 
     @property
     def is_identity(self) -> bool:

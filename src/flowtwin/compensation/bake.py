@@ -81,14 +81,18 @@ class PassReport:
     relief_mm: float = 0.0
 
 
-def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
-              row_e: IntArray) -> list[tuple[int, int]]:
+def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
+              timeline: Timeline, min_time_s: FloatArray) -> list[tuple[int, int]]:
     """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
 
-    An interim qualifies when it lies between two printing rows, moves no E itself and
-    has at least one XY travel; ``first``/``last`` are its first and last XY travels.
+    An interim qualifies when it lies between two printing rows, moves no E itself, has at
+    least one XY travel and lasts at least ``min_time_s`` of the row before it (a shorter
+    one lets little melt ooze, and a relief would only add two stops);
+    ``first``/``last`` are its first and last XY travels.
     """
     n = elig.shape[0]
+    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
+    end = timeline.end_time_s
     out: list[tuple[int, int]] = []
     i = 0
     while i < n:
@@ -99,8 +103,10 @@ def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
         while j < n and not elig[j]:
             j += 1
         # rows i .. j-1 are between run ending at i-1 and run starting at j
-        if i > 0 and j < n and np.all(row_e[i:j] == 0):
-            xy = [k for k in range(i, j) if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
+        long_enough = i > 0 and j < n and start[j] - end[i - 1] >= min_time_s[i - 1]
+        if long_enough and np.all(row_e[i:j] == 0):
+            xy = [k for k in range(i, j)
+                  if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
             if xy:
                 out.append((xy[0], xy[-1]))
         i = j
@@ -166,7 +172,9 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
                      e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0)
     report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
     e_run = law.e
-    interims = _interims(elig, kind, cur_e) if relief else []
+    interims = (_interims(elig, kind, cur_e, timeline,
+                          options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64))
+                if relief else [])
     holds = np.zeros(n, dtype=bool)
     for a, _b in interims:
         holds[a] = True

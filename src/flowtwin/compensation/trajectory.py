@@ -19,7 +19,8 @@ tangent ``t̂`` the nozzle must be at ``P + L·t̂`` [004 Eqs. 9, 19]. For a pol
   starts where it should.
 
 ``L`` is capped at ``max_shift_mm`` (the bound on how far the nozzle path may leave the
-original path; with the cap the correction is partial). Every original move keeps its E
+original path; with the cap the correction is partial, and the laid roads of the report are
+computed with the uncapped strand lag). Every original move keeps its E
 exactly: the pivots and the lead-in print a small share (``pivot_flow_fraction`` of the
 move's ratio) taken from the move's own segment, so the runs stay unbroken. The laid road
 of both paths is computed with the pursuit model and reported (largest and mean distance
@@ -111,6 +112,9 @@ class TrajectoryReport:
         Vertices given a pivot.
     lag_mm
         Mean strand lag used (after the cap), mm.
+    strand_lag_mm
+        Mean strand lag of the tractrix at the moves' layer heights (before the cap), mm:
+        the laid roads are computed with it.
     max_shift_mm
         Largest distance of the new nozzle path from the original path, mm.
     road_deviation_before_mm, road_deviation_after_mm
@@ -125,6 +129,7 @@ class TrajectoryReport:
     runs: int
     pivots: int
     lag_mm: float
+    strand_lag_mm: float
     max_shift_mm: float
     road_deviation_before_mm: float
     road_deviation_after_mm: float
@@ -162,7 +167,11 @@ def road_deviation(nozzle_xy_mm: FloatArray, road_xy_mm: FloatArray, *,
         over the road laid once the nozzle has moved ``L`` (before that the strand of the
         model is still hanging from where the nozzle started).
     """
-    laid = laid_road(nozzle_xy_mm, lag_mm=lag_mm, samples_per_segment=8)
+    steps = np.diff(np.asarray(nozzle_xy_mm, dtype=np.float64), axis=0)
+    longest = float(np.max(np.hypot(steps[:, 0], steps[:, 1]), initial=0.0))
+    # samples every L/20 at most (the corner transient lasts ~L), 8 to 400 per segment
+    per_segment = int(np.clip(np.ceil(longest / (0.05 * lag_mm)), 8, 400))
+    laid = laid_road(nozzle_xy_mm, lag_mm=lag_mm, samples_per_segment=per_segment)
     keep = laid.nozzle_s_mm >= lag_mm * (1.0 - 1e-9)
     if not np.any(keep):
         return 0.0, 0.0
@@ -202,10 +211,11 @@ def bend_paths(draft: Draft, sim: SimulationResult,
     end = draft.xyz_mm
     height = np.asarray(sim.parameters.layer_height_mm, dtype=np.float64)
     if options.lag_mm is not None:
-        lag = np.full(n, options.lag_mm)
+        lag_phys = np.full(n, options.lag_mm)
     else:
-        lag = np.asarray(tractrix_contact_length_mm(np.maximum(height, 1e-6)), dtype=np.float64)
-    lag = np.minimum(lag, options.max_shift_mm)
+        lag_phys = np.asarray(tractrix_contact_length_mm(np.maximum(height, 1e-6)),
+                              dtype=np.float64)
+    lag = np.minimum(lag_phys, options.max_shift_mm)
     for ln in np.unique(sim.plan.table.moves["line"][printing]).tolist():
         ml = draft.scanned.motion.get(int(ln))
         if ml is not None and not ml.abs_xyz:
@@ -223,7 +233,7 @@ def bend_paths(draft: Draft, sim: SimulationResult,
     runs = 0
     max_shift = 0.0
     lag_sum = 0.0
-    eval_pairs: list[tuple[FloatArray, FloatArray, float]] = []
+    eval_pairs: list[tuple[FloatArray, FloatArray, float]] = []  # (road, nozzle, real L)
     min_turn = math.radians(options.min_turn_deg)
     step = math.radians(options.pivot_step_deg)
     i = 0
@@ -250,7 +260,7 @@ def bend_paths(draft: Draft, sim: SimulationResult,
         if len(eval_pairs) < options.evaluate_runs and L > 0:
             road = np.vstack([start[i, :2], end[i:j + 1, :2]])
             nozzle = np.vstack([start[i, :2]] + [p[:2] for p in new_pts])
-            eval_pairs.append((road, nozzle, L))
+            eval_pairs.append((road, nozzle, float(np.mean(lag_phys[i:j + 1]))))
         i = j + 1
     before: list[tuple[float, float]] = []
     after: list[tuple[float, float]] = []
@@ -261,6 +271,7 @@ def bend_paths(draft: Draft, sim: SimulationResult,
         after.append(road_deviation(nozzle, road, lag_mm=L))
     report = TrajectoryReport(
         runs=runs, pivots=pivots, lag_mm=lag_sum / runs if runs else 0.0,
+        strand_lag_mm=float(np.mean([p[2] for p in eval_pairs])) if eval_pairs else 0.0,
         max_shift_mm=max_shift,
         road_deviation_before_mm=max((b[0] for b in before), default=0.0),
         road_deviation_after_mm=max((a[0] for a in after), default=0.0),
