@@ -250,10 +250,17 @@ def run_jobs(client: object, jobs: Iterable[Job], *, writer: ResultWriter, total
                 time.sleep(_POLL_S)
                 continue
             for future, outcome in batch:
-                _, job = pending.pop(future.key)
+                _, job = pending[future.key]
                 report: Mapping[str, object] | None = None
-                if future.status == "finished" and isinstance(outcome, JobResult):
+                # The status is read now, not when the task finished: a result already
+                # fetched stays good although its worker died since ("lost").
+                if isinstance(outcome, JobResult):
                     row, report = outcome.row, outcome.report
+                elif future.status in ("lost", "pending"):
+                    # Its worker died before the result reached us: the scheduler runs
+                    # the task again; wait for that run.
+                    ac.add(future)
+                    continue
                 elif future.status == "error":
                     exc = outcome[1] if isinstance(outcome, tuple) else future.exception()
                     if isinstance(exc, KilledWorker):
@@ -266,6 +273,7 @@ def run_jobs(client: object, jobs: Iterable[Job], *, writer: ResultWriter, total
                     raise ClusterError(f"task of {job.file} ended as {future.status!r}: the "
                                        "scheduler or this client went away",
                                        field="--scheduler")
+                del pending[future.key]
                 future.release()
                 if writer.add(row):
                     if row.get("error") is None:
