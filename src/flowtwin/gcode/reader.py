@@ -157,6 +157,9 @@ class _Reader:
         self.layer_z: list[float] = []
         self.max_extrude_z = -math.inf
         self.last_byte_newline = True
+        self.rows_per_byte = 1.0 / 20.0  # rows per byte of G-code, learnt chunk by chunk
+        self.bytes_done = 0              # bytes of the chunks already read
+        self.total_bytes = 0             # size of the whole input when known, else 0
 
     # -- errors ------------------------------------------------------------------------
     def _kernel_error(self, buf: bytes, pos: int) -> GcodeError:
@@ -340,18 +343,15 @@ class _Reader:
             line = int(self.state[K.S_LINE]) + buf.count(b"\n", 0, zero) + 1
             raise GcodeError("binary data (NUL byte) in G-code", source=self.name, line=line,
                              allowed="text G-code")
-        n_lines = buf.count(b"\n") + 1
-        # arcs become several rows: reserve a few per arc so the buffer rarely grows
-        n_arcs = buf.count(b"G2 ") + buf.count(b"G3 ")
-        need = n_lines + 4 * n_arcs + 16
+        # no counting pass over the bytes: the row buffer is sized from the rows per byte
+        # seen so far and grows (from the same estimate) if a chunk holds more
         rows = self.rows if self.accumulate else None
         if rows is None:
+            need = int(len(buf) * self.rows_per_byte) + 64
             # comments and other commands are a minority of lines; their buffers grow
-            rows = _Rows.make(max(need, capacity_hint), max(256, n_lines // 32))
+            rows = _Rows.make(max(need, capacity_hint), max(256, len(buf) // 1024))
             if self.accumulate:
                 self.rows = rows
-        elif rows.moves.shape[0] - rows.n < need:
-            rows.grow_moves(need)
         rows.n_other = 0
         start_n = rows.n
         self._offset = self.n_moves - start_n
@@ -362,7 +362,7 @@ class _Reader:
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
-                rows.grow_moves(max(1024, rows.moves.shape[0] // 4))
+                rows.grow_moves(self._more_rows(len(buf) - pos, rows.n - start_n, pos))
             elif status == K.ST_OTHER_FULL:
                 rows.grow_other()
             elif status == K.ST_ERROR:
@@ -380,7 +380,18 @@ class _Reader:
                 pos = end + 1
         self._other_lines(buf, rows)
         self.last_byte_newline = buf.endswith(b"\n")
+        self.bytes_done += len(buf)
+        if len(buf) >= 4096:  # learn the density from chunks long enough to tell
+            self.rows_per_byte = 1.05 * (rows.n - start_n) / len(buf)
         return self._table(rows, start_n)
+
+    def _more_rows(self, bytes_left: int, rows_made: int, bytes_read: int) -> int:
+        """Rows to add when the buffer is full: the rest of the chunk (and, for a whole-file
+        read, of the file) at the density of this chunk so far, with a margin."""
+        density = max(rows_made / max(bytes_read, 1), self.rows_per_byte)
+        if self.accumulate:
+            bytes_left += max(0, self.total_bytes - self.bytes_done - bytes_left - bytes_read)
+        return int(1.1 * density * bytes_left) + 1024
 
     def _table(self, rows: _Rows, start_n: int = 0) -> MoveTable:
         n = rows.n
@@ -517,7 +528,8 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
     if accumulate and isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
         try:
             # about one row per 25 bytes of G-code; growth covers the rest
-            hint = os.path.getsize(source) // 25
+            reader.total_bytes = os.path.getsize(source)
+            hint = reader.total_bytes // 25
         except OSError:
             hint = 0
 
