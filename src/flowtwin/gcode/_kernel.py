@@ -5,11 +5,17 @@ This is the reader's hot loop. It walks a ``uint8`` buffer line by line and
 * executes the frequent commands itself: ``G0/G1``, ``G2/G3`` (XY plane, I/J or R,
   helical, linearised), ``G92``, ``G90/G91``, ``M82/M83``, ``G20/G21``, ``G28``,
   ``T<n>``, ``M220 S``, ``M221 S``, ``N`` line numbers with ``*`` checksums;
-* records every other non-empty line (comments, events, unknown commands) as a span
-  ``(line, start, end, move_index)`` for the Python side to interpret afterwards, in order;
+* records every other non-empty line as a span ``(line, start, end, move_index)`` for the
+  Python side to interpret afterwards, in order: comment-only lines (the text after ``;``),
+  commands whose words are all numbers (events such as ``M204 S800``: already parsed, their
+  values packed in ``vals``) and the rest (extended commands, odd syntax) as text;
 * stops and hands a line back to Python when that line changes the state in a way the
   kernel does not model (``G10/G11`` firmware retraction, ``M207/M208``, ``M200``,
   ``G17/G18/G19``), or when a word is malformed (Python then raises a precise error).
+
+Each line is read in one pass: its words up to ``;``, ``*`` or the line end; the checksum
+and the end of the line are looked for only when something follows the words. Arcs are
+linearised by :func:`flowtwin.gcode._arc.emit_arc`.
 
 Numbers are parsed as an integer mantissa divided by a power of ten, which is correctly
 rounded for up to 15 significant digits (both operands are exact doubles), i.e. for every
@@ -21,11 +27,10 @@ coordinates: a G-code coordinate ``v`` maps to ``v * unit + offset``.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
+from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, emit, emit_arc, row_kind
 from flowtwin.gcode._bytes import (
     MAX_ABS_VALUE,
     _is_word_end,
@@ -70,66 +75,77 @@ ERR_ARC = 3         # arc without centre / radius, or radius too small
 ERR_FEED = 4        # F <= 0 or not finite
 ERR_VALUE = 5       # non-finite or absurd coordinate
 
-# --- row kinds (must match MoveKind) --------------------------------------------------
-K_TRAVEL, K_EXTRUDE, K_RETRACT, K_XY, K_Z, K_ARC, K_FW, K_RAPID = 1, 2, 4, 8, 16, 32, 64, 128
+# --- lines left to Python (column 4 of ``other``) -------------------------------------
+OTHER_TEXT = 0      # Python parses the line's text
+OTHER_NUMERIC = 1   # a command whose words are all numbers, parsed here
+OTHER_COMMENT = 2   # a comment-only line: the span is the text after ';'
+N_OTHER_COLS = 8    # line, start, end, move index, kind, code, letter mask, value offset
+MAX_WORDS = 26      # values one line can add (one per letter)
 
-@njit(cache=True)
-def _emit(out, n, line, tool, x, y, z, de, feed, flow, kind):  # type: ignore[no-untyped-def]
-    r = out[n]
-    r.x = x
-    r.y = y
-    r.z = z
-    r.de = de
-    r.feed_mm_s = feed
-    r.line = line
-    r.tool = tool
-    r.kind = kind
-    r.flow = flow
+# letter bits of the word mask (bit 0 = A)
+_D, _E, _F, _I, _J = 1 << 3, 1 << 4, 1 << 5, 1 << 8, 1 << 9
+_R, _S, _T = 1 << 17, 1 << 18, 1 << 19
+_X, _Y, _Z = 1 << 23, 1 << 24, 1 << 25
+_XYZ = _X | _Y | _Z
 
 
-@njit(cache=True)
-def _row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool) -> int:
-    k = 0
-    if de > 0.0:
-        k |= K_EXTRUDE
-    elif de < 0.0:
-        k |= K_RETRACT
-    else:
-        k |= K_TRAVEL
-    if dx != 0.0 or dy != 0.0:
-        k |= K_XY
-    if dz != 0.0:
-        k |= K_Z
-    if arc:
-        k |= K_ARC
-    if rapid:
-        k |= K_RAPID
-    return k
-
-
-OTHER_TEXT = 0
-OTHER_NUMERIC = 1
-
-
-@njit(cache=True)
-def _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0, code_num, has, val):  # type: ignore[no-untyped-def]
+@njit(cache=True, inline="always")
+def _record(other, n_other, lineno, start, eol, n_out, kind):  # type: ignore[no-untyped-def]
     other[n_other, 0] = lineno
     other[n_other, 1] = start
     other[n_other, 2] = eol
     other[n_other, 3] = n_out
-    other[n_other, 4] = OTHER_NUMERIC
-    other[n_other, 5] = c0 * 1_000_000 + int(code_num)
-    mask = 0
-    for q in range(26):
-        if has[q]:
-            mask |= 1 << q
-            evals[n_other, 1 + q] = val[q]
-    evals[n_other, 0] = float(mask)
+    other[n_other, 4] = kind
     return n_other + 1
 
 
 @njit(cache=True)
-def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no-untyped-def]
+def _record_numeric(other, vals, n_other, n_vals, lineno, start, eol, n_out, c0, code_num,  # type: ignore[no-untyped-def]
+                    mask, val):
+    _record(other, n_other, lineno, start, eol, n_out, OTHER_NUMERIC)
+    other[n_other, 5] = c0 * 1_000_000 + code_num
+    other[n_other, 6] = mask
+    other[n_other, 7] = n_vals
+    for q in range(26):
+        if mask >> q & 1:
+            vals[n_vals] = val[q]
+            n_vals += 1
+    return n_other + 1, n_vals
+
+
+@njit(cache=True, inline="always")
+def _line_end(buf, k, size):  # type: ignore[no-untyped-def]
+    """End of the line at ``k`` and its first ``*`` before any ``;`` (-1 if none)."""
+    star = -1
+    while k < size:
+        c = buf[k]
+        if c == 10:
+            break
+        if c == 59:  # ';': the rest is comment
+            while k < size and buf[k] != 10:
+                k += 1
+            break
+        if c == 42 and star < 0:
+            star = k
+            while k < size and buf[k] != 10:
+                k += 1
+            break
+        k += 1
+    return k, star
+
+
+@njit(cache=True)
+def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
+    """Whether the number after ``*`` is the XOR of every byte of the line before it."""
+    csum, _k, ok = _parse_number(buf, star + 1, eol)
+    x = 0
+    for q in range(start, star):
+        x ^= buf[q]
+    return ok and int(csum) == x
+
+
+@njit(cache=True)
+def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 
     Parameters
@@ -144,154 +160,145 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
         Move rows; the kernel fills x, y, z, de, feed_mm_s, line, tool, kind, flow.
     n_out : int
         Rows already filled.
-    other : int64[cap2, 6]
+    other : int64[cap2, N_OTHER_COLS]
         Lines left to Python, in order: line, start byte, end byte, move index, kind
-        (``OTHER_TEXT``: Python parses the text; ``OTHER_NUMERIC``: a command whose words
-        are all numbers, already parsed into ``evals``), command code
-        (``letter * 1_000_000 + number``).
-    evals : float64[cap2, 27]
-        For ``OTHER_NUMERIC`` rows: a bit mask of the letters present (bit 0 = A), then the
-        value of each letter A..Z.
-    n_other : int
-        Spans already filled.
+        (``OTHER_TEXT``: Python parses the text ``buf[start:end]``; ``OTHER_COMMENT``: a
+        comment-only line, ``buf[start:end]`` is the text after ``;``; ``OTHER_NUMERIC``: a
+        command whose words are all numbers, already parsed), then for ``OTHER_NUMERIC``
+        the command code (``letter * 1_000_000 + number``), the mask of the letters
+        present (bit 0 = A) and the offset of their values in ``vals``.
+    vals : float64[cap3]
+        Values of the ``OTHER_NUMERIC`` words, in letter order, packed.
+    n_other, n_vals : int
+        Rows of ``other`` and values of ``vals`` already filled.
 
     Returns
     -------
-    status, pos, n_out, n_other
+    status, pos, n_out, n_other, n_vals
         ``pos`` is the start of the line that stopped the scan (ST_PYTHON, ST_ERROR, *_FULL)
         or ``len(buf)`` when done.
     """
     size = buf.shape[0]
     cap = out.shape[0]
     cap2 = other.shape[0]
+    cap3 = vals.shape[0]
     line = int(state[S_LINE])
-    has = np.zeros(26, dtype=np.bool_)
     val = np.zeros(26)
     while pos < size:
-        # find the end of the line
         start = pos
-        eol = start
-        while eol < size and buf[eol] != 10:
-            eol += 1
-        nxt = eol + 1
-        # capacity: an arc may need many rows; keep a margin of 1 row + arc check later
+        # capacity: an arc may need many rows; it checks again for itself
         if n_out + 1 > cap:
             state[S_LINE] = line
-            return ST_MOVES_FULL, start, n_out, n_other
-        if n_other + 1 > cap2:
+            return ST_MOVES_FULL, start, n_out, n_other, n_vals
+        if n_other + 1 > cap2 or n_vals + MAX_WORDS > cap3:
             state[S_LINE] = line
-            return ST_OTHER_FULL, start, n_out, n_other
+            return ST_OTHER_FULL, start, n_out, n_other, n_vals
         lineno = line + 1
         i = start
-        while i < eol and (buf[i] == 32 or buf[i] == 9 or buf[i] == 13):
-            i += 1
-        if i >= eol:  # blank
-            line = lineno
-            pos = nxt
-            continue
-        # checksum: '*' outside a comment
-        cend = eol
-        j = i
-        star = -1
-        while j < eol:
-            if buf[j] == 59:
-                break
-            if buf[j] == 42:
-                star = j
-                break
-            j += 1
-        if star >= 0:
-            csum, k, ok = _parse_number(buf, star + 1, eol)
-            # the checksum covers every byte before '*'
-            x = 0
-            for q in range(start, star):
-                x ^= buf[q]
-            if not ok or int(csum) != x:
-                state[S_ERR_LINE] = lineno
-                state[S_ERR_CODE] = ERR_CHECKSUM
-                state[S_LINE] = line
-                return ST_ERROR, start, n_out, n_other
-            cend = star
-        # N line number
-        c0 = _upper(buf[i])
-        if c0 == 78:  # 'N'
-            v, k, ok = _parse_number(buf, i + 1, cend)
-            if not ok:
-                state[S_ERR_LINE] = lineno
-                state[S_ERR_CODE] = ERR_NUMBER
-                state[S_LINE] = line
-                return ST_ERROR, start, n_out, n_other
-            i = k
-            while i < cend and (buf[i] == 32 or buf[i] == 9):
+        c = 10
+        while i < size:
+            c = buf[i]
+            if c == 32 or c == 9 or c == 13:
                 i += 1
-            if i >= cend:
-                line = lineno
-                pos = nxt
-                continue
-            c0 = _upper(buf[i])
-        if c0 == 59:  # comment-only line -> Python (metadata), unless known to be inert
-            if _skippable_comment(buf, i, eol):
-                line = lineno
-                pos = nxt
-                continue
-            other[n_other, 0] = lineno
-            other[n_other, 1] = start
-            other[n_other, 2] = eol
-            other[n_other, 3] = n_out
-            other[n_other, 4] = OTHER_TEXT
-            n_other += 1
+            else:
+                break
+        if i >= size or c == 10:  # blank
             line = lineno
-            pos = nxt
+            pos = i + 1
             continue
+        if c == 59:  # comment-only line -> Python (metadata), unless known to be inert
+            eol = i + 1
+            while eol < size and buf[eol] != 10:
+                eol += 1
+            if not _skippable_comment(buf, i, eol):
+                n_other = _record(other, n_other, lineno, i + 1, eol, n_out, OTHER_COMMENT)
+            line = lineno
+            pos = eol + 1
+            continue
+        # N line number
+        c0 = _upper(c)
+        if c0 == 78:  # 'N'
+            v, k, ok = _parse_number(buf, i + 1, size)
+            if not ok:
+                eol, star = _line_end(buf, i + 1, size)
+                state[S_ERR_LINE] = lineno
+                state[S_ERR_CODE] = (ERR_CHECKSUM if star >= 0
+                                     and not _checksum_ok(buf, start, star, eol)
+                                     else ERR_NUMBER)
+                state[S_LINE] = line
+                return ST_ERROR, start, n_out, n_other, n_vals
+            i = k
+            while i < size and (buf[i] == 32 or buf[i] == 9):
+                i += 1
+            c = buf[i] if i < size else 10
+            if c == 10 or c == 42 or c == 13:
+                # nothing but a line number (and a checksum)
+                eol, star = _line_end(buf, i, size)
+                if star >= 0 and not _checksum_ok(buf, start, star, eol):
+                    state[S_ERR_LINE] = lineno
+                    state[S_ERR_CODE] = ERR_CHECKSUM
+                    state[S_LINE] = line
+                    return ST_ERROR, start, n_out, n_other, n_vals
+                if c == 13:  # CR then text: not blank, let the generic path decide
+                    c0 = 13
+                else:
+                    line = lineno
+                    pos = eol + 1
+                    continue
+            else:
+                c0 = _upper(c)
+            if c0 == 59:  # "N5 ;comment": Python (the comment follows the command syntax)
+                eol, star = _line_end(buf, i, size)
+                if not _skippable_comment(buf, i, eol):
+                    n_other = _record(other, n_other, lineno, start, eol, n_out, OTHER_TEXT)
+                line = lineno
+                pos = eol + 1
+                continue
         # command letter + number
-        code_num = -1.0
-        if (c0 == 71 or c0 == 77 or c0 == 84) and i + 1 < cend and 48 <= buf[i + 1] <= 57:
+        code_num = -1
+        k = i
+        if (c0 == 71 or c0 == 77 or c0 == 84) and i + 1 < size and 48 <= buf[i + 1] <= 57:
             # G/M/T with an integer code (a '.' sub-code goes to Python)
             k = i + 1
             num = 0
-            while k < cend and 48 <= buf[k] <= 57 and num < 100000:
+            while k < size and 48 <= buf[k] <= 57 and num < 100000:
                 num = num * 10 + (buf[k] - 48)
                 k += 1
-            if k < cend and buf[k] == 46:
-                code_num = -1.0
-            elif k < cend and not _is_word_end(buf[k]):
-                code_num = -1.0
+            if k < size and buf[k] != 10 and (buf[k] == 46 or not _is_word_end(buf[k])):
+                code_num = -1
             else:
-                code_num = float(num)
-            i = k
-        if code_num < 0.0:
+                code_num = num
+        if code_num < 0:
             # not a plain G/M/T command: Python (extended commands, unknown)
-            other[n_other, 0] = lineno
-            other[n_other, 1] = start
-            other[n_other, 2] = eol
-            other[n_other, 3] = n_out
-            other[n_other, 4] = OTHER_TEXT
-            n_other += 1
+            eol, star = _line_end(buf, k, size)
+            if star >= 0 and not _checksum_ok(buf, start, star, eol):
+                state[S_ERR_LINE] = lineno
+                state[S_ERR_CODE] = ERR_CHECKSUM
+                state[S_LINE] = line
+                return ST_ERROR, start, n_out, n_other, n_vals
+            n_other = _record(other, n_other, lineno, start, eol, n_out, OTHER_TEXT)
             line = lineno
-            pos = nxt
+            pos = eol + 1
             continue
-        # parse parameter words up to the comment / checksum
-        for q in range(26):
-            has[q] = False
-            val[q] = 0.0
+        # parameter words up to the comment / checksum / line end
+        mask = 0
         bad = False
-        k = i
-        while k < cend:
+        while k < size:
             c = buf[k]
             if c == 32 or c == 9 or c == 13:
                 k += 1
                 continue
-            if c == 59:
+            if c == 10 or c == 59 or c == 42:
                 break
             cu = _upper(c)
             if 65 <= cu <= 90:
-                v, k2, ok = _parse_number(buf, k + 1, cend)
-                if not ok or (k2 < cend and not _is_word_end(buf[k2])):
+                v, k2, ok = _parse_number(buf, k + 1, size)
+                if not ok or (k2 < size and buf[k2] != 10 and not _is_word_end(buf[k2])):
                     bad = True
                     break
                 # '1e5' is scientific notation, which G-code does not have: refuse it
                 # rather than read it as X1 E5 (upper-case 'E' stays a parameter word)
-                if (k2 + 1 < cend and buf[k2] == 101
+                if (k2 + 1 < size and buf[k2] == 101
                         and (48 <= buf[k2 + 1] <= 57 or buf[k2 + 1] == 45
                              or buf[k2 + 1] == 43)):
                     bad = True
@@ -299,40 +306,50 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
                 if not (abs(v) <= MAX_ABS_VALUE):
                     bad = True
                     break
-                has[cu - 65] = True
+                mask |= 1 << (cu - 65)
                 val[cu - 65] = v
                 k = k2
             else:
                 bad = True
                 break
+        # the rest of the line: comment, checksum (verified before anything is executed)
+        if k < size and buf[k] == 10:
+            eol = k
+        else:
+            eol, star = _line_end(buf, k, size)
+            if star >= 0 and not _checksum_ok(buf, start, star, eol):
+                state[S_ERR_LINE] = lineno
+                state[S_ERR_CODE] = ERR_CHECKSUM
+                state[S_LINE] = line
+                return ST_ERROR, start, n_out, n_other, n_vals
+        nxt = eol + 1
         if c0 == 84:  # T<n>
             if bad:
                 # leave odd T lines to Python for the message
                 state[S_LINE] = line
-                return ST_PYTHON, start, n_out, n_other
+                return ST_PYTHON, start, n_out, n_other, n_vals
             state[S_TOOL] = code_num
-            n_other = _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0,
-                                      code_num, has, val)
+            n_other, n_vals = _record_numeric(other, vals, n_other, n_vals, lineno, start, eol,
+                                              n_out, c0, code_num, mask, val)
             line = lineno
             pos = nxt
             continue
-        if c0 == 71 and (code_num == 0.0 or code_num == 1.0 or code_num == 2.0
-                         or code_num == 3.0):
+        if c0 == 71 and code_num <= 3:
             if bad:
                 state[S_ERR_LINE] = lineno
                 state[S_ERR_CODE] = ERR_NUMBER
                 state[S_LINE] = line
-                return ST_ERROR, start, n_out, n_other
+                return ST_ERROR, start, n_out, n_other, n_vals
             unit = state[S_UNIT]
             absx = state[S_ABS_XYZ] != 0.0
             abse = state[S_ABS_E] != 0.0 and absx
-            if has[5]:  # F
+            if mask & _F:
                 f = val[5]
                 if not (f > 0.0):
                     state[S_ERR_LINE] = lineno
                     state[S_ERR_CODE] = ERR_FEED
                     state[S_LINE] = line
-                    return ST_ERROR, start, n_out, n_other
+                    return ST_ERROR, start, n_out, n_other, n_vals
                 state[S_FEED] = f * unit / 60.0
             x0 = state[S_X]
             y0 = state[S_Y]
@@ -340,14 +357,14 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
             x1 = x0
             y1 = y0
             z1 = z0
-            if has[23]:
+            if mask & _X:
                 x1 = val[23] * unit + state[S_OFF_X] if absx else x0 + val[23] * unit
-            if has[24]:
+            if mask & _Y:
                 y1 = val[24] * unit + state[S_OFF_Y] if absx else y0 + val[24] * unit
-            if has[25]:
+            if mask & _Z:
                 z1 = val[25] * unit + state[S_OFF_Z] if absx else z0 + val[25] * unit
             de = 0.0
-            if has[4]:
+            if mask & _E:
                 ev = val[4] * unit * state[S_E_FACTOR]
                 if abse:
                     de = ev - state[S_EGC]
@@ -358,12 +375,10 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
             feed = state[S_FEED] * state[S_SPEED_FACTOR]
             tool = int(state[S_TOOL])
             flow = state[S_FLOW]
-            rapid = code_num == 0.0
-            if code_num <= 1.0:
+            if code_num <= 1:
                 if x1 != x0 or y1 != y0 or z1 != z0 or de != 0.0:
-                    kind = _row_kind(x1 - x0, y1 - y0, z1 - z0, de, False, rapid)
-                    _emit(out, n_out, lineno, tool,
-                          x1, y1, z1, de, feed, flow, kind)
+                    kind = row_kind(x1 - x0, y1 - y0, z1 - z0, de, False, code_num == 0)
+                    emit(out, n_out, lineno, tool, x1, y1, z1, de, feed, flow, kind)
                     n_out += 1
                 state[S_X] = x1
                 state[S_Y] = y1
@@ -373,104 +388,29 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
                 continue
             # ---- arcs (G2 clockwise, G3 counter-clockwise), XY plane ----
             if state[S_PLANE] != 17.0:
+                if mask & _E:  # Python raises for this line: leave E as it was
+                    state[S_EGC] = state[S_EGC] - de
                 state[S_LINE] = line
-                return ST_PYTHON, start, n_out, n_other
-            cw = code_num == 2.0
-            if has[8] or has[9]:  # I, J: the radius vector is exactly (-I, -J)
-                r_p = -(val[8] * unit) if has[8] else 0.0
-                r_q = -(val[9] * unit) if has[9] else 0.0
-                cx = x0 - r_p
-                cy = y0 - r_q
-            elif has[17]:  # R
-                r = val[17] * unit
-                dx = x1 - x0
-                dy = y1 - y0
-                chord = math.sqrt(dx * dx + dy * dy)
-                if chord == 0.0 or abs(r) * 2.0 < chord * (1.0 - 1e-9):
-                    state[S_ERR_LINE] = lineno
-                    state[S_ERR_CODE] = ERR_ARC
-                    state[S_LINE] = line
-                    return ST_ERROR, start, n_out, n_other
-                h2 = r * r - chord * chord / 4.0
-                h = math.sqrt(h2) if h2 > 0.0 else 0.0
-                # centre to the right of the chord for CW with r>0 (short arc)
-                sgn = 1.0 if (cw != (r < 0.0)) else -1.0
-                mx = (x0 + x1) / 2.0
-                my = (y0 + y1) / 2.0
-                cx = mx + sgn * h * dy / chord
-                cy = my - sgn * h * dx / chord
-                r_p = x0 - cx
-                r_q = y0 - cy
-            else:
+                return ST_PYTHON, start, n_out, n_other, n_vals
+            has_ij = (mask & (_I | _J)) != 0
+            n_new = emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,
+                             code_num == 2, has_ij,
+                             -(val[8] * unit) if mask & _I else 0.0,
+                             -(val[9] * unit) if mask & _J else 0.0,
+                             (mask & _R) != 0, val[17] * unit,
+                             state[S_ARC_MODE] == 0.0, state[S_ARC_PARAM])
+            if n_new == ARC_BAD:
                 state[S_ERR_LINE] = lineno
                 state[S_ERR_CODE] = ERR_ARC
                 state[S_LINE] = line
-                return ST_ERROR, start, n_out, n_other
-            # Angle as firmware computes it (Klipper gcode_arcs, Marlin plan_arc): the
-            # signed angle between the radius vectors to start and target, in [0, 2π)
-            # counter-clockwise, minus 2π clockwise; a full circle only when that angle
-            # is zero and the target is the start (exactly for Klipper, within 1e-9 mm
-            # and 1e-9 rad in chord mode, as Marlin's NEAR tests).
-            rt_a = x1 - cx
-            rt_b = y1 - cy
-            sweep = math.atan2(r_p * rt_b - r_q * rt_a, r_p * rt_a + r_q * rt_b)
-            if sweep < 0.0:
-                sweep += 2.0 * math.pi
-            if cw:
-                sweep -= 2.0 * math.pi
-            klipper = state[S_ARC_MODE] == 0.0
-            if klipper:
-                if sweep == 0.0 and x0 == x1 and y0 == y1:
-                    sweep = 2.0 * math.pi
-            elif abs(sweep) < 1e-9 and abs(x0 - x1) < 1e-9 and abs(y0 - y1) < 1e-9:
-                sweep = 2.0 * math.pi
-            radius = math.sqrt(r_p * r_p + r_q * r_q)
-            planar = abs(sweep) * radius
-            dz = z1 - z0
-            length = math.sqrt(planar * planar + dz * dz)
-            if klipper:
-                nseg = int(math.floor(length / state[S_ARC_PARAM]))
-            else:
-                tol = state[S_ARC_PARAM]
-                if radius > tol:
-                    step = 2.0 * math.acos(1.0 - tol / radius)
-                    nseg = int(math.ceil(abs(sweep) / step))
-                else:
-                    nseg = 1
-            if nseg < 1:
-                nseg = 1
-            if n_out + nseg > cap:
+                return ST_ERROR, start, n_out, n_other, n_vals
+            if n_new == ARC_FULL:
                 state[S_LINE] = line
                 # undo the E side effect: the kernel re-reads this line after growing
-                if has[4]:
+                if mask & _E:
                     state[S_EGC] = state[S_EGC] - de
-                return ST_MOVES_FULL, start, n_out, n_other
-            theta_seg = sweep / nseg
-            z_seg = dz / nseg
-            dseg = de / nseg
-            px = x0
-            py = y0
-            pz = z0
-            for s in range(1, nseg + 1):
-                if s == nseg:
-                    qx = x1
-                    qy = y1
-                    qz = z1
-                else:
-                    th = s * theta_seg
-                    cos_t = math.cos(th)
-                    sin_t = math.sin(th)
-                    # the start radius vector rotated by th
-                    qx = cx + r_p * cos_t - r_q * sin_t
-                    qy = cy + r_p * sin_t + r_q * cos_t
-                    qz = z0 + s * z_seg
-                kind = _row_kind(qx - px, qy - py, qz - pz, dseg, True, False)
-                _emit(out, n_out, lineno, tool,
-                      qx, qy, qz, dseg, feed, flow, kind)
-                n_out += 1
-                px = qx
-                py = qy
-                pz = qz
+                return ST_MOVES_FULL, start, n_out, n_other, n_vals
+            n_out = n_new
             state[S_X] = x1
             state[S_Y] = y1
             state[S_Z] = z1
@@ -481,50 +421,50 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
         if bad:
             # malformed parameters on a command we don't execute: Python decides
             state[S_LINE] = line
-            return ST_PYTHON, start, n_out, n_other
+            return ST_PYTHON, start, n_out, n_other, n_vals
         executed = True
         if c0 == 71:
-            if code_num == 90.0:
+            if code_num == 90:
                 state[S_ABS_XYZ] = 1.0
-            elif code_num == 91.0:
+            elif code_num == 91:
                 state[S_ABS_XYZ] = 0.0
-            elif code_num == 92.0:
+            elif code_num == 92:
                 unit = state[S_UNIT]
-                none = not (has[23] or has[24] or has[25] or has[4])
-                if has[23] or none:
-                    state[S_OFF_X] = state[S_X] - (val[23] * unit if has[23] else 0.0)
-                if has[24] or none:
-                    state[S_OFF_Y] = state[S_Y] - (val[24] * unit if has[24] else 0.0)
-                if has[25] or none:
-                    state[S_OFF_Z] = state[S_Z] - (val[25] * unit if has[25] else 0.0)
-                if has[4] or none:
-                    state[S_EGC] = (val[4] * unit * state[S_E_FACTOR]) if has[4] else 0.0
-            elif code_num == 21.0:
+                none = (mask & (_XYZ | _E)) == 0
+                if mask & _X or none:
+                    state[S_OFF_X] = state[S_X] - (val[23] * unit if mask & _X else 0.0)
+                if mask & _Y or none:
+                    state[S_OFF_Y] = state[S_Y] - (val[24] * unit if mask & _Y else 0.0)
+                if mask & _Z or none:
+                    state[S_OFF_Z] = state[S_Z] - (val[25] * unit if mask & _Z else 0.0)
+                if mask & _E or none:
+                    state[S_EGC] = (val[4] * unit * state[S_E_FACTOR]) if mask & _E else 0.0
+            elif code_num == 21:
                 state[S_UNIT] = 1.0
-            elif code_num == 20.0:
+            elif code_num == 20:
                 state[S_UNIT] = 25.4
-            elif code_num == 28.0:
-                any_axis = has[23] or has[24] or has[25]
-                if has[23] or not any_axis:
+            elif code_num == 28:
+                any_axis = (mask & _XYZ) != 0
+                if mask & _X or not any_axis:
                     state[S_X] = state[S_HOME_X]
-                if has[24] or not any_axis:
+                if mask & _Y or not any_axis:
                     state[S_Y] = state[S_HOME_Y]
-                if has[25] or not any_axis:
+                if mask & _Z or not any_axis:
                     state[S_Z] = state[S_HOME_Z]
                 executed = False  # also an event for the planner
-            elif code_num == 17.0:
+            elif code_num == 17:
                 state[S_PLANE] = 17.0
             else:
                 executed = False
         else:  # M
-            if code_num == 82.0:
+            if code_num == 82:
                 state[S_ABS_E] = 1.0
-            elif code_num == 83.0:
+            elif code_num == 83:
                 state[S_ABS_E] = 0.0
-            elif code_num == 220.0 and has[18]:
+            elif code_num == 220 and mask & _S:
                 state[S_SPEED_FACTOR] = val[18] / 100.0
                 executed = False
-            elif code_num == 221.0 and has[18] and not has[19] and not has[3]:
+            elif code_num == 221 and (mask & (_S | _T | _D)) == _S:
                 # M221 S<pct> (Marlin's M221 T<n> S<pct> targets one tool: Python)
                 state[S_FLOW] = val[18] / 100.0
                 executed = False
@@ -532,17 +472,16 @@ def scan(buf, pos, state, out, n_out, other, evals, n_other):  # type: ignore[no
                 executed = False
         if not executed:
             # G10/G11, M207/M208, M200, G18/G19 change what the kernel does: hand over
-            if ((c0 == 71 and (code_num == 10.0 or code_num == 11.0 or code_num == 18.0
-                               or code_num == 19.0))
-                    or (c0 == 77 and (code_num == 207.0 or code_num == 208.0
-                                      or code_num == 200.0
-                                      or (code_num == 221.0 and not (has[18] and not has[19]
-                                                                     and not has[3]))))):
+            if ((c0 == 71 and (code_num == 10 or code_num == 11 or code_num == 18
+                               or code_num == 19))
+                    or (c0 == 77 and (code_num == 207 or code_num == 208 or code_num == 200
+                                      or (code_num == 221
+                                          and (mask & (_S | _T | _D)) != _S)))):
                 state[S_LINE] = line
-                return ST_PYTHON, start, n_out, n_other
-            n_other = _record_numeric(other, evals, n_other, lineno, start, eol, n_out, c0,
-                                      code_num, has, val)
+                return ST_PYTHON, start, n_out, n_other, n_vals
+            n_other, n_vals = _record_numeric(other, vals, n_other, n_vals, lineno, start, eol,
+                                              n_out, c0, code_num, mask, val)
         line = lineno
         pos = nxt
     state[S_LINE] = line
-    return ST_DONE, pos, n_out, n_other
+    return ST_DONE, pos, n_out, n_other, n_vals

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from flowtwin.gcode import _kernel as K
 from flowtwin.gcode.moves import MOVE_DTYPE
 
 __all__ = ["_Rows"]
@@ -13,19 +14,23 @@ __all__ = ["_Rows"]
 
 @dataclass
 class _Rows:
-    """Growable output buffers of the kernel for one chunk."""
+    """Growable output buffers of the kernel for one chunk.
+
+    ``moves`` holds the move rows, ``other`` the lines left to Python (see
+    :func:`flowtwin.gcode._kernel.scan`) and ``vals`` the packed values of their words.
+    """
 
     moves: np.ndarray
     other: np.ndarray
+    vals: np.ndarray
     n: int = 0
     n_other: int = 0
-
-    evals: np.ndarray = field(default_factory=lambda: np.empty((0, 27)))
+    n_vals: int = 0
 
     @classmethod
     def make(cls, cap: int, cap_other: int) -> _Rows:
-        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, 6), np.int64),
-                   evals=np.zeros((cap_other, 27)))
+        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, K.N_OTHER_COLS), np.int64),
+                   np.empty(2 * cap_other + K.MAX_WORDS))
 
     def grow_moves(self, need: int) -> None:
         cap = max(self.moves.shape[0] + self.moves.shape[0] // 4, self.n + need + 16)
@@ -34,13 +39,15 @@ class _Rows:
         self.moves = new
 
     def grow_other(self) -> None:
-        cap = 2 * self.other.shape[0] + 16
-        new = np.empty((cap, 6), np.int64)
-        new[: self.n_other] = self.other[: self.n_other]
-        self.other = new
-        vals = np.zeros((cap, 27))
-        vals[: self.n_other] = self.evals[: self.n_other]
-        self.evals = vals
+        if self.n_other + 1 > self.other.shape[0]:
+            cap = 2 * self.other.shape[0] + 16
+            new = np.empty((cap, K.N_OTHER_COLS), np.int64)
+            new[: self.n_other] = self.other[: self.n_other]
+            self.other = new
+        if self.n_vals + K.MAX_WORDS > self.vals.shape[0]:
+            vals = np.empty(2 * self.vals.shape[0] + K.MAX_WORDS)
+            vals[: self.n_vals] = self.vals[: self.n_vals]
+            self.vals = vals
 
     def add(self, line: int, tool: int, xyz: tuple[float, float, float], de: float,
             feed: float, flow: float, kind: int) -> None:

@@ -17,7 +17,6 @@ scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 from collections.abc import Iterator
@@ -149,6 +148,7 @@ class _Reader:
         self.retracted = False
         self.comments = CommentInterpreter()
         self.unknown: dict[str, int] = {}
+        self._codes: dict[int, tuple[str, tuple[str, ...], int]] = {}
         self.warnings: list[str] = []
         self.n_moves = 0            # moves emitted in earlier chunks
         self.e_per_tool: dict[int, float] = {}
@@ -299,27 +299,48 @@ class _Reader:
                                  "(run without --strict to count and skip unknown ones)")
             self.unknown[code] = self.unknown.get(code, 0) + 1
 
+    def _code_info(self, key: int) -> tuple[str, tuple[str, ...], int]:
+        """Command name, parameter letters and category of a kernel-parsed command."""
+        info = self._codes.get(key)
+        if info is None:
+            code_id, mask = divmod(key, 1 << 26)
+            code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
+            letters = tuple(_LETTERS[j] for j in range(26) if mask >> j & 1)
+            if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
+                category = _EVENT
+            else:
+                category = _HARMLESS if code in HARMLESS_CODES else _UNKNOWN
+            info = self._codes[key] = (code, letters, category)
+        return info
+
     def _other_lines(self, buf: bytes, rows: _Rows) -> None:
+        n = rows.n_other
+        if not n:
+            return
         feed = self.comments.feed
         base = self._offset
-        n = rows.n_other
-        other = rows.other[:n]
-        numeric = np.flatnonzero(other[:, 4] == K.OTHER_NUMERIC)
-        # values of the kernel-parsed commands only (comments have none)
-        num_vals = dict(zip(numeric.tolist(), rows.evals[numeric].tolist(), strict=True))
-        for k, (lineno, start, end, move_index, kind, code_id) in enumerate(other.tolist()):
+        events = self.events
+        codes = self._codes
+        flat = rows.vals[:rows.n_vals].tolist()
+        for lineno, start, end, move_index, kind, code_id, mask, at in rows.other[:n].tolist():
             if kind == K.OTHER_NUMERIC:  # parsed by the kernel: no text to look at
-                code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
-                vals = num_vals[k]
-                params: dict[str, float | str] = {
-                    letter: vals[j] for letter, j in _mask_letters(int(vals[0]))}
-                self._record(code, params, "", lineno, base + move_index,
-                             _Span(buf, start, end), checked=True)
+                key = code_id * (1 << 26) + mask
+                code, letters, category = codes.get(key) or self._code_info(key)
+                if category == _EVENT:
+                    events.append(Event(base + move_index, lineno, code,
+                                        dict(zip(letters, flat[at:at + len(letters)],
+                                                 strict=True))))
+                elif category == _UNKNOWN:
+                    self._record(code, {}, "", lineno, base + move_index,
+                                 _Span(buf, start, end), checked=True)
                 continue
             text = buf[start:end].decode("utf-8", "replace")
             if "\ufffd" in text:
                 self.warnings.append(f"{self.name}:{lineno}: bytes that are not UTF-8 "
                                      "(replaced)")
+            if kind == K.OTHER_COMMENT:  # the text after ';' of a comment-only line
+                feed(text.rstrip(), base + move_index, lineno)
+                continue
             stripped = text.lstrip()
             if stripped[:1] == ";":  # comment-only line: straight to the interpreter
                 feed(stripped[1:].rstrip(), base + move_index, lineno)
@@ -328,6 +349,8 @@ class _Reader:
             parsed = parse_line(text, source=self.name, line=lineno)
             self._record(parsed.code, parsed.params, parsed.comment, lineno,
                          self._offset + move_index, text)
+        rows.n_other = 0
+        rows.n_vals = 0
 
     # -- one chunk -------------------------------------------------------------------------
     def chunk(self, buf: bytes, *, capacity_hint: int = 0) -> MoveTable:
@@ -352,13 +375,14 @@ class _Reader:
             rows = _Rows.make(max(need, capacity_hint), max(256, len(buf) // 1024))
             if self.accumulate:
                 self.rows = rows
-        rows.n_other = 0
+        rows.n_other = rows.n_vals = 0
         start_n = rows.n
         self._offset = self.n_moves - start_n
         pos = 0
         while True:
-            status, pos, rows.n, rows.n_other = K.scan(
-                arr, pos, self.state, rows.moves, rows.n, rows.other, rows.evals, rows.n_other)
+            status, pos, rows.n, rows.n_other, rows.n_vals = K.scan(
+                arr, pos, self.state, rows.moves, rows.n, rows.other, rows.vals, rows.n_other,
+                rows.n_vals)
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
@@ -370,7 +394,6 @@ class _Reader:
             else:  # ST_PYTHON: this line is interpreted here, in order
                 # lines recorded so far come first
                 self._other_lines(buf, rows)
-                rows.n_other = 0
                 end = buf.find(b"\n", pos)
                 end = len(buf) if end < 0 else end
                 line = int(self.state[K.S_LINE]) + 1
@@ -460,12 +483,8 @@ class _Reader:
 
 
 _LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
-
-
-@functools.lru_cache(maxsize=4096)
-def _mask_letters(mask: int) -> tuple[tuple[str, int], ...]:
-    """(letter, column in evals) of every bit set in a kernel letter mask."""
-    return tuple((_LETTERS[j], 1 + j) for j in range(26) if mask >> j & 1)
+#: Categories of kernel-parsed commands.
+_EVENT, _HARMLESS, _UNKNOWN = 0, 1, 2
 
 
 @dataclass(frozen=True, slots=True)
