@@ -193,7 +193,13 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
                 dp_curv += 2.0 * r2
         inv_h2 = 1.0 / (h * h)
         out_coef[k, 0] = (i_plus - i_minus) * inv_h2
-        out_coef[k, 1] = dp_val * inv_h2
+        if jm == jc and jp == jc:
+            # t - h, t and t + h in one phase: the second difference of the quadratic P is
+            # exactly h² P'' = h² a (dp_val would hold the rounding of the re-centring
+            # instead of 0 on a cruise, and the integrator would take it for a ramp)
+            out_coef[k, 1] = ba[jc]
+        else:
+            out_coef[k, 1] = dp_val * inv_h2
         out_coef[k, 2] = 0.5 * dp_slope * inv_h2
         out_coef[k, 3] = dp_curv * inv_h2 / 6.0
         out_e0[k] = pref + (w_plus + w_minus) * inv_h2
