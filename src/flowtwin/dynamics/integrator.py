@@ -36,7 +36,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.dynamics._lag_kernel import (
+from flowtwin.dynamics._acc_kernel import (
     A_CMD,
     A_FED,
     A_FMAX,
@@ -57,10 +57,10 @@ from flowtwin.dynamics._lag_kernel import (
     S_X,
     acc_totals,
     fill_move_results,
-    integrate_kernel,
     prepare_segments,
     stop_rows,
 )
+from flowtwin.dynamics._lag_kernel import integrate_kernel
 from flowtwin.dynamics.feed import CommandedFeed
 from flowtwin.dynamics.params import ExtrusionParams
 from flowtwin.dynamics.result import (
