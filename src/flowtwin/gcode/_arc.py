@@ -21,9 +21,17 @@ ARC_FULL = -2  # the row buffer cannot hold the segments
 
 
 @njit(cache=True, inline="always")
-def emit(out, n, line, tool, x, y, z, de, feed, flow, kind):  # type: ignore[no-untyped-def]
-    """Fill row ``n`` of ``out`` (fields the kernel owns)."""
+def emit(out, n, line, tool, x, y, z, de, feed, flow, kind, e_acc):  # type: ignore[no-untyped-def]
+    """Fill row ``n`` of ``out`` (every field but layer and feature).
+
+    ``e_acc[int16(tool) + 32768]`` is the running E of each tool (summed in file order,
+    as :func:`numpy.cumsum` would); the row's ``e`` is that sum after its ``de``.
+    """
+    t = (tool + 32768) % 65536
+    acc = e_acc[t] + de
+    e_acc[t] = acc
     r = out[n]
+    r.e = acc
     r.x = x
     r.y = y
     r.z = z
@@ -58,7 +66,7 @@ def row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool)
 
 @njit(cache=True)
 def emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,  # type: ignore[no-untyped-def]
-             cw, has_ij, r_p_ij, r_q_ij, has_r, r_mm, klipper, arc_param):
+             cw, has_ij, r_p_ij, r_q_ij, has_r, r_mm, klipper, arc_param, e_acc):
     """Write the chords of one arc into ``out`` from row ``n_out``.
 
     ``(r_p_ij, r_q_ij)`` is the radius vector ``(-I, -J)`` and ``r_mm`` the ``R`` word,
@@ -143,7 +151,7 @@ def emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,  
             qy = cy + r_p * sin_t + r_q * cos_t
             qz = z0 + s * z_seg
         kind = row_kind(qx - px, qy - py, qz - pz, dseg, True, False)
-        emit(out, n_out, lineno, tool, qx, qy, qz, dseg, feed, flow, kind)
+        emit(out, n_out, lineno, tool, qx, qy, qz, dseg, feed, flow, kind, e_acc)
         n_out += 1
         px = qx
         py = qy

@@ -145,7 +145,7 @@ def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ignore[no-untyped-def]
+def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 
     Parameters
@@ -157,7 +157,7 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ig
     state : float64[N_STATE]
         Reader state, updated in place.
     out : MOVE_DTYPE[cap]
-        Move rows; the kernel fills x, y, z, de, feed_mm_s, line, tool, kind, flow.
+        Move rows; the kernel fills every field but layer and feature.
     n_out : int
         Rows already filled.
     other : int64[cap2, N_OTHER_COLS]
@@ -171,6 +171,8 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ig
         Values of the ``OTHER_NUMERIC`` words, in letter order, packed.
     n_other, n_vals : int
         Rows of ``other`` and values of ``vals`` already filled.
+    e_acc : float64[65536]
+        Running E per tool (index ``int16(tool) + 32768``), updated in place.
 
     Returns
     -------
@@ -378,7 +380,7 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ig
             if code_num <= 1:
                 if x1 != x0 or y1 != y0 or z1 != z0 or de != 0.0:
                     kind = row_kind(x1 - x0, y1 - y0, z1 - z0, de, False, code_num == 0)
-                    emit(out, n_out, lineno, tool, x1, y1, z1, de, feed, flow, kind)
+                    emit(out, n_out, lineno, tool, x1, y1, z1, de, feed, flow, kind, e_acc)
                     n_out += 1
                 state[S_X] = x1
                 state[S_Y] = y1
@@ -398,7 +400,7 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals):  # type: ig
                              -(val[8] * unit) if mask & _I else 0.0,
                              -(val[9] * unit) if mask & _J else 0.0,
                              (mask & _R) != 0, val[17] * unit,
-                             state[S_ARC_MODE] == 0.0, state[S_ARC_PARAM])
+                             state[S_ARC_MODE] == 0.0, state[S_ARC_PARAM], e_acc)
             if n_new == ARC_BAD:
                 state[S_ERR_LINE] = lineno
                 state[S_ERR_CODE] = ERR_ARC

@@ -50,7 +50,8 @@ class _Rows:
             self.vals = vals
 
     def add(self, line: int, tool: int, xyz: tuple[float, float, float], de: float,
-            feed: float, flow: float, kind: int) -> None:
+            feed: float, flow: float, kind: int, e_acc: np.ndarray) -> None:
+        """Append a row made in Python; ``e_acc`` is the kernel's running E per tool."""
         if self.n >= self.moves.shape[0]:
             self.grow_moves(1)
         row = self.moves[self.n]
@@ -61,4 +62,7 @@ class _Rows:
         row["tool"] = tool
         row["kind"] = kind
         row["flow"] = flow
+        t = (tool + 32768) % 65536
+        e_acc[t] += row["de"]  # the stored float64, summed as the kernel does
+        row["e"] = e_acc[t]
         self.n += 1

@@ -27,6 +27,7 @@ import numpy as np
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode import _kernel as K
+from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode._rows import _Rows
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
@@ -151,7 +152,7 @@ class _Reader:
         self._codes: dict[int, tuple[str, tuple[str, ...], int]] = {}
         self.warnings: list[str] = []
         self.n_moves = 0            # moves emitted in earlier chunks
-        self.e_per_tool: dict[int, float] = {}
+        self.e_acc = np.zeros(65536)  # running E per tool (int16(tool) + 32768)
         self.feature = -1
         self.layer = -1
         self.layer_z: list[float] = []
@@ -262,21 +263,21 @@ class _Reader:
         if retract:
             if r.length_mm > 0:
                 rows.add(line, tool, (x, y, z), -r.length_mm, r.speed_mm_s, float(s[K.S_FLOW]),
-                         base | MoveKind.RETRACT)
+                         base | MoveKind.RETRACT, self.e_acc)
             if r.z_hop_mm > 0:
                 rows.add(line, tool, (x, y, z + r.z_hop_mm), 0.0, r.speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z)
+                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
                 s[K.S_Z] = z + r.z_hop_mm
             self.retracted = True
         else:
             if r.z_hop_mm > 0:
                 rows.add(line, tool, (x, y, z - r.z_hop_mm), 0.0, r.unretract_speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z)
+                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
                 s[K.S_Z] = z - r.z_hop_mm
             amount = r.length_mm + r.extra_unretract_mm
             if amount > 0:
                 rows.add(line, tool, (x, y, float(s[K.S_Z])), amount, r.unretract_speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.EXTRUDE)
+                         float(s[K.S_FLOW]), base | MoveKind.EXTRUDE, self.e_acc)
             self.retracted = False
 
     # -- recorded lines ------------------------------------------------------------------
@@ -382,7 +383,7 @@ class _Reader:
         while True:
             status, pos, rows.n, rows.n_other, rows.n_vals = K.scan(
                 arr, pos, self.state, rows.moves, rows.n, rows.other, rows.vals, rows.n_other,
-                rows.n_vals)
+                rows.n_vals, self.e_acc)
             if status == K.ST_DONE:
                 break
             if status == K.ST_MOVES_FULL:
@@ -424,62 +425,26 @@ class _Reader:
             # keep the kernel's buffer when it is mostly full, else copy to release the rest
             moves = (rows.moves[:n] if n >= 0.6 * rows.moves.shape[0]
                      else rows.moves[:n].copy())
-        # cumulative E per tool, continuing across chunks
-        e = np.empty(n - start_n)
-        tools = moves["tool"]
-        for tool in np.unique(tools).tolist():
-            sel = tools == tool
-            # summed in file order from the running total, so chunking never changes a bit
-            start = np.array([self.e_per_tool.get(tool, 0.0)])
-            e[sel] = np.cumsum(np.concatenate((start, moves["de"][sel])))[1:]
-            self.e_per_tool[tool] = float(e[sel][-1])
-        moves["e"] = e
-        self._assign_features(moves)
-        self._assign_layers(moves)
+        self._assign_columns(moves)
         table = MoveTable(moves=moves, events=self.events,
                           start_xyze=np.zeros(4), source=self.name)
         self.n_moves += n - start_n
         return table
 
-    def _assign_features(self, moves: np.ndarray) -> None:
-        col = moves["feature"]
-        start = 0
-        cur = self.feature
-        base = self.n_moves
-        for mi, fid in self.comments.feature_changes:
-            k = mi - base
-            col[start:k] = cur
-            cur, start = fid, max(k, start)
-        col[start:] = cur
-        self.feature = cur
-        self.comments.feature_changes.clear()
-
-    def _assign_layers(self, moves: np.ndarray) -> None:
-        col = moves["layer"]
-        base = self.n_moves
-        changes = self.comments.layer_changes
-        if self.comments.metadata.get("_layer_mode") == "markers" or changes:
-            self.comments.metadata["_layer_mode"] = "markers"
-            start = 0
-            cur = self.layer
-            for mi, _line, z in changes:
-                k = mi - base
-                col[start:k] = cur
-                cur, start = cur + 1, max(k, start)
-                self.layer_z.append(z)
-            col[start:] = cur
-            self.layer = cur
-            changes.clear()
-            return
-        # no slicer markers: a new layer starts at the first extrusion above the last
-        extruding = (moves["kind"] & MoveKind.EXTRUDE) != 0
-        z_ext = np.where(extruding, moves["z"], -np.inf)
-        running = np.maximum.accumulate(np.concatenate(([self.max_extrude_z], z_ext)))
-        rises = running[1:] > running[:-1] + 1e-6
-        col[:] = self.layer + np.cumsum(rises)
-        self.layer_z.extend(running[1:][rises].tolist())
-        self.layer += int(np.count_nonzero(rises))
-        self.max_extrude_z = float(running[-1])
+    def _assign_columns(self, moves: np.ndarray) -> None:
+        """Feature and layer of every row of the chunk, from the comments read so far."""
+        comments = self.comments
+        markers = comments.metadata.get("_layer_mode") == "markers" or comments.layer_changes
+        if markers:
+            comments.metadata["_layer_mode"] = "markers"
+            self.layer_z.extend(z for _mi, _line, z in comments.layer_changes)
+        self.feature, self.layer, self.max_extrude_z, new_z = fill_columns(
+            moves, comments.feature_changes, comments.layer_changes if markers else None,
+            base=self.n_moves, feature=self.feature, layer=self.layer,
+            max_extrude_z=self.max_extrude_z)
+        self.layer_z.extend(new_z)
+        comments.feature_changes.clear()
+        comments.layer_changes.clear()
 
 
 _LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
