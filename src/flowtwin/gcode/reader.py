@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
-from typing import BinaryIO
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -315,22 +315,32 @@ class _Reader:
         return info
 
     def _other_lines(self, buf: bytes, rows: _Rows) -> None:
+        """Interpret, in file order, the lines the kernel recorded for Python."""
         n = rows.n_other
         if not n:
             return
         feed = self.comments.feed
         base = self._offset
-        events = self.events
+        append_event = self.events.append
         codes = self._codes
         flat = rows.vals[:rows.n_vals].tolist()
+        new, set_index, set_line, set_code, set_params = _EVENT_SETTERS
         for lineno, start, end, move_index, kind, code_id, mask, at in rows.other[:n].tolist():
             if kind == K.OTHER_NUMERIC:  # parsed by the kernel: no text to look at
                 key = code_id * (1 << 26) + mask
                 code, letters, category = codes.get(key) or self._code_info(key)
                 if category == _EVENT:
-                    events.append(Event(base + move_index, lineno, code,
-                                        dict(zip(letters, flat[at:at + len(letters)],
-                                                 strict=True))))
+                    k = len(letters)
+                    params: dict[str, float | str] = (
+                        {letters[0]: flat[at]} if k == 1 else
+                        dict(zip(letters, flat[at:at + k], strict=True)))
+                    # Event(base + move_index, lineno, code, params), built field by field
+                    event = new(Event)
+                    set_index(event, base + move_index)
+                    set_line(event, lineno)
+                    set_code(event, code)
+                    set_params(event, params)
+                    append_event(event)
                 elif category == _UNKNOWN:
                     self._record(code, {}, "", lineno, base + move_index,
                                  _Span(buf, start, end), checked=True)
@@ -450,6 +460,22 @@ class _Reader:
 _LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 #: Categories of kernel-parsed commands.
 _EVENT, _HARMLESS, _UNKNOWN = 0, 1, 2
+
+
+def _event_setters() -> tuple[Callable[..., Any], ...]:
+    """``object.__new__`` and the slot setters of :class:`Event`, in field order.
+
+    The reader makes thousands of events per file (one per ``M204``); setting the slots
+    directly costs half of the frozen dataclass's ``__init__`` and gives the same object.
+    Only valid while :class:`Event` is a plain slotted record of these four fields.
+    """
+    names = tuple(f.name for f in fields(Event))
+    if names != ("move_index", "line", "code", "params") or hasattr(Event, "__post_init__"):
+        raise RuntimeError("flowtwin.gcode.moves.Event changed: update reader._event_setters")
+    return (object.__new__, *(getattr(Event, name).__set__ for name in names))
+
+
+_EVENT_SETTERS = _event_setters()
 
 
 @dataclass(frozen=True, slots=True)
