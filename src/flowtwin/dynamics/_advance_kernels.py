@@ -34,7 +34,8 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-__all__ = ["klipper_smooth", "marlin_moves", "marlin_track", "merge_breakpoints"]
+__all__ = ["klipper_smooth", "marlin_eligible", "marlin_moves", "marlin_track",
+           "merge_breakpoints"]
 
 
 @njit(cache=True)
@@ -76,6 +77,29 @@ def merge_breakpoints(b: npt.NDArray[np.float64], h: float, lo: float, hi: float
         out[k] = hi
         k += 1
     return out[:k]
+
+
+@njit(cache=True)
+def marlin_eligible(de: npt.NDArray[np.float64], x: npt.NDArray[np.float64],
+                    y: npt.NDArray[np.float64], z: npt.NDArray[np.float64], x0: float,
+                    y0: float, z0: float, out: npt.NDArray[np.bool_]) -> None:
+    """Marlin's LA eligibility per move: ``de > 0``, XYZ length ``D > 0`` and ``de/D <= 3``.
+
+    ``x, y, z`` are the end positions (the start of move ``i`` is the end of ``i - 1``,
+    of move 0 ``(x0, y0, z0)``); ``D = sqrt(dx² + dy² + dz²)`` summed left to right.
+    """
+    px = x0
+    py = y0
+    pz = z0
+    for i in range(de.shape[0]):
+        dx = x[i] - px
+        dy = y[i] - py
+        dz = z[i] - pz
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        out[i] = de[i] > 0.0 and dist > 0.0 and de[i] / dist <= 3.0
+        px = x[i]
+        py = y[i]
+        pz = z[i]
 
 
 @njit(cache=True)

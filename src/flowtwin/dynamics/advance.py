@@ -39,6 +39,7 @@ import numpy.typing as npt
 
 from flowtwin.dynamics._advance_kernels import (
     klipper_smooth,
+    marlin_eligible,
     marlin_moves,
     marlin_track,
     merge_breakpoints,
@@ -146,13 +147,10 @@ def advance_eligible(moves: MoveTable, firmware: Firmware) -> npt.NDArray[np.boo
     de = np.asarray(mv["de"], dtype=np.float64)
     if firmware is not Firmware.MARLIN:
         return (de > 0.0) & ((mv["kind"] & int(MoveKind.XY)) != 0)
-    end = np.stack([mv["x"], mv["y"], mv["z"]], axis=1).astype(np.float64)
-    start = np.vstack([np.asarray(moves.start_xyze[:3], dtype=np.float64)[None, :], end[:-1]])
-    dist = np.sqrt(np.sum((end - start) ** 2, axis=1))
-    ok = (de > 0.0) & (dist > 0.0)
-    ratio = np.zeros_like(de)
-    np.divide(de, dist, out=ratio, where=dist > 0.0)
-    return ok & (ratio <= 3.0)
+    out = np.empty(de.shape[0], dtype=np.bool_)
+    x0, y0, z0 = (float(v) for v in np.asarray(moves.start_xyze[:3], dtype=np.float64))
+    marlin_eligible(de, mv["x"], mv["y"], mv["z"], x0, y0, z0, out)
+    return out
 
 
 def _num(ev: Event, key: str, warnings: list[str], source: str) -> float | None:
