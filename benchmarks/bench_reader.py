@@ -5,14 +5,27 @@ Peers, run on the same files in the same process: Printrun's ``printrun.gcoder``
 ``gcodeparser``, ``gcode-lib``, ``pygcode`` (line by line) and a plain regex loop.
 Peers that are not installed are reported as such (``make bench`` installs them).
 
+Times are process CPU time (``time.process_time``, best of several runs: the machine is
+shared, CPU time is what one core spends) with the wall-clock time next to them; the peers
+are timed the same way in the same run.
+
 Memory: peak traced allocation (tracemalloc, numpy included) per move of a whole-file read,
 and the peak of a streaming read of a file 1x and 4x as long (it must not grow).
+
+First run: the numba kernels are compiled once and cached on disk (``cache=True``); the
+cost of a first read with an empty cache and with the warm cache is measured in fresh
+processes.
 """
 
 from __future__ import annotations
 
+import functools
 import gc
+import os
 import re
+import subprocess
+import sys
+import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -30,14 +43,41 @@ BIG_SPEC = PrintSpec(size_x_mm=120.0, size_y_mm=120.0, layers=1450, infill_densi
                      use_arcs=False, polygon_segments=360, pillar_radius_mm=20.0)
 
 
-def _best_of(fn: Callable[[], object], repeat: int) -> float:
-    best = float("inf")
+def _best_of(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
+    """Best process CPU time and best wall time of ``repeat`` calls, s."""
+    best_cpu = best_wall = float("inf")
     for _ in range(repeat):
         gc.collect()
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+        best_cpu = min(best_cpu, time.process_time() - c0)
+        best_wall = min(best_wall, time.perf_counter() - t0)
+    return best_cpu, best_wall
+
+
+_FIRST_READ = """
+import sys, time
+t0 = time.perf_counter()
+from flowtwin.gcode.reader import read_gcode
+read_gcode(sys.argv[1])
+print(time.perf_counter() - t0)
+"""
+
+
+def _first_read_s(path: Path, cache_dir: str) -> float:
+    """Wall time of import + first read in a fresh process with ``NUMBA_CACHE_DIR``."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    out = subprocess.run([sys.executable, "-c", _FIRST_READ, str(path)], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return float(out.split()[-1])
+
+
+def _compile_cost(path: Path) -> dict[str, float]:
+    """First read with an empty numba cache (compiles) and again with the cache filled."""
+    with tempfile.TemporaryDirectory() as cache:
+        cold = _first_read_s(path, cache)
+        warm = _first_read_s(path, cache)
+    return {"cold_cache_s": cold, "warm_cache_s": warm}
 
 
 def _regex_loop(path: Path) -> int:
@@ -138,15 +178,17 @@ def run(quick: bool = False) -> dict[str, object]:
     results: dict[str, object] = {}
     for path in files:
         n_lines = sum(1 for _ in path.open("rb"))
-        repeat = 1 if quick else 3
-        t_read = _best_of(lambda p=path: read_gcode(p), repeat)
-        row: dict[str, object] = {"lines": n_lines, "read_s": t_read,
-                                  "read_lines_per_s": n_lines / t_read}
+        repeat = 1 if quick else 7
+        t_read, w_read = _best_of(functools.partial(read_gcode, path), repeat)
+        row: dict[str, object] = {"lines": n_lines, "read_cpu_s": t_read, "read_wall_s": w_read,
+                                  "read_lines_per_s": n_lines / t_read,
+                                  "read_lines_per_wall_s": n_lines / w_read}
         plan = _plan_fn(path)
         plan()
-        t_plan = _best_of(plan, repeat)
-        row["read_plan_s"] = t_plan
+        t_plan, w_plan = _best_of(plan, 1 if quick else 3)
+        row["read_plan_cpu_s"] = t_plan
         row["read_plan_lines_per_s"] = n_lines / t_plan
+        row["read_plan_lines_per_wall_s"] = n_lines / w_plan
         bytes_per_move, kept_per_move, moves = _memory(path)
         row["moves"] = moves
         row["peak_bytes_per_move"] = bytes_per_move
@@ -155,7 +197,7 @@ def run(quick: bool = False) -> dict[str, object]:
         if not quick or path == files[0]:
             for name, fn in _peers(path).items():
                 try:
-                    t = _best_of(fn, 1)
+                    t, _wall = _best_of(fn, 1 if quick or n_lines > 500_000 else 2)
                 except Exception as exc:
                     print(f"  {name:<20} failed on this file: {type(exc).__name__}: {exc}")
                     continue
@@ -164,14 +206,21 @@ def run(quick: bool = False) -> dict[str, object]:
         row["speedup_vs_peers"] = {k: (n_lines / t_read) / v for k, v in peers.items()}
         results[path.name] = row
         print(f"{path.name}: {n_lines:,} lines, {moves:,} moves")
-        print(f"  flowtwin read        {n_lines / t_read:>12,.0f} lines/s")
-        if "read_plan_lines_per_s" in row:
-            print(f"  flowtwin read+plan   {row['read_plan_lines_per_s']:>12,.0f} lines/s")
+        print(f"  flowtwin read        {n_lines / t_read:>12,.0f} lines/s CPU "
+              f"({n_lines / w_read:,.0f} wall)")
+        print(f"  flowtwin read+plan   {n_lines / t_plan:>12,.0f} lines/s CPU "
+              f"({n_lines / w_plan:,.0f} wall)")
         print(f"  memory               {kept_per_move:>12,.0f} bytes/move kept (table + events), "
               f"{bytes_per_move:,.0f} at the peak of the read (input text and buffers incl.)")
         for name, rate in peers.items():
             ratio = n_lines / t_read / rate
-            print(f"  {name:<20} {rate:>12,.0f} lines/s   flowtwin is {ratio:6.1f}x")
+            print(f"  {name:<20} {rate:>12,.0f} lines/s CPU  flowtwin is {ratio:6.1f}x")
+    if not quick:
+        cost = _compile_cost(files[0])
+        results["first_read"] = cost
+        print(f"first read of {files[0].name} in a fresh process: {cost['cold_cache_s']:.1f} s "
+              f"with an empty numba cache (compiling), {cost['warm_cache_s']:.1f} s with the "
+              "cache")
     # streaming: peak memory must not grow with the file
     small = files[-1]
     quad = OUT / "generated_big_x4.gcode"

@@ -49,8 +49,8 @@ def _upper(c: int) -> int:
 
 
 @njit(cache=True)
-def _parse_number(buf, i, end):  # type: ignore[no-untyped-def]
-    """Parse ``[+-]digits[.digits]`` at ``buf[i]``; return (value, next_index, ok)."""
+def _parse_number_long(buf, i, end):  # type: ignore[no-untyped-def]
+    """:func:`_parse_number` for more than 18 digits (the mantissa leaves int64)."""
     neg = False
     if i < end and (buf[i] == 45 or buf[i] == 43):  # - +
         neg = buf[i] == 45
@@ -88,6 +88,50 @@ def _parse_number(buf, i, end):  # type: ignore[no-untyped-def]
         val = float(mant) / _POW10[frac]
     else:
         val = float(mant) / (10.0 ** frac)
+    if neg:
+        val = -val
+    return val, i, True
+
+
+@njit(cache=True, inline="always")
+def _parse_number(buf, i, end):  # type: ignore[no-untyped-def]
+    """Parse ``[+-]digits[.digits]`` at ``buf[i]``; return (value, next_index, ok).
+
+    The digits form an integer mantissa (exact up to 18 digits) divided by a power of ten:
+    the quotient of two exact doubles is correctly rounded (15 significant digits and
+    fewer, every number a slicer writes); longer numbers take :func:`_parse_number_long`.
+    """
+    first = i
+    neg = False
+    if i < end and (buf[i] == 45 or buf[i] == 43):  # - +
+        neg = buf[i] == 45
+        i += 1
+    digits = i
+    mant = 0
+    while i < end:
+        d = np.int64(buf[i]) - 48
+        if d < 0 or d > 9:
+            break
+        mant = mant * 10 + d
+        i += 1
+    ndig = i - digits
+    frac = 0
+    if i < end and buf[i] == 46:  # '.'
+        i += 1
+        f0 = i
+        while i < end:
+            d = np.int64(buf[i]) - 48
+            if d < 0 or d > 9:
+                break
+            mant = mant * 10 + d
+            i += 1
+        frac = i - f0
+        ndig += frac
+    if ndig == 0:
+        return 0.0, i, False
+    if ndig > 18:
+        return _parse_number_long(buf, first, end)
+    val = float(mant) / _POW10[frac]
     if neg:
         val = -val
     return val, i, True

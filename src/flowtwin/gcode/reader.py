@@ -372,8 +372,8 @@ class _Reader:
         """
         self.events: list[Event] = []
         arr = np.frombuffer(buf, dtype=np.uint8)
-        if arr.size and not np.all(arr):  # a NUL byte: binary data
-            zero = int(np.argmin(arr))
+        zero = buf.find(b"\0")
+        if zero >= 0:  # a NUL byte: binary data
             line = int(self.state[K.S_LINE]) + buf.count(b"\n", 0, zero) + 1
             raise GcodeError("binary data (NUL byte) in G-code", source=self.name, line=line,
                              allowed="text G-code")

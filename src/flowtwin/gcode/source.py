@@ -63,8 +63,12 @@ def open_source(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[Bina
 
 
 def line_chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes]:
-    """Yield pieces of ``stream`` that end on a line break (the last may not)."""
-    rest = b""
+    """Yield pieces of ``stream`` that end on a line break (the last may not).
+
+    Each piece is copied at most once: the partial line left from the previous block is
+    joined with the part of the new block up to its last line break.
+    """
+    rest = b""  # never holds a line break
     while True:
         try:
             block = stream.read(chunk_bytes)
@@ -74,13 +78,16 @@ def line_chunks(stream: BinaryIO, name: str, chunk_bytes: int) -> Iterator[bytes
             if rest:
                 yield rest
             return
-        data = rest + block
-        cut = data.rfind(b"\n")
+        cut = block.rfind(b"\n")
         if cut < 0:
-            rest = data
+            rest = rest + block
             continue
-        rest = data[cut + 1:]
-        yield data[:cut + 1]
+        if rest:
+            piece = b"".join((rest, memoryview(block)[:cut + 1]))
+        else:
+            piece = block if cut + 1 == len(block) else block[:cut + 1]
+        rest = block[cut + 1:]
+        yield piece
 
 
 def source_name(source: str | os.PathLike[str] | bytes | BinaryIO) -> str:
