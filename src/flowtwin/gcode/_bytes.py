@@ -109,7 +109,7 @@ def _parse_number(buf, i, end):  # type: ignore[no-untyped-def]
     digits = i
     mant = 0
     while i < end:
-        d = np.int64(buf[i]) - 48
+        d = buf[i] - 48
         if d < 0 or d > 9:
             break
         mant = mant * 10 + d
@@ -120,7 +120,7 @@ def _parse_number(buf, i, end):  # type: ignore[no-untyped-def]
         i += 1
         f0 = i
         while i < end:
-            d = np.int64(buf[i]) - 48
+            d = buf[i] - 48
             if d < 0 or d > 9:
                 break
             mant = mant * 10 + d
