@@ -219,8 +219,13 @@ def _slope(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float, 
     if regime == LAG:
         y = ascale * v - x / k_s
         return y, ascale * dv - y / k_s
-    sp = slope_factor(v, sa, sb, sc)
-    dsp = 0.0 if sb == 0.0 else -sc * sb * math.exp(-sc * v)
+    if sb == 0.0:
+        sp = sa
+        dsp = 0.0
+    else:
+        ev = math.exp(-sc * v)
+        sp = sa + sb * ev
+        dsp = -sc * sb * ev
     beta = 1.0 / k_s + v * sp / kc
     dbeta = dv * (sp + v * dsp) / kc
     y = ascale * v - beta * x
@@ -447,10 +452,17 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                         event = _EV_LEVEL
                         level = 0.0
                 else:
-                    ya, dya = _slope(regime, c0, c1, c2, c3, tau, x, ascale, kk, kcc, saa,
-                                     sbb, scc)
-                    yb, dyb = _slope(regime, c0, c1, c2, c3, pb, xe, ascale, kk, kcc, saa, sbb,
-                                     scc)
+                    ya = 0.0
+                    yb = 0.0
+                    dya = 0.0
+                    dyb = 0.0
+                    if not _constant(c1, c2, c3):
+                        # (at constant speed the coefficients are constant: x moves
+                        # monotonically towards α/β, no turning point inside)
+                        ya, dya = _slope(regime, c0, c1, c2, c3, tau, x, ascale, kk, kcc, saa,
+                                         sbb, scc)
+                        yb, dyb = _slope(regime, c0, c1, c2, c3, pb, xe, ascale, kk, kcc, saa,
+                                         sbb, scc)
                     if (ya > 0.0 and yb < 0.0) or (ya < 0.0 and yb > 0.0):
                         turn_t = -1.0
                         if regime == LAG and c2 == 0.0 and c3 == 0.0:
