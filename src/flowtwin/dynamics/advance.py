@@ -432,7 +432,9 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
     phase = np.where(gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
     p_dt = np.diff(u_all)
     notes: list[str] = []
-    for k in np.flatnonzero(np.diff(hp) != 0.0) + 1:
+    # pieces where the window width changes: the first piece of each regime after the first
+    firsts = np.cumsum([w.shape[0] for w in widths])[:-1]
+    for k in firsts[[widths[i + 1][0] != widths[i][0] for i in range(len(widths) - 1)]]:
         c = out_coef[k - 1]
         ln = p_dt[k - 1]
         end = out_e0[k - 1] + ln * (c[0] + ln * (0.5 * c[1] + ln * (c[2] / 3 + ln * c[3] / 4)))

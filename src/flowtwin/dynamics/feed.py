@@ -147,7 +147,10 @@ class CommandedFeed:
         """Commanded position at the end of the feed, mm."""
         if not self.n_segments:
             return self.e_start_mm
-        return float(self.e0_mm[-1] + self.segment_mm()[-1])
+        t = float(self.dt_s[-1])
+        c0, c1, c2, c3 = (float(v) for v in self.coef[-1])
+        # segment_mm() of the last segment alone, the same expression
+        return float(self.e0_mm[-1] + t * (c0 + t * (0.5 * c1 + t * (c2 / 3.0 + t * 0.25 * c3))))
 
     def _locate(self, t_s: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         t = np.asarray(t_s, dtype=np.float64)
