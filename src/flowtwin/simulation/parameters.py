@@ -114,6 +114,15 @@ def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
     return out
 
 
+def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
+                ) -> npt.NDArray[np.int64]:
+    """First index of every run of equal ``(a, b)`` pairs (NaN starts a run of its own)."""
+    if a.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    change = np.flatnonzero((a[1:] != a[:-1]) | (b[1:] != b[:-1])) + 1
+    return np.concatenate((np.zeros(1, dtype=np.int64), change)).astype(np.int64)
+
+
 def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
                     temperature_c: float | None = None) -> MoveParameters:
     """Per-move parameters of the extrusion state equation for ``machine``.
@@ -150,15 +159,20 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
             f"{int(table.moves['line'][k])}, {temps[k]:.1f} °C); the law is evaluated at the "
             "nearest end of its range there (extrapolation refused)")
     t_eval = np.clip(temps, lo, hi)
-    visc_pa_s = viscosity_pa_s(mat, t_eval)
     default_h = machine.setup.layer_height_mm or float(
         table.metadata.get("layer_height_mm", 0.2) or 0.2)  # type: ignore[arg-type]
     h = layer_heights_mm(table, default_mm=default_h, max_mm=hot.nozzle_diameter_mm)
+    # the physics once per run of moves at the same temperature and layer height (most
+    # moves share them with the move before): the same numbers, element by element
+    run = _run_starts(t_eval, h)
+    counts = np.diff(np.append(run, n))
+    visc_run = viscosity_pa_s(mat, t_eval[run])
+    visc_pa_s = np.repeat(visc_run, counts)
     resistance = hydraulic_resistance_mpa_s_per_mm3(
-        pa_s_to_mpa_s(visc_pa_s), capillary_length_mm=hot.land_length_mm,
+        pa_s_to_mpa_s(visc_run), capillary_length_mm=hot.land_length_mm,
         nozzle_radius_mm=hot.nozzle_diameter_mm / 2.0,
         bore_radius_mm=hot.bore_diameter_mm / 2.0, cone_half_angle_deg=hot.cone_half_angle_deg,
-        layer_height_mm=h, back_pressure_length_mm=hot.back_pressure_length_mm,
+        layer_height_mm=h[run], back_pressure_length_mm=hot.back_pressure_length_mm,
         back_pressure_exponent=hot.back_pressure_exponent)
     k_col = float(compliance_mm_per_n(area, hot.l_rt_mm, mat.e_rt_mpa, hot.l_hot_mm,
                                       mat.e_hot_mpa))
@@ -167,7 +181,7 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
         k_col += float(bowden_compliance_mm_per_n(
             tube.length_mm, tube.outer_diameter_mm, tube.inner_diameter_mm, tube.modulus_mpa,
             machine.filament.diameter_mm, mat.e_rt_mpa))
-    lag = lag_factor_s(k_col, resistance, area)
+    lag = np.repeat(lag_factor_s(k_col, resistance, area), counts)
 
     roller = machine.roller
     fp = machine.drive.pinch_force_n
