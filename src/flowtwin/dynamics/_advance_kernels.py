@@ -181,6 +181,8 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
             r0 = (be0[j] - pref) + kj * bv0[j] + d * (q1 + q2 * d)
             r1 = q1 + 2.0 * q2 * d
             r2 = q2
+            r1_3 = r1 / 3.0  # (divisions hoisted out of the two window sides)
+            r2_3 = r2 / 3.0
             start = bt0[j] - t
             end = start + bdt[j]
             if j == 0:
@@ -191,20 +193,20 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
             xa = max(start, -h)
             xb = min(end, 0.0)
             if xb > xa:
-                f = (xb * (r0 + xb * (0.5 * r1 + xb * r2 / 3.0))
-                     - xa * (r0 + xa * (0.5 * r1 + xa * r2 / 3.0)))
-                g = (xb * xb * (0.5 * r0 + xb * (r1 / 3.0 + 0.25 * xb * r2))
-                     - xa * xa * (0.5 * r0 + xa * (r1 / 3.0 + 0.25 * xa * r2)))
+                f = (xb * (r0 + xb * (0.5 * r1 + xb * r2_3))
+                     - xa * (r0 + xa * (0.5 * r1 + xa * r2_3)))
+                g = (xb * xb * (0.5 * r0 + xb * (r1_3 + 0.25 * xb * r2))
+                     - xa * xa * (0.5 * r0 + xa * (r1_3 + 0.25 * xa * r2)))
                 i_minus += f
                 w_minus += h * f + g
             # plus side [0, h]
             xa = max(start, 0.0)
             xb = min(end, h)
             if xb > xa:
-                f = (xb * (r0 + xb * (0.5 * r1 + xb * r2 / 3.0))
-                     - xa * (r0 + xa * (0.5 * r1 + xa * r2 / 3.0)))
-                g = (xb * xb * (0.5 * r0 + xb * (r1 / 3.0 + 0.25 * xb * r2))
-                     - xa * xa * (0.5 * r0 + xa * (r1 / 3.0 + 0.25 * xa * r2)))
+                f = (xb * (r0 + xb * (0.5 * r1 + xb * r2_3))
+                     - xa * (r0 + xa * (0.5 * r1 + xa * r2_3)))
+                g = (xb * xb * (0.5 * r0 + xb * (r1_3 + 0.25 * xb * r2))
+                     - xa * xa * (0.5 * r0 + xa * (r1_3 + 0.25 * xa * r2)))
                 i_plus += f
                 w_plus += h * f - g
             if j == jp:
