@@ -79,7 +79,9 @@ ERR_VALUE = 5       # non-finite or absurd coordinate
 OTHER_TEXT = 0      # Python parses the line's text
 OTHER_NUMERIC = 1   # a command whose words are all numbers, parsed here
 OTHER_COMMENT = 2   # a comment-only line: the span is the text after ';'
-N_OTHER_COLS = 8    # line, start, end, move index, kind, code, letter mask, value offset
+N_OTHER_COLS = 7    # line, start, end, move index, kind, command key, value offset
+#: Command key of ``OTHER_NUMERIC`` lines: ``(letter * 1_000_000 + number) << KEY_SHIFT | mask``.
+KEY_SHIFT = 26
 MAX_WORDS = 26      # values one line can add (one per letter)
 
 # letter bits of the word mask (bit 0 = A)
@@ -103,9 +105,8 @@ def _record(other, n_other, lineno, start, eol, n_out, kind):  # type: ignore[no
 def _record_numeric(other, vals, n_other, n_vals, lineno, start, eol, n_out, c0, code_num,  # type: ignore[no-untyped-def]
                     mask, val):
     _record(other, n_other, lineno, start, eol, n_out, OTHER_NUMERIC)
-    other[n_other, 5] = c0 * 1_000_000 + code_num
-    other[n_other, 6] = mask
-    other[n_other, 7] = n_vals
+    other[n_other, 5] = (c0 * 1_000_000 + code_num) << KEY_SHIFT | mask
+    other[n_other, 6] = n_vals
     for q in range(26):
         if mask >> q & 1:
             vals[n_vals] = val[q]
@@ -165,8 +166,8 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
         (``OTHER_TEXT``: Python parses the text ``buf[start:end]``; ``OTHER_COMMENT``: a
         comment-only line, ``buf[start:end]`` is the text after ``;``; ``OTHER_NUMERIC``: a
         command whose words are all numbers, already parsed), then for ``OTHER_NUMERIC``
-        the command code (``letter * 1_000_000 + number``), the mask of the letters
-        present (bit 0 = A) and the offset of their values in ``vals``.
+        the command key (``(letter * 1_000_000 + number) << KEY_SHIFT | mask``, the mask
+        of the letters present, bit 0 = A) and the offset of their values in ``vals``.
     vals : float64[cap3]
         Values of the ``OTHER_NUMERIC`` words, in letter order, packed.
     n_other, n_vals : int

@@ -304,7 +304,7 @@ class _Reader:
         """Command name, parameter letters and category of a kernel-parsed command."""
         info = self._codes.get(key)
         if info is None:
-            code_id, mask = divmod(key, 1 << 26)
+            code_id, mask = divmod(key, 1 << K.KEY_SHIFT)
             code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
             letters = tuple(_LETTERS[j] for j in range(26) if mask >> j & 1)
             if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
@@ -325,11 +325,11 @@ class _Reader:
         codes = self._codes
         flat = rows.vals[:rows.n_vals].tolist()
         new, set_index, set_line, set_code, set_params = _EVENT_SETTERS
-        for lineno, start, end, move_index, kind, code_id, mask, at in rows.other[:n].tolist():
-            if kind == K.OTHER_NUMERIC:  # parsed by the kernel: no text to look at
-                key = code_id * (1 << 26) + mask
+        numeric, comment, event_category = K.OTHER_NUMERIC, K.OTHER_COMMENT, _EVENT
+        for lineno, start, end, move_index, kind, key, at in rows.other[:n].tolist():
+            if kind == numeric:  # parsed by the kernel: no text to look at
                 code, letters, category = codes.get(key) or self._code_info(key)
-                if category == _EVENT:
+                if category == event_category:
                     k = len(letters)
                     params: dict[str, float | str] = (
                         {letters[0]: flat[at]} if k == 1 else
@@ -349,7 +349,7 @@ class _Reader:
             if "\ufffd" in text:
                 self.warnings.append(f"{self.name}:{lineno}: bytes that are not UTF-8 "
                                      "(replaced)")
-            if kind == K.OTHER_COMMENT:  # the text after ';' of a comment-only line
+            if kind == comment:  # the text after ';' of a comment-only line
                 feed(text.rstrip(), base + move_index, lineno)
                 continue
             stripped = text.lstrip()
