@@ -149,3 +149,12 @@ def test_line_chunks_cut_only_after_line_breaks() -> None:
         assert all(p for p in pieces)
         # the last piece ends on a break unless the data does not
         assert not pieces or pieces[-1].endswith(b"\n") == data.endswith(b"\n")
+
+
+@pytest.mark.parametrize("line", ["M221 S-5", "M221 S0", "M220 S0", "M220 S-50"])
+def test_speed_and_flow_factors_must_be_positive(line: str) -> None:
+    # the kernel used to take these silently (negative flow, zero feed rates)
+    with pytest.raises(GcodeError, match=r":2 \[S\]: M22[01] .* must be positive"):
+        read_gcode(f"G1 X1\n{line}\nG1 X2 E1\n".encode())
+    ok = read_gcode(b"M83\nM221 S90\nM220 S50\nG1 X1 E1 F600\n").moves
+    assert (float(ok["flow"][0]), float(ok["feed_mm_s"][0])) == (pytest.approx(0.9), 5.0)

@@ -464,12 +464,17 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
                 state[S_ABS_E] = 1.0
             elif code_num == 83:
                 state[S_ABS_E] = 0.0
-            elif code_num == 220 and mask & _S:
-                state[S_SPEED_FACTOR] = val[18] / 100.0
-                executed = False
-            elif code_num == 221 and (mask & (_S | _T | _D)) == _S:
-                # M221 S<pct> (Marlin's M221 T<n> S<pct> targets one tool: Python)
-                state[S_FLOW] = val[18] / 100.0
+            elif (code_num == 220 and mask & _S) or (code_num == 221
+                                                     and (mask & (_S | _T | _D)) == _S):
+                # M220 S<pct>, M221 S<pct> (Marlin's M221 T<n> S<pct> targets one tool:
+                # Python); a factor that is not positive is an error Python names
+                if not (val[18] > 0.0):
+                    state[S_LINE] = line
+                    return ST_PYTHON, start, n_out, n_other, n_vals
+                if code_num == 220:
+                    state[S_SPEED_FACTOR] = val[18] / 100.0
+                else:
+                    state[S_FLOW] = val[18] / 100.0
                 executed = False
             else:
                 executed = False

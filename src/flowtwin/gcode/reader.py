@@ -231,6 +231,11 @@ class _Reader:
             self._check_numeric(code, p, line, text)
             d = _num(p, "D", self.options.filament_diameter_mm)
             s[K.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0) if d > 0 else 1.0
+        elif code == "M220":
+            value = p.get("S")
+            if isinstance(value, float) and not value > 0:
+                raise GcodeError("M220 speed factor must be positive", source=self.name,
+                                 line=line, field="S", value=value, allowed="S > 0 (%)")
         elif code == "M221":
             value = p.get("S")
             tool = p.get("T")
