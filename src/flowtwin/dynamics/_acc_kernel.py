@@ -110,12 +110,11 @@ def stop_rows(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_], n: int,
 @njit(cache=True)
 def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
                      dt: npt.NDArray[np.float64], coef: npt.NDArray[np.float64], n: int,
-                     stop_row: npt.NDArray[np.int64], seg_param: npt.NDArray[np.int64],
-                     seg_slot: npt.NDArray[np.int64], acc: npt.NDArray[np.float64]) -> bool:
-    """Check a feed and set up the kernel's inputs in one pass.
+                     stop_row: npt.NDArray[np.int64], acc: npt.NDArray[np.float64]) -> bool:
+    """Check a feed and zero the accumulators in one pass.
 
-    Segment ``i`` takes the parameters of move ``clip(move[i], 0, n - 1)`` and accumulates
-    into row ``move[i]`` (a move), ``n`` (the stop before the first move) or
+    The kernel gives segment ``i`` the parameters of move ``clip(move[i], 0, n - 1)`` and
+    accumulates it into row ``move[i]`` (a move), ``n`` (the stop before the first move) or
     ``stop_row[move[i]]`` (the stop after it, :func:`stop_rows`). ``acc`` (rows × N_ACC) is
     zeroed (``A_QMIN`` = inf). Returns False when a move index is out of ``[-1, n)``, a move
     segment has none, a duration is not > 0 or a coefficient is not finite.
@@ -127,13 +126,6 @@ def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
         if not (math.isfinite(coef[i, 0]) and math.isfinite(coef[i, 1])
                 and math.isfinite(coef[i, 2]) and math.isfinite(coef[i, 3])):
             return False
-        seg_param[i] = min(max(m, 0), n - 1)
-        if not gap[i]:
-            seg_slot[i] = m
-        elif m < 0:
-            seg_slot[i] = n
-        else:
-            seg_slot[i] = stop_row[m]
     for r in range(acc.shape[0]):
         for q in range(N_ACC):
             acc[r, q] = 0.0

@@ -344,7 +344,8 @@ def _root(which: int, regime: int, x0: float, c0: float, c1: float, c2: float, c
 @njit(cache=True)
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
-                     seg_param: npt.NDArray[np.int64], seg_slot: npt.NDArray[np.int64],
+                     move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
+                     stop_row: npt.NDArray[np.int64],
                      k_s: npt.NDArray[np.float64], kc: npt.NDArray[np.float64],
                      kp: npt.NDArray[np.float64], sa: npt.NDArray[np.float64],
                      sb: npt.NDArray[np.float64], sc: npt.NDArray[np.float64],
@@ -354,6 +355,9 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      samples: npt.NDArray[np.float64], acc: npt.NDArray[np.float64]
                      ) -> tuple[float, bool, int]:
     """Integrate all segments; fill ``acc`` (slots × N_ACC) and ``samples``.
+
+    ``move``, ``gap``: owner and stop flag of each segment; ``stop_row``: accumulator row of
+    the stop after each move (``_acc_kernel.stop_rows``, checked by ``prepare_segments``).
 
     ``min_stages``: fewest stages a collocation substep may use (6: the fixed 6-stage
     method). Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
@@ -366,6 +370,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     ns = sample_t.shape[0]
     js = 0
     nseg = t0.shape[0]
+    nmoves = stop_row.shape[0]
     # samples before the first segment: initial state at rest
     while js < ns and nseg > 0 and sample_t[js] < t0[0]:
         samples[js, S_T] = sample_t[js]
@@ -380,8 +385,16 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         c2 = coef[i, 2]
         c3 = coef[i, 3]
         seg_len = dt[i]
-        p = seg_param[i]
-        slot = seg_slot[i]
+        # parameters of the owning move (a stop: of the move before it); accumulator row
+        # (prepare_segments checked the indices)
+        mi = move[i]
+        p = min(max(mi, 0), nmoves - 1)
+        if not gap[i]:
+            slot = mi
+        elif mi < 0:
+            slot = nmoves
+        else:
+            slot = stop_row[mi]
         kk = k_s[p]
         kcc = kc[p]
         k_last = kk

@@ -177,12 +177,9 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     gap = np.ascontiguousarray(gap, dtype=np.bool_)
     stop_row = np.empty(n, dtype=np.int64)
     rows = stop_rows(move, gap, n, stop_row)
-    seg_param = np.empty(move.shape[0], dtype=np.int64)
-    seg_slot = np.empty(move.shape[0], dtype=np.int64)
     acc = np.empty((rows, N_ACC))
     if not prepare_segments(move, gap, np.ascontiguousarray(dt, dtype=np.float64),
-                            np.ascontiguousarray(coef, dtype=np.float64), n, stop_row,
-                            seg_param, seg_slot, acc):
+                            np.ascontiguousarray(coef, dtype=np.float64), n, stop_row, acc):
         raise DataError("commanded feed is inconsistent (move index out of range, segment "
                         "without a move, non-positive duration or non-finite speed)",
                         field="feed", value=feed.n_segments,
@@ -195,7 +192,7 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     x_end, grind_end, n_events = integrate_kernel(
         np.ascontiguousarray(t0, dtype=np.float64), np.ascontiguousarray(dt, dtype=np.float64),
         np.ascontiguousarray(coef, dtype=np.float64), np.ascontiguousarray(e0, dtype=np.float64),
-        seg_param, seg_slot, p.lag_k_s, p.compliance_mm_per_n, p.slip_offset,
+        move, gap, stop_row, p.lag_k_s, p.compliance_mm_per_n, p.slip_offset,
         p.slip_gradient_per_n, p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm,
         p.max_feed_force_n, float(p.grind_release_fraction), float(initial_compression_mm),
         bool(initially_grinding), float(stiffness), int(min_stages), sample_t, samples, acc)
