@@ -1,15 +1,22 @@
 """Compensation on the corpus: flow error before/after and the time it takes, per file.
 
 For every corpus file (``--quick``: the three small ones) and the built-in example print,
-``compensate(advance=True, slip=True)`` on the twin's default machine; printed and returned
-per file: RMS flow error and peak over-extrusion before and after (against the original
-intent, :mod:`flowtwin.compensation.metrics`), the improvement factors, the added volume,
-the print-time change and the wall time. The issue asks for ≥ 5× on both figures; files
-that miss it are listed at the end.
+what a user would run on the twin's default machine: ``compensate(advance=True,
+slip=True)``, and where the twin predicts grinding in the original also with the grinding
+guard (``guard=True``; advance and slip cannot remove grinding, the guard slows the moves,
+at a cost in print time). Both runs are printed for such files; the *user* run (guard where
+grinding is predicted) is the one the issue's ≥ 5× is checked on.
+
+Per run: RMS flow error, the per-move peak over-extrusion and the peak over one nozzle
+diameter of printed path (:func:`flowtwin.compensation.metrics.window_peak`), before and
+after (against the original intent), their improvement factors, grinding moves, the
+print-time change and the wall time. The ≥ 5× check uses the RMS and the windowed peak
+(see ``docs/compensation.md``); files that miss it are listed at the end.
 """
 
 from __future__ import annotations
 
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -21,10 +28,87 @@ HERE = Path(__file__).resolve().parent
 SHARED = HERE.parent.parent / "shared" / "corpus"
 QUICK = ("kisslicer_1.1.0.5_thinbox_small.gcode", "bambustudio_1.07_2colour_cube_small.gcode",
          "prusaslicer_2.8.1_minicube_small.gcode")
+#: The improvement the issue asks for, on the RMS and the peak.
+TARGET = 5.0
 
 
 def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else float("inf")
+
+
+def compensate_file(path: Path, out_dir: Path, *, guard: bool) -> dict[str, object]:
+    """Compensate one file (advance + slip, and the guard if asked); its figures."""
+    dst = out_dir / ("out-" + ("guard-" if guard else "") + path.name)
+    t0 = time.perf_counter()
+    report = compensate(path, dst, advance=True, slip=True, guard=guard or None)
+    wall = time.perf_counter() - t0
+    b, a = report.before, report.after
+    return {
+        "guard": guard,
+        "rms_before": b.rms_flow_error, "rms_after": a.rms_flow_error,
+        "rms_x": _ratio(b.rms_flow_error, a.rms_flow_error),
+        "peak_before": b.peak_overextrusion, "peak_after": a.peak_overextrusion,
+        "peak_x": _ratio(b.peak_overextrusion, a.peak_overextrusion),
+        "peak_window_before": b.peak_overextrusion_window,
+        "peak_window_after": a.peak_overextrusion_window,
+        "peak_window_x": _ratio(b.peak_overextrusion_window, a.peak_overextrusion_window),
+        "window_mm": b.window_mm,
+        "under_before": b.peak_underextrusion, "under_after": a.peak_underextrusion,
+        "added_volume_mm3": report.added_volume_mm3,
+        "grinding_before": report.grinding_moves_before,
+        "grinding_after": report.grinding_moves_after,
+        "slowed_moves": len(report.slowed_moves),
+        "time_before_s": report.time_before_s, "time_after_s": report.time_after_s,
+        "guard_time_cost_s": report.guard_time_cost_s,
+        "lag_factor_changed_moves": report.lag_factor_changed_moves,
+        "transformations": list(report.transformations),
+        "moves": int(len(b.flow_error)), "lines_rewritten": report.lines_rewritten,
+        "wall_s": wall, "warnings": list(report.warnings),
+    }
+
+
+def meets_target(row: dict[str, object]) -> bool:
+    """RMS and windowed peak both improved ≥ 5× (a peak already ≤ 0 counts as met)."""
+    rms_x = float(row["rms_x"])  # type: ignore[arg-type]
+    pk0 = float(row["peak_window_before"])  # type: ignore[arg-type]
+    pk_x = float(row["peak_window_x"])  # type: ignore[arg-type]
+    return rms_x >= TARGET and (pk0 <= 0.0 or pk_x >= TARGET)
+
+
+def format_row(name: str, row: dict[str, object]) -> str:
+    """One printed line of figures."""
+    def pct(v: object) -> str:
+        return f"{100 * float(v):7.1f}"  # type: ignore[arg-type]
+
+    def x(v: object) -> str:
+        f = float(v)  # type: ignore[arg-type]
+        return "   inf" if math.isinf(f) else f"{f:6.1f}"
+
+    tag = "+guard" if row["guard"] else ""
+    return (f"{name[:38]:38s}{tag:6s} RMS {pct(row['rms_before'])} →{pct(row['rms_after'])} % "
+            f"({x(row['rms_x'])}×)  peak/move {pct(row['peak_before'])} →"
+            f"{pct(row['peak_after'])} % ({x(row['peak_x'])}×)  peak/{row['window_mm']:g} mm "
+            f"{pct(row['peak_window_before'])} →{pct(row['peak_window_after'])} % "
+            f"({x(row['peak_window_x'])}×)  grind {row['grinding_before']}→"
+            f"{row['grinding_after']}  time {float(row['time_before_s']):7.0f} → "  # type: ignore[arg-type]
+            f"{float(row['time_after_s']):7.0f} s  {float(row['wall_s']):6.1f} s wall"  # type: ignore[arg-type]
+            f"{'' if meets_target(row) else '  < 5×'}")
+
+
+def bench_file(path: Path, out_dir: Path) -> dict[str, object]:
+    """Advance + slip; also with the guard where the original grinds. Prints both."""
+    plain = compensate_file(path, out_dir, guard=False)
+    print(format_row(path.name, plain), flush=True)
+    entry: dict[str, object] = {"plain": plain, "user": "plain"}
+    if int(plain["grinding_before"]) > 0:  # type: ignore[call-overload]
+        guarded = compensate_file(path, out_dir, guard=True)
+        print(format_row(path.name, guarded), flush=True)
+        entry["guard"] = guarded
+        entry["user"] = "guard"
+    user = entry[str(entry["user"])]
+    assert isinstance(user, dict)
+    entry["meets_5x"] = meets_target(user)
+    return entry
 
 
 def run(quick: bool = False) -> dict[str, object]:
@@ -37,31 +121,11 @@ def run(quick: bool = False) -> dict[str, object]:
         example = Path(tmp) / "example.gcode"
         write_print(example, PrintSpec())
         for path in [example, *files]:
-            dst = Path(tmp) / ("out-" + path.name)
-            t0 = time.perf_counter()
-            report = compensate(path, dst, advance=True, slip=True)
-            wall = time.perf_counter() - t0
-            s = report.summary()
-            rms0, rms1 = report.before.rms_flow_error, report.after.rms_flow_error
-            pk0, pk1 = report.before.peak_overextrusion, report.after.peak_overextrusion
-            row = {"rms_before": rms0, "rms_after": rms1, "rms_x": _ratio(rms0, rms1),
-                   "peak_before": pk0, "peak_after": pk1, "peak_x": _ratio(pk0, pk1),
-                   "under_before": report.before.peak_underextrusion,
-                   "under_after": report.after.peak_underextrusion,
-                   "added_volume_mm3": report.added_volume_mm3,
-                   "time_before_s": report.time_before_s, "time_after_s": report.time_after_s,
-                   "moves": int(len(report.before.flow_error)),
-                   "lines_rewritten": report.lines_rewritten, "wall_s": wall,
-                   "advance": s["advance"]}
-            out[path.name] = row
-            ok = row["rms_x"] >= 5.0 and row["peak_x"] >= 5.0  # type: ignore[operator]
-            if not ok:
+            entry = bench_file(path, Path(tmp))
+            out[path.name] = entry
+            if not entry["meets_5x"]:
                 missed.append(path.name)
-            print(f"{path.name[:40]:40s} RMS {100 * rms0:6.2f} % → {100 * rms1:6.2f} % "
-                  f"({row['rms_x']:5.1f}×)  peak {100 * pk0:8.1f} % → {100 * pk1:7.1f} % "
-                  f"({row['peak_x']:5.1f}×)  time {report.time_before_s:8.0f} → "
-                  f"{report.time_after_s:8.0f} s  {wall:6.1f} s wall{'' if ok else '  < 5×'}",
-                  flush=True)
     out["below_5x"] = missed
-    print(f"below 5× on RMS or peak: {len(missed)} of {len(out) - 1}: {', '.join(missed)}")
+    print(f"below {TARGET:g}× on RMS or windowed peak (user run): {len(missed)} of "
+          f"{len(out) - 1}: {', '.join(missed)}")
     return out

@@ -17,7 +17,10 @@ from flowtwin.compensation import (
     compensate,
     flow_figures,
 )
-from flowtwin.errors import GcodeError
+from flowtwin.compensation.pipeline import lag_factor_changes
+from flowtwin.errors import DataError, GcodeError
+from flowtwin.gcode.generator import PrintSpec, generate_print, write_print
+from flowtwin.physics.deposition import bead_area_mm2
 from flowtwin.simulation import simulate
 
 MOTION = ("G0", "G1", "G2", "G3")
@@ -168,3 +171,69 @@ def test_bad_input_names_the_file_and_writes_nothing(tmp_path: Path) -> None:
     with pytest.raises(GcodeError, match="cannot open"):
         compensate(tmp_path / "missing.gcode", out)
     assert not out.exists()
+
+
+def _spiral_after_perimeters(path: Path, *, layers: int = 2, turns: int = 2,
+                             segments: int = 32) -> int:
+    """The example's first layers, then a spiral ramp (vase mode, PrusaSlicer's markers):
+    one wall whose Z rises by a layer height per turn. Returns the first spiral line."""
+    spec = PrintSpec(layers=layers, size_x_mm=20.0, size_y_mm=20.0)
+    lines = list(generate_print(spec))
+    cut = max(i for i, ln in enumerate(lines) if ln.startswith("G1 E-"))  # end sequence
+    head, tail = lines[:cut], lines[cut:]
+    h, w = spec.layer_height_mm, spec.line_width_mm
+    area_fil = np.pi * (spec.filament_diameter_mm / 2.0) ** 2
+    bead = float(bead_area_mm2(w, h))
+    cx, cy = spec.center_xy_mm
+    r = spec.size_x_mm / 2.0 - w / 2.0
+    out = [*head, f"G1 X{cx + r:.3f} Y{cy:.3f} F9000"]
+    first = len(out) + 6
+    x, y, z0 = cx + r, cy, layers * h
+    for t in range(turns):
+        out += [";LAYER_CHANGE", f";Z:{z0 + (t + 1) * h:.3f}", f";HEIGHT:{h:.3f}",
+                ";TYPE:External perimeter", "G1 F1200"]
+        for k in range(1, segments + 1):
+            a = 2.0 * np.pi * k / segments
+            nx, ny = cx + r * np.cos(a), cy + r * np.sin(a)
+            e = bead * float(np.hypot(nx - x, ny - y)) / area_fil
+            out.append(f"G1 Z{z0 + t * h + h * k / segments:.4f} X{nx:.3f} Y{ny:.3f} E{e:.5f}")
+            x, y = nx, ny
+    path.write_text("\n".join([*out, *tail]) + "\n")
+    return first
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "twin: the layer height of a spiral layer is read from where its first extrusion "
+    "ends (0.00625 mm here instead of 0.2 mm, a lag factor far too large; once the "
+    "advance cuts that move, smaller still): simulation.parameters.layer_heights_mm; "
+    "with the layer's top instead this passes — remove the mark when the twin is fixed"))
+def test_spiral_ramp_after_perimeters_five_fold(tmp_path: Path) -> None:
+    """prusaslicer_2.7.4_vase in small: a spiral ramp after planar layers is compensated
+    like any other wall (the vase's first spiral layer lost 95 % of its melt)."""
+    src = tmp_path / "spiral.gcode"
+    _spiral_after_perimeters(src)
+    report = compensate(src, tmp_path / "out.gcode", advance=True, slip=True)
+    b, a = report.before, report.after
+    assert "advance" in report.transformations
+    assert a.rms_flow_error * 5.0 <= b.rms_flow_error
+    assert report.lag_factor_changed_moves == 0
+
+
+def test_lag_factor_changes_names_the_moves_whose_physics_differ(tmp_path: Path) -> None:
+    """Cutting nothing changes nothing; another layer height changes every printing
+    move's lag factor [001 Table II] and each of them is named."""
+    thin, thick = tmp_path / "thin.gcode", tmp_path / "thick.gcode"
+    write_print(thin, PrintSpec(layers=2, layer_height_mm=0.1))
+    write_print(thick, PrintSpec(layers=2, layer_height_mm=0.3))
+    a, b = simulate(thin), simulate(thick)
+    rows = np.arange(len(a.plan.table), dtype=np.int64)
+    assert lag_factor_changes(a, a, rows).size == 0
+    assert len(b.plan.table) == len(a.plan.table)  # same moves, other heights
+    changed = lag_factor_changes(a, b, rows)
+    k_a, k_b = a.parameters.params.lag_k_s, b.parameters.params.lag_k_s
+    printing = np.flatnonzero((a.dynamics.moves["cmd_mm3"] > 0)
+                              & (a.plan.table.moves["layer"] >= 0))  # skirt: no layer yet
+    assert printing.size and np.all(k_a[printing] > 1.2 * k_b[printing])  # thinner: stiffer
+    assert set(printing.tolist()) <= set(changed.tolist())
+    with pytest.raises(DataError, match="piece_row"):
+        lag_factor_changes(a, b, rows[:-1])

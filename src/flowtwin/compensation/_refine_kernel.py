@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-__all__ = ["lag_gain", "model_pass"]
+__all__ = ["lag_gain", "model_pass", "segment_states"]
 
 
 @njit(cache=True)
@@ -250,3 +250,17 @@ def chain_states(alpha: npt.NDArray[np.float64], kappa: npt.NDArray[np.float64],
     for p in range(c.shape[0]):
         x = e_p[p] * (alpha[p] * x + kappa[p]) + b_p[p] * c[p] + k_p[p]
         out[p] = x
+
+
+@njit(cache=True)
+def segment_states(c: npt.NDArray[np.float64], seg_piece: npt.NDArray[np.int64],
+                   seg_fixed: npt.NDArray[np.float64], seg_a: npt.NDArray[np.float64],
+                   seg_b: npt.NDArray[np.float64], seg_c: npt.NDArray[np.float64],
+                   out: npt.NDArray[np.float64]) -> None:
+    """State after every segment, ``x_s = A_s·x_(s−1) + B_s·c + C_s`` from ``x = 0``."""
+    x = 0.0
+    for s in range(seg_piece.shape[0]):
+        p = seg_piece[s]
+        cv = c[p] if p >= 0 else seg_fixed[s]
+        x = seg_a[s] * x + seg_b[s] * cv + seg_c[s]
+        out[s] = x

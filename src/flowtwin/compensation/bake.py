@@ -20,6 +20,7 @@ Every run of printing pieces keeps its exact E, so the file keeps its total.
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass, field
 
@@ -280,13 +281,25 @@ def round_total(e: FloatArray, total: int) -> IntArray:
         pos[-1] = total
     out = np.diff(np.concatenate(([0], pos)))
     low = np.flatnonzero(out < 1)
+    if low.size == 0:
+        return out
+    # every low piece borrows from the currently largest one (first index on ties): a heap
+    # keeps this O(n + m log n) where a scan per low piece was O(n·m)
+    heap = [(-int(v), int(i)) for i, v in enumerate(out.tolist())]
+    heapq.heapify(heap)
     for j in low.tolist():
-        k = int(np.argmax(out))
+        while True:  # entries whose value changed since they were pushed are stale
+            neg, k = heap[0]
+            if -neg == int(out[k]):
+                break
+            heapq.heapreplace(heap, (-int(out[k]), k))
         need = 1 - int(out[j])
         if out[k] - need < 1:
             break
         out[j] += need
         out[k] -= need
+        heapq.heapreplace(heap, (-int(out[k]), k))
+        heapq.heappush(heap, (-int(out[j]), j))
     return out
 
 

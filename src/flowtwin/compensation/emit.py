@@ -17,6 +17,7 @@ the end of every run, so in practice only slip feed-forward shifts later lines.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 
@@ -194,18 +195,19 @@ def _piece_lines(ml: MotionLine, r0: int, r1: int, offsets: IntArray, geometry: 
     """Text of the pieces of rows ``r0:r1`` (one line); returns lines and the end E."""
     code = ml.code if ml.code in ("G0", "G1") else "G1"
     p0, p1 = int(offsets[r0]), int(offsets[r1])
-    ends = geometry.xyz_mm[p0:p1]
-    e_pieces = geometry.e_grid[p0:p1]
-    line_start = geometry.xyz_mm[p0 - 1] if p0 > 0 else start_xyz[0]
-    starts = np.vstack([line_start[None, :], ends[:-1]])
-    original_end = orig_end[r1 - 1]
+    # plain Python values: this runs once per rewritten line (10⁵ on large files)
+    ends: list[list[float]] = geometry.xyz_mm[p0:p1].tolist()
+    e_pieces: list[int] = geometry.e_grid[p0:p1].tolist()
+    line_start: list[float] = (geometry.xyz_mm[p0 - 1] if p0 > 0 else start_xyz[0]).tolist()
+    starts = [line_start, *ends[:-1]]
+    original_end: list[float] = orig_end[r1 - 1].tolist()
     e_pos = ml.e_before + delta
     out: list[str] = []
     row_feed = float(geometry.feed_mm_min[r0])
-    piece_feed = geometry.piece_feed_mm_min[p0:p1]
+    piece_feed: list[float] = geometry.piece_feed_mm_min[p0:p1].tolist()
     line_f_raw = ml.words.get("F")
     line_f = float(line_f_raw) if line_f_raw is not None else ml.feed_mm_min
-    default_f = row_feed if np.isfinite(row_feed) else line_f
+    default_f = row_feed if math.isfinite(row_feed) else line_f
     state_f = ml.feed_mm_min
     rel_grid: dict[int, int] = {}
     if not ml.abs_xyz:
@@ -218,20 +220,20 @@ def _piece_lines(ml: MotionLine, r0: int, r1: int, offsets: IntArray, geometry: 
                                      value=ml.words[axis], allowed="at most 5 decimals")
                 rel_grid[k] = total
     written_rel = dict.fromkeys(rel_grid, 0)
-    n_p = ends.shape[0]
+    n_p = len(ends)
     for j in range(n_p):
         words: list[str] = [code]
         last = j == n_p - 1
         for k, axis in enumerate("XYZ"):
-            moved = abs(ends[j, k] - starts[j, k]) > 1e-9
+            moved = abs(ends[j][k] - starts[j][k]) > 1e-9
             if ml.abs_xyz:
-                if last and axis in ml.words and abs(ends[j, k] - original_end[k]) < 1e-9:
+                if last and axis in ml.words and abs(ends[j][k] - original_end[k]) < 1e-9:
                     words.append(axis + ml.words[axis])
                 elif moved:
-                    words.append(axis + _fmt(ends[j, k] - ml.offset_xyz[k]))
+                    words.append(axis + _fmt(ends[j][k] - ml.offset_xyz[k]))
             elif k in rel_grid or moved:
                 total = rel_grid.get(k, 0)
-                frac_pos = ends[j, k] - line_start[k]
+                frac_pos = ends[j][k] - line_start[k]
                 target = total if last else int(round(frac_pos * 10 ** _XYZ_DECIMALS))
                 step = target - written_rel.get(k, 0)
                 written_rel[k] = target
@@ -241,9 +243,10 @@ def _piece_lines(ml: MotionLine, r0: int, r1: int, offsets: IntArray, geometry: 
         if e != 0:
             e_pos += e
             words.append("E" + format_grid(e_pos if ml.abs_e else e, dec))
-        want = float(piece_feed[j]) if np.isfinite(piece_feed[j]) else default_f
-        if j == 0 and line_f_raw is not None and not np.isfinite(piece_feed[j]) \
-                and not np.isfinite(row_feed):
+        own_feed = math.isfinite(piece_feed[j])
+        want = piece_feed[j] if own_feed else default_f
+        if j == 0 and line_f_raw is not None and not own_feed \
+                and not math.isfinite(row_feed):
             words.append("F" + line_f_raw)
         elif want != state_f:
             words.append("F" + _fmt(want))

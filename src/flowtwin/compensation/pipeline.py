@@ -48,7 +48,7 @@ from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
 
-__all__ = ["CompensationReport", "compensate"]
+__all__ = ["CompensationReport", "compensate", "lag_factor_changes"]
 
 Progress = Callable[[str], None]
 
@@ -99,6 +99,9 @@ class CompensationReport:
         Everything the user should know.
     seconds
         Wall time of the compensation.
+    lag_factor_changed_moves
+        Original moves some piece of which the twin simulates with a different lag factor
+        than the move itself (:func:`lag_factor_changes`; 0 when the twin is consistent).
     """
 
     source: str
@@ -125,6 +128,7 @@ class CompensationReport:
     lines_rewritten: int = 0
     warnings: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    lag_factor_changed_moves: int = 0
 
     def summary(self) -> dict[str, object]:
         """The figures as plain JSON-able values (the ``--json`` object)."""
@@ -142,6 +146,11 @@ class CompensationReport:
             "peak_overextrusion_after": self.after.peak_overextrusion,
             "peak_improvement": ratio(self.before.peak_overextrusion,
                                       self.after.peak_overextrusion),
+            "peak_overextrusion_window_before": self.before.peak_overextrusion_window,
+            "peak_overextrusion_window_after": self.after.peak_overextrusion_window,
+            "peak_window_improvement": ratio(self.before.peak_overextrusion_window,
+                                             self.after.peak_overextrusion_window),
+            "peak_window_mm": self.before.window_mm,
             "peak_underextrusion_before": self.before.peak_underextrusion,
             "peak_underextrusion_after": self.after.peak_underextrusion,
             "delivered_volume_before_mm3": self.before.delivered_volume_mm3,
@@ -160,6 +169,7 @@ class CompensationReport:
             "max_force_after_n": self.max_force_after_n,
             "advance": list(self.advance), "trajectory": self.trajectory,
             "limits": dict(self.limits), "lines_rewritten": self.lines_rewritten,
+            "lag_factor_changed_moves": self.lag_factor_changed_moves,
             "warnings": list(self.warnings), "seconds": self.seconds,
         }
 
@@ -357,14 +367,30 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         result = draft.render(dst)
         step("simulate result")
         after_sim = _checked(sim(dst), draft, dst)
-    before = flow_figures(original, original, np.arange(len(table), dtype=np.int64))
-    after = flow_figures(original, after_sim, draft.row)
+    window = float(m.hotend.nozzle_diameter_mm)
+    before = flow_figures(original, original, np.arange(len(table), dtype=np.int64),
+                          window_mm=window)
+    after = flow_figures(original, after_sim, draft.row, window_mm=window)
     area = m.filament.area_mm2
     flow = after_sim.plan.table.moves["flow"].astype(np.float64)
     pr = _printing(after_sim, draft)
     summary0 = original.summary()
     summary1 = after_sim.summary()
     warnings.extend(str(w) for w in after_sim.warnings if w not in original.warnings)
+    changed_k = lag_factor_changes(original, after_sim, draft.row)
+    if changed_k.size:
+        k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
+        k1 = np.asarray(after_sim.parameters.params.lag_k_s, dtype=np.float64)
+        worst = int(np.argmax(np.abs(np.log(k1 / k0[draft.row]))))
+        lines = table.moves["line"][changed_k]
+        warnings.append(
+            f"the twin's lag factor of {changed_k.size} moves (lines "
+            f"{', '.join(str(int(x)) for x in lines[:5])}{' …' if lines.size > 5 else ''}) "
+            f"differs between the original and the compensated file (e.g. line "
+            f"{int(table.moves['line'][draft.row[worst]])}: K {k0[draft.row[worst]]:.3g} s → "
+            f"{k1[worst]:.3g} s): the twin's parameters of a move depend on how it is cut "
+            "(a layer height read from where the layer's first extrusion ends, in spiral "
+            "layers); before and after are then not predicted on the same physics")
     if adv is not None and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(original)):
         warnings.append("the advance is baked into the file: turn the firmware's pressure "
                         "advance off (M900 K0 / M572 S0 / SET_PRESSURE_ADVANCE ADVANCE=0) "
@@ -387,7 +413,41 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         advance=advance_reports,
         trajectory=None if traj_report is None else traj_report.as_dict(),
         limits=limits.as_dict(), lines_rewritten=result.lines_rewritten,
-        warnings=warnings, seconds=time.perf_counter() - t_start)
+        warnings=warnings, seconds=time.perf_counter() - t_start,
+        lag_factor_changed_moves=int(changed_k.size))
+
+
+#: Relative change of a piece's lag factor against its original move's that is reported.
+_LAG_TOLERANCE = 0.01
+
+
+def lag_factor_changes(original: SimulationResult, compensated: SimulationResult,
+                       piece_row: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    """Original moves some piece of which the twin gives a different lag factor ``K``.
+
+    Cutting a move into pieces changes no physics, so the twin should give every piece
+    its move's ``K`` (temperature and layer height are the same); where it does not (more
+    than 1 % apart), before/after figures compare two different models of the printer.
+
+    Parameters
+    ----------
+    original, compensated
+        The original and the compensated file simulated on the same machine.
+    piece_row
+        Original move of every compensated move, shape ``(n_pieces,)``.
+
+    Returns
+    -------
+    ndarray of int64
+        Sorted indices of the original moves concerned.
+    """
+    k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
+    k1 = np.asarray(compensated.parameters.params.lag_k_s, dtype=np.float64)
+    if k1.shape != piece_row.shape:
+        raise DataError("piece map does not match the compensated moves", field="piece_row",
+                        value=piece_row.shape, allowed=str(k1.shape))
+    off = np.abs(k1 - k0[piece_row]) > _LAG_TOLERANCE * k0[piece_row]
+    return np.unique(piece_row[off]).astype(np.int64)
 
 
 def _has_pa_commands(sim: SimulationResult) -> bool:

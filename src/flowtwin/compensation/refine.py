@@ -26,7 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation._refine_kernel import apply_holds, model_pass, segment_maps
+from flowtwin.compensation._refine_kernel import (
+    apply_holds,
+    model_pass,
+    segment_maps,
+    segment_states,
+)
 from flowtwin.compensation.pieces import Pieces, phase_distance_mm
 from flowtwin.errors import CalibrationError, ProfileError
 from flowtwin.planner.timeline import Timeline
@@ -108,13 +113,9 @@ class LagModel:
 
     def states(self, ratios: FloatArray) -> FloatArray:
         """Model state (compression, grid units) at the end of every segment."""
-        x = 0.0
         out = np.empty(self.seg_piece.shape[0])
-        for s in range(out.shape[0]):
-            p = int(self.seg_piece[s])
-            cv = float(ratios[p]) if p >= 0 else float(self.seg_fixed[s])
-            x = float(self.seg_a[s]) * x + float(self.seg_b[s]) * cv + float(self.seg_c[s])
-            out[s] = x
+        segment_states(np.ascontiguousarray(ratios, dtype=np.float64), self.seg_piece,
+                       self.seg_fixed, self.seg_a, self.seg_b, self.seg_c, out)
         return out
 
     def evaluate(self, ratios: FloatArray, intent: FloatArray) -> tuple[FloatArray, FloatArray]:
