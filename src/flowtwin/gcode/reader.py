@@ -17,6 +17,7 @@ scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools
 
 from __future__ import annotations
 
+import gzip
 import math
 import os
 from collections.abc import Callable, Iterator
@@ -540,13 +541,18 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
     stream, name = open_source(source)
     reader = _Reader(name, options, accumulate=accumulate)
     hint = 0
-    if accumulate and isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
+    if isinstance(source, str | os.PathLike) and os.fspath(source) != "-":
         try:
-            # about one row per 25 bytes of G-code; growth covers the rest
-            reader.total_bytes = os.path.getsize(source)
-            hint = reader.total_bytes // 25
+            size = os.path.getsize(source)
         except OSError:
-            hint = 0
+            size = -1
+        if size >= 0 and not isinstance(stream, gzip.GzipFile):
+            # ask for no more than the file holds: a read allocates what it is asked for
+            chunk_bytes = min(chunk_bytes, size + 1)
+        if accumulate and size >= 0:
+            # about one row per 25 bytes of G-code; growth covers the rest
+            reader.total_bytes = size
+            hint = size // 25
 
     def tables() -> Iterator[MoveTable]:
         last: MoveTable | None = None
