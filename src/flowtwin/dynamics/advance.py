@@ -387,10 +387,10 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
         return (feed.t0_s, feed.dt_s, feed.coef, feed.e0_mm, feed.move, feed.gap, phase), []
     pad = 2.0 * h_max
     # base segments, padded with rest before and after (extended to infinity by the kernel)
-    rest = np.zeros((1, 4))
     t0 = np.concatenate(([feed.t_begin_s - pad], feed.t0_s, [feed.t_end_s]))
     dt = np.concatenate(([pad], feed.dt_s, [pad]))
-    coef = np.vstack([rest, feed.coef, rest])
+    v0 = np.concatenate(([0.0], feed.coef[:, 0], [0.0]))
+    acc = np.concatenate(([0.0], feed.coef[:, 1], [0.0]))
     e0 = np.concatenate(([feed.e_start_mm], feed.e0_mm, [feed.e_end_mm()]))
     k_seg = np.concatenate(([0.0], _seg_k(feed, sched.k_eff_s), [0.0]))
     bounds = np.concatenate((t0, [t0[-1] + dt[-1]]))
@@ -408,7 +408,8 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
         starts = np.array([t_lo, t_hi])
         h_reg = np.zeros(1)
     pieces: list[npt.NDArray[np.float64]] = []
-    widths: list[npt.NDArray[np.float64]] = []
+    widths: list[float] = []   # window half width of each regime, s
+    counts: list[int] = []     # its number of pieces
     for r, h in enumerate(h_reg):
         lo = max(float(starts[r]), t_lo)
         hi = min(float(starts[r + 1]), t_hi)
@@ -418,23 +419,25 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
         b = int(np.searchsorted(bounds, hi + h, side="right"))
         u = merge_breakpoints(np.ascontiguousarray(bounds[a:b]), float(h), lo, hi)
         pieces.append(u[:-1])
-        widths.append(np.full(u.shape[0] - 1, float(h)))
+        widths.append(float(h))
+        counts.append(u.shape[0] - 1)
     u_all = np.concatenate([*pieces, [t_hi]])
-    hp = np.concatenate(widths)
+    del pieces
+    hp = np.repeat(np.asarray(widths), counts)
     m = hp.shape[0]
     out_coef = np.empty((m, 4))
     out_e0 = np.empty(m)
     owner = np.empty(m, dtype=np.int64)
     gap = np.empty(m, dtype=np.bool_)
-    klipper_smooth(t0, dt, np.ascontiguousarray(coef[:, 0]), np.ascontiguousarray(coef[:, 1]),
-                   e0, k_seg, u_all, hp, feed.move_t0_s, feed.move_t1_s, out_coef, out_e0,
-                   owner, gap)
+    klipper_smooth(t0, dt, v0, acc, e0, k_seg, u_all, hp, feed.move_t0_s, feed.move_t1_s,
+                   out_coef, out_e0, owner, gap)
+    del t0, dt, v0, acc, e0, k_seg, hp
     phase = np.where(gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
     p_dt = np.diff(u_all)
     notes: list[str] = []
     # pieces where the window width changes: the first piece of each regime after the first
-    firsts = np.cumsum([w.shape[0] for w in widths])[:-1]
-    for k in firsts[[widths[i + 1][0] != widths[i][0] for i in range(len(widths) - 1)]]:
+    firsts = np.cumsum(counts)[:-1]
+    for k in firsts[[widths[i + 1] != widths[i] for i in range(len(widths) - 1)]]:
         c = out_coef[k - 1]
         ln = p_dt[k - 1]
         end = out_e0[k - 1] + ln * (c[0] + ln * (0.5 * c[1] + ln * (c[2] / 3 + ln * c[3] / 4)))
