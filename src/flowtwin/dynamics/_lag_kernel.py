@@ -133,17 +133,33 @@ def _vroots(c0: float, c1: float, c2: float, c3: float, t_len: float,
         fb = poly4(c0, c1, c2, c3, b)
         if fa == 0.0 or fb == 0.0 or (fa > 0.0) == (fb > 0.0):
             continue
-        for _ in range(200):  # bisection on a monotone piece, to rounding
+        # safeguarded Newton on a monotone piece, from the regula-falsi point; a step that
+        # leaves the bracket is replaced by bisection; to rounding
+        m = a + (b - a) * fa / (fa - fb)
+        if not (a < m < b):
             m = 0.5 * (a + b)
-            if m <= a or m >= b:
-                break
+        for _ in range(200):
             fm = poly4(c0, c1, c2, c3, m)
+            if fm == 0.0:
+                break
             if (fm > 0.0) == (fa > 0.0):
                 a = m
                 fa = fm
             else:
                 b = m
-        out[n] = 0.5 * (a + b)
+            mid = 0.5 * (a + b)
+            if mid <= a or mid >= b:
+                m = mid
+                break
+            dm = dpoly4(c0, c1, c2, c3, m)
+            nm = m - fm / dm if dm != 0.0 else mid
+            if not (a < nm < b):
+                nm = mid
+            elif abs(nm - m) <= 1e-15 * t_len:
+                m = nm
+                break
+            m = nm
+        out[n] = m
         n += 1
     return n
 
