@@ -195,8 +195,14 @@ def phi6(z: float) -> tuple[float, float, float, float, float, float]:
     x = -z
     if z <= 2.0:
         # Σ_{i<m} x^i/(i+5)! by Horner; the first term left out, relative to the first
-        # (5! z^m/(m+5)!), is < 1e-17 for m = 7 (z <= 0.01), 12 (z <= 0.25), 24 (z <= 2)
-        m = 7 if z <= 0.01 else (12 if z <= 0.25 else 24)
+        # (5! z^m/(m+5)!), is < 1e-17 for m = 7 (z <= 0.01), 8 (0.05), 9 (0.1), 12 (0.25),
+        # 13 (0.5), 16 (1), 24 (2)
+        if z <= 0.1:
+            m = 7 if z <= 0.01 else (8 if z <= 0.05 else 9)
+        elif z <= 0.5:
+            m = 12 if z <= 0.25 else 13
+        else:
+            m = 16 if z <= 1.0 else 24
         acc = _INV_FACT_5[m - 1]
         for i in range(m - 2, -1, -1):
             acc = acc * x + _INV_FACT_5[i]
