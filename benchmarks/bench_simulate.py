@@ -23,6 +23,7 @@ end to end over pyGCodeDecode's lines/s.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -101,6 +102,65 @@ def _warm(path: Path, cfg: Path | None, repeat: int, *, stream: bool = False
         best_c = min(best_c, time.process_time() - c0)
         hours = float(r.summary()["total_time_s"]) / 3600.0  # type: ignore[arg-type]
     return {"wall_s": best_w, "cpu_s": best_c, "print_hours": hours}
+
+
+def _stages(path: Path, cfg: Path | None, repeat: int) -> dict[str, float]:
+    """Process CPU seconds of each stage of ``simulate`` (best of ``repeat``): read, plan,
+    parameters, nominal feed, pressure advance, integration, bead metrics."""
+    from flowtwin.dynamics import AdvanceSettings, Firmware, apply_advance, integrate
+    from flowtwin.dynamics.feed import nominal_feed
+    from flowtwin.gcode.reader import read_gcode
+    from flowtwin.planner.from_profile import marlin_settings, read_options
+    from flowtwin.planner.klipper import plan_klipper
+    from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
+    from flowtwin.planner.marlin import plan_marlin
+    from flowtwin.planning import PlanResult
+    from flowtwin.profiles.machine import load_machine
+    from flowtwin.simulation.parameters import move_parameters
+    from flowtwin.simulation.pipeline import DEFAULT_MACHINE
+    from flowtwin.simulation.result import deposition_metrics
+
+    best: dict[str, float] = {}
+    for _ in range(repeat):
+        m = load_machine(DEFAULT_MACHINE)
+        marks = [("", time.process_time())]
+
+        def lap(name: str, marks: list[tuple[str, float]] = marks) -> None:
+            marks.append((name, time.process_time()))
+
+        if cfg is not None:
+            ks = load_printer_cfg(cfg)
+            table = read_gcode(path, options=klipper_read_options(ks))
+            lap("read")
+            settings: object = ks
+            timeline = plan_klipper(table, ks)
+            ex = ks.extruders[0]
+            adv = AdvanceSettings(Firmware.KLIPPER, k_s=ex.pressure_advance,
+                                  smooth_time_s=ex.pressure_advance_smooth_time)
+        else:
+            table = read_gcode(path, options=read_options(m.printer))
+            lap("read")
+            settings = marlin_settings(m.printer)
+            timeline = plan_marlin(table, settings)  # type: ignore[arg-type]
+            adv = AdvanceSettings(Firmware.MARLIN, k_s=m.printer.pressure_advance.k_s)
+        lap("plan")
+        params = move_parameters(m, table, timeline)
+        lap("parameters")
+        feed = nominal_feed(table, timeline)
+        lap("feed")
+        feed = apply_advance(feed, table, adv)
+        lap("advance")
+        dyn = integrate(feed, params.params)
+        lap("integrate")
+        deposition_metrics(PlanResult(table, timeline, "", settings), dyn, params)  # type: ignore[arg-type]
+        lap("metrics")
+        st = {marks[i][0]: marks[i][1] - marks[i - 1][1] for i in range(1, len(marks))}
+        st["total"] = sum(st.values())
+        st["segments"] = float(feed.n_segments)
+        for k, v in st.items():
+            best[k] = min(best.get(k, math.inf), v)
+        del table, timeline, params, feed, dyn
+    return best
 
 
 def _pygcodedecode(path: Path, k: int) -> dict[str, float] | None:
@@ -189,6 +249,16 @@ def run(quick: bool = False) -> dict[str, object]:
                   f"{s['lines_per_s_cpu']:,.0f} lines/s), stream {t['wall_s']:.2f} s wall "  # type: ignore[index]
                   f"({t['lines_per_s_wall']:,.0f} lines/s)")  # type: ignore[index]
     results["warm"] = warm
+    # CPU time of each stage, both set-ups, on the generated print
+    stages = {}
+    for mname, mcfg in (("default", None), ("klipper_B_pa", cfg)):
+        if mname != "default" and mcfg is None:
+            continue
+        stages[mname] = _stages(files["big"], mcfg, 1 if not quick else 2)
+        print(f"{files['big'].name} [{mname}] CPU s per stage: " + ", ".join(
+            f"{k} {v:.2f}" for k, v in stages[mname].items() if k != "segments")
+            + f" ({stages[mname]['segments']:,.0f} segments)")
+    results["stages_cpu_s"] = stages
     # memory: whole tables against streaming, big file and twice the big file
     if not quick:
         double = OUT / "simulate_big_x2.gcode"
