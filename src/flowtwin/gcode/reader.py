@@ -20,15 +20,28 @@ from __future__ import annotations
 import gzip
 import math
 import os
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, fields, replace
-from typing import Any, BinaryIO
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
+from typing import BinaryIO
 
 import numpy as np
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode import _kernel as K
 from flowtwin.gcode._columns import fill_columns
+from flowtwin.gcode._commands import (
+    EVENT_CODES,
+    EVENT_SETTERS,
+    HARMLESS_CODES,
+    IS_EVENT,
+    IS_HARMLESS,
+    IS_UNKNOWN,
+    LETTERS,
+    NUMERIC_PARAMS,
+    Span,
+    is_rrf_g10,
+    number_param,
+)
 from flowtwin.gcode._rows import _Rows
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
@@ -36,32 +49,6 @@ from flowtwin.gcode.source import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.words import parse_line
 
 __all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]
-
-#: Commands kept as :class:`Event` for the planner and the physics.
-EVENT_CODES = frozenset({
-    "G4", "G10", "G11", "G28", "G29", "M0", "M1", "M18", "M84", "M104", "M106", "M107",
-    "M109", "M140", "M190", "M141", "M191", "M200", "M201", "M203", "M204", "M205",
-    "M207", "M208", "M220", "M221", "M400", "M572", "M900", "SET_VELOCITY_LIMIT",
-    "SET_PRESSURE_ADVANCE", "ACTIVATE_EXTRUDER", "M82", "M83", "G90", "G91", "G92",
-    # pauses, filament changes, probing and levelling: the firmware stops the head
-    "M600", "M601", "M125", "M226", "M420", "M701", "M702", "G30", "G33", "G34", "M25",
-})
-#: Commands understood without consequence for the twin (not "unknown").
-HARMLESS_CODES = frozenset({"G21", "G20", "G17", "M117", "M73", "M105", "M115", "M110",
-                            "M17", "M108", "M113", "M103", "M101", "M82", "M83"})
-#: Parameters that must be numbers, per command.
-NUMERIC_PARAMS: dict[str, frozenset[str]] = {
-    "G4": frozenset("PS"), "M104": frozenset("ST"), "M109": frozenset("STR"),
-    "M140": frozenset("S"), "M190": frozenset("SR"), "M201": frozenset("XYZE"),
-    "M203": frozenset("XYZE"), "M204": frozenset("PRTS"), "M205": frozenset("XYZEJBST"),
-    "M207": frozenset("SFZ"), "M208": frozenset("SF"), "M220": frozenset("S"),
-    "M900": frozenset("K"), "M572": frozenset("SD"), "M200": frozenset("DT"),
-    "SET_VELOCITY_LIMIT": frozenset({"ACCEL", "VELOCITY", "SQUARE_CORNER_VELOCITY",
-                                     "MINIMUM_CRUISE_RATIO", "ACCEL_TO_DECEL"}),
-    "SET_PRESSURE_ADVANCE": frozenset({"ADVANCE", "SMOOTH_TIME"}),
-}
-
-
 
 @dataclass(frozen=True, slots=True)
 class FirmwareRetraction:
@@ -209,7 +196,7 @@ class _Reader:
         if code in ("G18", "G19"):
             s[K.S_PLANE] = float(code[1:])
             return
-        if code == "G10" and self.retraction is not None and not _is_rrf_g10(p):
+        if code == "G10" and self.retraction is not None and not is_rrf_g10(p):
             if not self.retracted:
                 self._fw_retract(line, rows, retract=True)
             return
@@ -221,16 +208,17 @@ class _Reader:
             self._check_numeric(code, p, line, text)
             r = self.retraction
             if code == "M207":
-                r = replace(r, length_mm=_num(p, "S", r.length_mm),
-                            speed_mm_s=_num(p, "F", r.speed_mm_s * 60.0) / 60.0,
-                            z_hop_mm=_num(p, "Z", r.z_hop_mm))
+                r = replace(r, length_mm=number_param(p, "S", r.length_mm),
+                            speed_mm_s=number_param(p, "F", r.speed_mm_s * 60.0) / 60.0,
+                            z_hop_mm=number_param(p, "Z", r.z_hop_mm))
             else:
-                r = replace(r, extra_unretract_mm=_num(p, "S", r.extra_unretract_mm),
-                            unretract_speed_mm_s=_num(p, "F", r.unretract_speed_mm_s * 60) / 60)
+                r = replace(r, extra_unretract_mm=number_param(p, "S", r.extra_unretract_mm),
+                            unretract_speed_mm_s=number_param(
+                                p, "F", r.unretract_speed_mm_s * 60) / 60)
             self.retraction = r
         elif code == "M200":
             self._check_numeric(code, p, line, text)
-            d = _num(p, "D", self.options.filament_diameter_mm)
+            d = number_param(p, "D", self.options.filament_diameter_mm)
             s[K.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0) if d > 0 else 1.0
         elif code == "M220":
             value = p.get("S")
@@ -251,7 +239,7 @@ class _Reader:
         self._record(parsed.code, p, parsed.comment, line, self._offset + rows.n, text)
 
     def _check_numeric(self, code: str, params: dict[str, float | str], line: int,
-                       text: str | _Span) -> None:
+                       text: str | Span) -> None:
         need = NUMERIC_PARAMS.get(code, frozenset())
         for key, value in params.items():
             if key in need and not isinstance(value, float):
@@ -291,7 +279,7 @@ class _Reader:
         self.events.append(event)
 
     def _record(self, code: str, params: dict[str, float | str], comment: str, line: int,
-                move_index: int, text: str | _Span, *, checked: bool = False) -> None:
+                move_index: int, text: str | Span, *, checked: bool = False) -> None:
         if not code:
             self.comments.feed(comment, move_index, line)
             return
@@ -312,11 +300,11 @@ class _Reader:
         if info is None:
             code_id, mask = divmod(key, 1 << K.KEY_SHIFT)
             code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
-            letters = tuple(_LETTERS[j] for j in range(26) if mask >> j & 1)
+            letters = tuple(LETTERS[j] for j in range(26) if mask >> j & 1)
             if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
-                category = _EVENT
+                category = IS_EVENT
             else:
-                category = _HARMLESS if code in HARMLESS_CODES else _UNKNOWN
+                category = IS_HARMLESS if code in HARMLESS_CODES else IS_UNKNOWN
             info = self._codes[key] = (code, letters, category)
         return info
 
@@ -330,8 +318,8 @@ class _Reader:
         append_event = self.events.append
         codes = self._codes
         flat = rows.vals[:rows.n_vals].tolist()
-        new, set_index, set_line, set_code, set_params = _EVENT_SETTERS
-        numeric, comment, event_category = K.OTHER_NUMERIC, K.OTHER_COMMENT, _EVENT
+        new, set_index, set_line, set_code, set_params = EVENT_SETTERS
+        numeric, comment, event_category = K.OTHER_NUMERIC, K.OTHER_COMMENT, IS_EVENT
         for lineno, start, end, move_index, kind, key, at in rows.other[:n].tolist():
             if kind == numeric:  # parsed by the kernel: no text to look at
                 code, letters, category = codes.get(key) or self._code_info(key)
@@ -347,9 +335,9 @@ class _Reader:
                     set_code(event, code)
                     set_params(event, params)
                     append_event(event)
-                elif category == _UNKNOWN:
+                elif category == IS_UNKNOWN:
                     self._record(code, {}, "", lineno, base + move_index,
-                                 _Span(buf, start, end), checked=True)
+                                 Span(buf, start, end), checked=True)
                 continue
             text = buf[start:end].decode("utf-8", "replace")
             if "\ufffd" in text:
@@ -461,52 +449,6 @@ class _Reader:
         self.layer_z.extend(new_z)
         comments.feature_changes.clear()
         comments.layer_changes.clear()
-
-
-_LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
-#: Categories of kernel-parsed commands.
-_EVENT, _HARMLESS, _UNKNOWN = 0, 1, 2
-
-
-def _event_setters() -> tuple[Callable[..., Any], ...]:
-    """``object.__new__`` and the slot setters of :class:`Event`, in field order.
-
-    The reader makes thousands of events per file (one per ``M204``); setting the slots
-    directly costs half of the frozen dataclass's ``__init__`` and gives the same object.
-    Only valid while :class:`Event` is a plain slotted record of these four fields.
-    """
-    names = tuple(f.name for f in fields(Event))
-    if names != ("move_index", "line", "code", "params") or hasattr(Event, "__post_init__"):
-        raise RuntimeError("flowtwin.gcode.moves.Event changed: update reader._event_setters")
-    return (object.__new__, *(getattr(Event, name).__set__ for name in names))
-
-
-_EVENT_SETTERS = _event_setters()
-
-
-@dataclass(frozen=True, slots=True)
-class _Span:
-    """Where a kernel-parsed line is; its text is decoded only for a message."""
-
-    buf: bytes
-    start: int
-    end: int
-
-    def __str__(self) -> str:
-        return self.buf[self.start:self.end].decode("utf-8", "replace").rstrip("\r")
-
-
-def _num(params: dict[str, float | str], key: str, default: float) -> float:
-    value = params.get(key)
-    return value if isinstance(value, float) else default
-
-
-def _is_rrf_g10(params: dict[str, float | str]) -> bool:
-    """RepRapFirmware's ``G10 P<tool> S<active> R<standby>`` (or offsets), not a retraction."""
-    if any(k in params for k in ("P", "R", "L", "X", "Y", "Z", "U", "V", "W")):
-        return True
-    s = params.get("S")
-    return isinstance(s, float) and s > 1.0
 
 
 # -------------------------------------------------------------------------- public API ---
