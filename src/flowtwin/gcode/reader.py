@@ -410,7 +410,8 @@ class _Reader:
         self.last_byte_newline = buf.endswith(b"\n")
         self.bytes_done += len(buf)
         if len(buf) >= 4096:  # learn the density from chunks long enough to tell
-            self.rows_per_byte = 1.05 * (rows.n - start_n) / len(buf)
+            # (not below one row per 64 bytes: a header of comments says little of the rest)
+            self.rows_per_byte = max(1.05 * (rows.n - start_n) / len(buf), 1.0 / 64.0)
         return self._table(rows, start_n)
 
     def _more_rows(self, bytes_left: int, rows_made: int, bytes_read: int) -> int:
