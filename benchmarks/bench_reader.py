@@ -169,7 +169,9 @@ def run(quick: bool = False) -> dict[str, object]:
     corpus = sorted(SHARED.glob("*.gcode"), key=lambda p: p.stat().st_size)
     if corpus:
         files.append(corpus[-1])
-    big = OUT / "generated_big.gcode"
+    # the quick run has its own files: it must not replace the 2 M-line print
+    stem = "generated_quick" if quick else "generated_big"
+    big = OUT / f"{stem}.gcode"
     spec = BIG_SPEC if not quick else PrintSpec(layers=200, infill_density=1.0)
     if not big.exists() or quick:
         write_print(big, spec)
@@ -223,7 +225,7 @@ def run(quick: bool = False) -> dict[str, object]:
               "cache")
     # streaming: peak memory must not grow with the file
     small = files[-1]
-    quad = OUT / "generated_big_x4.gcode"
+    quad = OUT / f"{stem}_x4.gcode"
     if not quad.exists() or quick:
         data = small.read_bytes()
         quad.write_bytes(data * 4)
