@@ -4,8 +4,9 @@ For every corpus file (``--quick``: the three small ones) and the built-in examp
 what a user would run on the twin's default machine: ``compensate(advance=True,
 slip=True)``, and where the twin predicts grinding in the original also with the grinding
 guard (``guard=True``; advance and slip cannot remove grinding, the guard slows the moves,
-at a cost in print time). Both runs are printed for such files; the *user* run (guard where
-grinding is predicted) is the one the issue's ≥ 5× is checked on.
+at a cost in print time) — also where the compensated file grinds or the pipeline refused
+the slip stage as too close to grinding. Both runs are printed for such files; the *user*
+run (with the guard where it is needed) is the one the issue's ≥ 5× is checked on.
 
 Per run: RMS flow error, the per-move peak over-extrusion and the peak over one nozzle
 diameter of printed path (:func:`flowtwin.compensation.metrics.window_peak`), before and
@@ -96,11 +97,13 @@ def format_row(name: str, row: dict[str, object]) -> str:
 
 
 def bench_file(path: Path, out_dir: Path) -> dict[str, object]:
-    """Advance + slip; also with the guard where the original grinds. Prints both."""
+    """Advance + slip; also with the guard where grinding is predicted. Prints both."""
     plain = compensate_file(path, out_dir, guard=False)
     print(format_row(path.name, plain), flush=True)
     entry: dict[str, object] = {"plain": plain, "user": "plain"}
-    if int(plain["grinding_before"]) > 0:  # type: ignore[call-overload]
+    warned = any("--guard" in str(w) for w in plain["warnings"])  # type: ignore[attr-defined]
+    grinds = int(plain["grinding_before"]) + int(plain["grinding_after"])  # type: ignore[call-overload]
+    if grinds > 0 or warned:
         guarded = compensate_file(path, out_dir, guard=True)
         print(format_row(path.name, guarded), flush=True)
         entry["guard"] = guarded

@@ -116,8 +116,8 @@ def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: I
 
 def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: FloatArray,
                  limits: ExtruderLimits, options: AdvanceOptions, *, e_unit_mm: float,
-                 split: bool, relief: bool, state_max: FloatArray | None = None
-                 ) -> tuple[Draft, PassReport]:
+                 split: bool, relief: bool, state_max: FloatArray | None = None,
+                 delivered: FloatArray | None = None) -> tuple[Draft, PassReport]:
     """Give the draft's printing pieces their advanced E (see the module docstring).
 
     Parameters
@@ -141,6 +141,15 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     state_max
         Largest compression of the column during every row, grid units (the feed force
         at which the drive would grind, with a margin); ``None``: no cap.
+    delivered
+        What the twin predicts the draft *as it is* delivers, per original row, E grid
+        units without the drive's slip (the slip stage corrects that), shape
+        ``(n_original_rows,)``; only with ``split=False``. The lag model is linear and
+        leaves out what the twin adds (the melt's nonlinear flow, temperatures, holds
+        it models differently); the refinement then aims the model at
+        ``intent + (model(draft) − delivered)`` — one step of iterative learning control
+        with the model as the plant's Jacobian, so the twin's own figure converges where
+        the model alone stops.
 
     Returns
     -------
@@ -198,9 +207,17 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         # refined, now re-planned), so they only correct what the new timing changed
         start_e = law.e if split else cur_e[pieces.row[law.sel]].astype(np.float64)
         cap = None if state_max is None else np.asarray(state_max)[pieces.row[law.sel]]
+        target = None
+        if delivered is not None and not split:
+            ratios = start_e / np.maximum(pieces.length_mm[law.sel], 1e-12)
+            predicted, _grad = model.evaluate(ratios, intent)
+            seen = np.asarray(delivered, dtype=np.float64)[elig_orig_rows]
+            # never aim below a twentieth of the intent (a model that far off is no guide)
+            target = np.maximum(intent + (predicted - seen), 0.05 * intent)
         e_run, report.refinement = refine_qp(model, pieces, start_e, intent,
                                              row_group[pieces.row[law.sel]], law.c_min,
-                                             law.c_max, options.refine, state_max=cap)
+                                             law.c_max, options.refine, state_max=cap,
+                                             target=target)
     e_piece = cur_e[pieces.row].astype(np.int64)
     reliefs = _relief_amounts(interims, model, pieces, e_run, e_unit_mm=e_unit_mm)
     if law.sel.size:

@@ -320,10 +320,11 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                 # compression at which the feed force reaches the grinding limit (margin)
                 cap = (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
                        * np.asarray(pp.compliance_mm_per_n, dtype=np.float64) / scanned.e_unit)
+                seen = None if k == 0 else _delivered_grid(original, cur, draft)
                 draft, rep = advance_pass(draft, cur.plan.table, cur.plan.timeline,
                                           pp.lag_k_s, limits, adv, e_unit_mm=scanned.e_unit,
                                           split=k == 0, relief=(k == 0 and adv.relief),
-                                          state_max=cap)
+                                          state_max=cap, delivered=seen)
                 draft.render(work)
                 cur = _checked(simulate(work, machine=m, klipper_config=klipper_config,
                                         pressure_advance=False), draft, work)
@@ -448,6 +449,20 @@ def lag_factor_changes(original: SimulationResult, compensated: SimulationResult
                         value=piece_row.shape, allowed=str(k1.shape))
     off = np.abs(k1 - k0[piece_row]) > _LAG_TOLERANCE * k0[piece_row]
     return np.unique(piece_row[off]).astype(np.int64)
+
+
+def _delivered_grid(original: SimulationResult, sim: SimulationResult,
+                    draft: Draft) -> npt.NDArray[np.float64]:
+    """Melt the twin predicts every original row delivers in ``sim`` without the drive's
+    slip, in E grid units of the row's intent (``delivered/commanded · row E``)."""
+    d = sim.dynamics.moves
+    out = np.asarray(d["out_mm3"], dtype=np.float64) + np.asarray(d["slip_loss_mm3"],
+                                                                   dtype=np.float64)
+    n = draft.n_rows
+    delivered = np.bincount(draft.row, weights=out, minlength=n)
+    cmd = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(cmd > 0, delivered / cmd * draft.row_e, draft.row_e.astype(float))
 
 
 def _has_pa_commands(sim: SimulationResult) -> bool:

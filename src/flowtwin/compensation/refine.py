@@ -272,8 +272,8 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
 
 def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: FloatArray,
               piece_group: IntArray, c_min: FloatArray, c_max: FloatArray,
-              options: RefineOptions, *, state_max: FloatArray | None = None
-              ) -> tuple[FloatArray, dict[str, float]]:
+              options: RefineOptions, *, state_max: FloatArray | None = None,
+              target: FloatArray | None = None) -> tuple[FloatArray, dict[str, float]]:
     """Optimise the free pieces' E as a sparse quadratic program in the states.
 
     With the state ``x_p`` after every free piece as the unknowns, each piece's ratio is
@@ -304,6 +304,11 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         Weights and iterations.
     state_max
         Largest compression after every free piece, grid units (``inf``: none).
+    target
+        Model output to aim at per group, grid units (default ``intent``; the weights are
+        always the intent's). A later pass aims the model at ``intent`` corrected by what
+        the twin delivered against what the model predicted (see
+        :func:`flowtwin.compensation.bake.advance_pass`).
 
     Returns
     -------
@@ -342,7 +347,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     s_last = sp.csr_matrix((np.ones(int(last.sum())), (grp[last], idx[last])), shape=(m, n))
     s_first = sp.csr_matrix((np.ones(int(first.sum())), (grp[first], idx[first])), shape=(m, n))
     r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
-    r0 = g_mat @ (l_p * c0) + s_first @ kappa - intent
+    r0 = g_mat @ (l_p * c0) + s_first @ kappa - (intent if target is None else target)
     inv = 1.0 / np.maximum(intent, 1e-9)
     w = inv + options.peak_weight * float(np.mean(intent)) * inv * inv
     v = options.track_weight * l_p ** 2 * inv[grp]
