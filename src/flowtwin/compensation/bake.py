@@ -72,6 +72,11 @@ class PassReport:
         Travels given a pressure-relief retraction.
     relief_mm
         Total length retracted (and pushed back) by the reliefs, mm of filament.
+    relief_retractions
+        Retracting travels whose push-back was shortened by the compression at the end of
+        the run before (the next run starts relaxed).
+    relief_retraction_mm
+        Total length taken off those push-backs, mm of filament.
     """
 
     pieces: int = 0
@@ -80,6 +85,8 @@ class PassReport:
     refinement: dict[str, float] = field(default_factory=dict)
     relief_travels: int = 0
     relief_mm: float = 0.0
+    relief_retractions: int = 0
+    relief_retraction_mm: float = 0.0
 
 
 def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
@@ -110,6 +117,51 @@ def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: I
                   if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
             if xy:
                 out.append((xy[0], xy[-1]))
+        i = j
+    return out
+
+
+def _retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
+                         row_e: IntArray, tool: npt.NDArray[np.integer], timeline: Timeline,
+                         min_time_s: FloatArray) -> list[tuple[int, int]]:
+    """Retracting interims between two runs whose push-back can relieve the pressure.
+
+    The slicer's own retraction holds the compression of the run's end through the travel
+    (no backflow), and its push-back restores it: the next run starts with the pressure
+    of a full-speed end, which it cannot absorb from rest (a short first move gets it
+    all). Shortening the push-back by that compression starts the next run relaxed, as
+    the advance law wants [001 Eq. 11] (the ``−K·v⁰_E`` where the flow stops). An interim
+    qualifies when it lasts at least ``min_time_s`` of the row before it, retracts (a row
+    with negative E) and pushes back at least as much in a later E-only row written in
+    the G-code, all with one tool (a tool change loads another filament: its push-back is
+    not this column's).
+
+    Returns
+    -------
+    list of tuple
+        ``(first interim row, push-back row)``.
+    """
+    n = elig.shape[0]
+    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
+    end = timeline.end_time_s
+    out: list[tuple[int, int]] = []
+    i = 0
+    while i < n:
+        if elig[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and not elig[j]:
+            j += 1
+        if (i > 0 and j < n and start[j] - end[i - 1] >= min_time_s[i - 1]
+                and np.all(tool[i - 1:j + 1] == tool[i - 1])):
+            e = row_e[i:j]
+            neg = np.flatnonzero(e < 0)
+            pos = np.flatnonzero(e > 0)
+            if neg.size and pos.size and pos[-1] > neg[0] and int(np.sum(e)) >= 0:
+                r = i + int(pos[-1])
+                if (kind[r] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0:
+                    out.append((i, r))
         i = j
     return out
 
@@ -185,8 +237,12 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     interims = (_interims(elig, kind, cur_e, timeline,
                           options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64))
                 if relief else [])
+    retracting = (_retraction_interims(elig, kind, cur_e, table.moves["tool"], timeline,
+                                       options.relief_min_lags
+                                       * np.asarray(lag_k_s, dtype=np.float64))
+                  if relief else [])
     holds = np.zeros(n, dtype=bool)
-    for a, _b in interims:
+    for a, _b in [*interims, *retracting]:
         holds[a] = True
     elig_orig_rows = np.flatnonzero(orig_elig)
     group_index = np.full(draft.n_rows, -1, dtype=np.int64)
@@ -220,13 +276,26 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
                                              target=target)
     e_piece = cur_e[pieces.row].astype(np.int64)
     reliefs = _relief_amounts(interims, model, pieces, e_run, e_unit_mm=e_unit_mm)
+    shortened: list[tuple[int, int]] = []
+    if retracting:
+        ends = _relief_amounts([(f, f) for f, _r in retracting], model, pieces, e_run,
+                               e_unit_mm=e_unit_mm, keep_zero=True)
+        for (_first, r), (_a, _b, ret, back) in zip(retracting, ends, strict=True):
+            take = min(ret - back, int(cur_e[r]) - 1)  # compression; keep one unit
+            if take > 0:
+                shortened.append((r, take))
     if law.sel.size:
         if model is None:  # the law keeps every run's E exactly
             e_piece[law.sel] = round_runs(e_run, law.run_first, law.run_last, law.run_total)
         else:  # the refinement moves E between runs; the file keeps its total
             net = sum(back - ret for _a, _b, ret, back in reliefs)
+            net -= sum(take for _r, take in shortened)
             total = int(np.sum(cur_e[elig])) - net
             e_piece[law.sel] = round_total(e_run, total)
+    for r, take in shortened:
+        e_piece[int(pieces.offsets[r])] -= take
+    report.relief_retractions = len(shortened)
+    report.relief_retraction_mm = sum(t for _r, t in shortened) * e_unit_mm
     # geometry of the pieces
     mv = table.moves
     end = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
@@ -249,7 +318,8 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
 
 
 def _relief_amounts(interims: list[tuple[int, int]], model: LagModel | None, pieces: Pieces,
-                    e_run: FloatArray, *, e_unit_mm: float) -> list[tuple[int, int, int, int]]:
+                    e_run: FloatArray, *, e_unit_mm: float, keep_zero: bool = False
+                    ) -> list[tuple[int, int, int, int]]:
     """Retraction and push-back of every relieved interim, grid units.
 
     The lag model gives the compression ``x`` at the end of the run before the interim;
@@ -257,13 +327,16 @@ def _relief_amounts(interims: list[tuple[int, int]], model: LagModel | None, pie
     but ``x`` (the next run starts relaxed, as the model assumed, and builds its pressure
     from its own E).
 
+    With ``keep_zero`` every interim gets an entry (``(a, b, 0, 0)`` where nothing is
+    known or the compression is below the threshold), in order.
+
     Returns
     -------
     list of tuple
         ``(first row, last row, retraction, push-back)`` per relieved interim.
     """
     if model is None or not interims:
-        return []
+        return [(a, b, 0, 0) for a, b in interims] if keep_zero else []
     ratios = e_run / pieces.length_mm[model.free_pieces]
     states = model.states(ratios)
     owners = model.seg_owner
@@ -274,11 +347,11 @@ def _relief_amounts(interims: list[tuple[int, int]], model: LagModel | None, pie
     out: list[tuple[int, int, int, int]] = []
     for a, b in interims:
         seg = last_seg.get(a - 1)
-        if seg is None:
-            continue
-        x_end = max(float(states[seg]), 0.0)
+        x_end = 0.0 if seg is None else max(float(states[seg]), 0.0)
         retract = int(math.ceil(_RELIEF_MARGIN * x_end)) + 1
-        if retract * e_unit_mm < _MIN_RELIEF_MM:
+        if seg is None or retract * e_unit_mm < _MIN_RELIEF_MM:
+            if keep_zero:
+                out.append((a, b, 0, 0))
             continue
         out.append((a, b, retract, retract - int(round(x_end))))
     return out
