@@ -315,12 +315,20 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
             pre_advance = draft
             kept_draft, kept_sim = draft, cur
             kept_rms = flow_figures(original, cur, draft.row).rms_flow_error
-            for k in range(advance_passes):
+            # every later pass first with the twin's correction of the model, then (if
+            # that raised the twin's RMS) without it
+            attempts = [(k, k > 0) for k in range(advance_passes)]
+            attempts = [a for k, ilc in attempts for a in ([(k, True), (k, False)] if ilc
+                                                          else [(k, False)])]
+            done: set[int] = set()
+            for k, ilc in attempts:
+                if k in done:
+                    continue
                 pp = cur.parameters.params
                 # compression at which the feed force reaches the grinding limit (margin)
                 cap = (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
                        * np.asarray(pp.compliance_mm_per_n, dtype=np.float64) / scanned.e_unit)
-                seen = None if k == 0 else _delivered_grid(original, cur, draft)
+                seen = _delivered_grid(original, cur, draft) if ilc else None
                 draft, rep = advance_pass(draft, cur.plan.table, cur.plan.timeline,
                                           pp.lag_k_s, limits, adv, e_unit_mm=scanned.e_unit,
                                           split=k == 0, relief=(k == 0 and adv.relief),
@@ -331,7 +339,13 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                 rms = flow_figures(original, cur, draft.row).rms_flow_error
                 entry = _pass_dict(rep)
                 entry["rms_flow_error"] = rms
+                entry["twin_correction"] = ilc
                 advance_reports.append(entry)
+                if ilc and rms > kept_rms:
+                    entry["kept"] = False
+                    draft, cur = kept_draft, kept_sim
+                    continue  # the same pass again, without the correction
+                done.add(k)
                 if rms <= kept_rms:
                     kept_draft, kept_sim, kept_rms = draft, cur, rms
                 else:
