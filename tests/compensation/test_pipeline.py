@@ -203,11 +203,6 @@ def _spiral_after_perimeters(path: Path, *, layers: int = 2, turns: int = 2,
     return first
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "twin: the layer height of a spiral layer is read from where its first extrusion "
-    "ends (0.00625 mm here instead of 0.2 mm, a lag factor far too large; once the "
-    "advance cuts that move, smaller still): simulation.parameters.layer_heights_mm; "
-    "with the layer's top instead this passes — remove the mark when the twin is fixed"))
 def test_spiral_ramp_after_perimeters_five_fold(tmp_path: Path) -> None:
     """prusaslicer_2.7.4_vase in small: a spiral ramp after planar layers is compensated
     like any other wall (the vase's first spiral layer lost 95 % of its melt)."""

@@ -36,8 +36,8 @@ from flowtwin.profiles.material import (
     WlfViscosity,
 )
 
-__all__ = ["MoveParameters", "OperatingPoint", "layer_heights_mm", "move_parameters",
-           "operating_point", "viscosity_pa_s"]
+__all__ = ["THIN_LAYER_FRACTION", "MoveParameters", "OperatingPoint", "layer_heights_mm",
+           "move_parameters", "operating_point", "thin_layer_moves", "viscosity_pa_s"]
 
 #: Eq. 8 of [000] holds for pinch forces of 80–130 N only [000 §4.2].
 _EQ8_PINCH_RANGE_N = (80.0, 130.0)
@@ -84,13 +84,38 @@ def viscosity_pa_s(material: MaterialProfile, temp_c: npt.ArrayLike) -> npt.NDAr
     return viscosity_wlf_pa_s(t, law.mu_ref_pa_s, law.t_ref_c, law.c1, law.c2_k)
 
 
+#: A layer that rises less than this fraction of the nominal layer height over the layer
+#: below is a step of a spiral, not a layer.
+THIN_LAYER_FRACTION = 0.25
+
+
 def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
                      ) -> npt.NDArray[np.float64]:
     """Layer height of every move, mm: the rise of its layer over the layer below.
 
-    Layers whose Z is unknown take the Z of their first extrusion; moves before the first
-    layer, and heights outside ``(0, max_mm]``, take ``default_mm``.
+    Layers whose Z is unknown take the highest Z of their extrusions (the layer's top, as
+    slicers mark it: in a spiral layer the first extrusion lies only a step above the
+    layer below); moves before the first layer, and heights outside ``(0, max_mm]``, take
+    ``default_mm``; so do layers thinner than :data:`THIN_LAYER_FRACTION` of it (see
+    :func:`thin_layer_moves`).
     """
+    return _layer_heights(table, default_mm=default_mm, max_mm=max_mm)[0]
+
+
+def thin_layer_moves(table: MoveTable, *, default_mm: float, max_mm: float) -> int:
+    """Extruding moves whose layer was too thin to be one (given ``default_mm``).
+
+    A file without layer markers gets a layer per rise of Z (:mod:`flowtwin.gcode`), so a
+    spiral vase without markers has one "layer" per rising move, a few µm above the one
+    before. The melt under the nozzle is then the turn below, about one nominal layer
+    height lower, not the step before: :func:`layer_heights_mm` gives such moves
+    ``default_mm`` (a 4 µm gap would put an absurd back-pressure [002] on them).
+    """
+    return _layer_heights(table, default_mm=default_mm, max_mm=max_mm)[1]
+
+
+def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
+                   ) -> tuple[npt.NDArray[np.float64], int]:
     m = table.moves
     n = len(m)
     layer = m["layer"].astype(np.int64)
@@ -101,17 +126,20 @@ def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
     missing = np.flatnonzero(np.isnan(z))
     if missing.size:
         sel = np.flatnonzero(extruding & (layer >= 0))
-        lays, first = np.unique(layer[sel], return_index=True)  # first extrusion per layer
-        z_first = np.full(n_layers, np.nan)
-        z_first[lays] = m["z"][sel[first]]
-        z[missing] = z_first[missing]
+        z_top = np.full(n_layers, -np.inf)
+        np.maximum.at(z_top, layer[sel], m["z"][sel].astype(np.float64))
+        z_top[np.isneginf(z_top)] = np.nan
+        z[missing] = z_top[missing]
     h_layer = np.diff(np.concatenate(([0.0], z)))
-    ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm)
+    # NaN (no Z at all) is not thin: it takes the default below anyway, unreported
+    thin = h_layer < THIN_LAYER_FRACTION * default_mm
+    ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm) & ~thin
     h_layer = np.where(ok, h_layer, default_mm)
     out = np.full(n, default_mm)
     inside = layer >= 0
     out[inside] = h_layer[layer[inside]]
-    return out
+    n_thin = int(np.count_nonzero(thin[layer[inside]] & extruding[inside])) if n else 0
+    return out, n_thin
 
 
 def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
@@ -161,7 +189,12 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
     t_eval = np.clip(temps, lo, hi)
     default_h = machine.setup.layer_height_mm or float(
         table.metadata.get("layer_height_mm", 0.2) or 0.2)  # type: ignore[arg-type]
-    h = layer_heights_mm(table, default_mm=default_h, max_mm=hot.nozzle_diameter_mm)
+    h, n_thin = _layer_heights(table, default_mm=default_h, max_mm=hot.nozzle_diameter_mm)
+    if n_thin:
+        warnings.append(f"{n_thin} extruding moves lie in layers less than "
+                        f"{THIN_LAYER_FRACTION * default_h:.3g} mm above the layer below (a "
+                        "spiral without layer markers?): they are given the nominal layer "
+                        f"height {default_h:g} mm, the gap to the turn below")
     # the physics once per run of moves at the same temperature and layer height (most
     # moves share them with the move before): the same numbers, element by element
     run = _run_starts(t_eval, h)

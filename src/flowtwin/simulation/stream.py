@@ -22,9 +22,11 @@ Sections end where the result cannot depend on what follows:
   command differs there only within ``h`` of the cut.
 
 Differences to :func:`~flowtwin.simulation.simulate`, by construction: layer heights come
-from the first extrusion of each layer (the reader gives slicer layer markers only at the
-end of a stream); ``use_slicer_limits`` (the slicer's limits sit at the end of the file) is
-not offered. Marlin Linear Advance carries its tracked advance from section to section.
+from the highest extrusion of each layer seen so far (the reader gives slicer layer markers
+only at the end of a stream; in a spiral layer split by a section cut, the part before the
+cut sees the layer's top so far); ``use_slicer_limits`` (the slicer's limits sit at the end
+of the file) is not offered. Marlin Linear Advance carries its tracked advance from section
+to section.
 """
 
 from __future__ import annotations
@@ -367,7 +369,7 @@ class _Simulator:
         setp = Event(0, 0, "M104", {"S": float(st.set_c)})
         table = MoveTable(moves=sec_moves, events=[*replay, setp, *local],
                           start_xyze=np.array([*self.start_xyz, 0.0]), source=self.agg.file)
-        # layer heights from the first extrusion of every layer, carried across sections
+        # layer heights from the highest extrusion of every layer, carried across sections
         self._layer_z(sec_moves)
         layers = sec_moves["layer"]
         top = int(layers.max()) + 1 if cut else 0
@@ -424,17 +426,19 @@ class _Simulator:
         self.n_buf = len(rest.moves)
 
     def _layer_z(self, moves: npt.NDArray[np.void]) -> None:
-        """Record the Z of the first extrusion of every new layer."""
+        """Record the highest Z of the extrusions of every layer seen so far."""
         zs = self.st.layer_z
         layer = moves["layer"].astype(np.int64)
         ext = ((moves["kind"] & MoveKind.EXTRUDE) != 0) & (layer >= 0)
         sel = np.flatnonzero(ext)
         if not sel.size:
             return
-        lays, first = np.unique(layer[sel], return_index=True)
-        top = int(lays[-1]) + 1
+        top = int(layer[sel].max()) + 1
+        z_top = np.full(top, -np.inf)
+        np.maximum.at(z_top, layer[sel], moves["z"][sel].astype(np.float64))
         if len(zs) < top:
             zs.extend([math.nan] * (top - len(zs)))
-        for lay, i in zip(lays.tolist(), sel[first].tolist(), strict=True):
-            if math.isnan(zs[lay]):
-                zs[lay] = float(moves["z"][i])
+        for lay in np.flatnonzero(np.isfinite(z_top)).tolist():
+            value = float(z_top[lay])
+            if math.isnan(zs[lay]) or value > zs[lay]:
+                zs[lay] = value
