@@ -205,7 +205,10 @@ def _spiral_after_perimeters(path: Path, *, layers: int = 2, turns: int = 2,
 
 def test_spiral_ramp_after_perimeters_five_fold(tmp_path: Path) -> None:
     """prusaslicer_2.7.4_vase in small: a spiral ramp after planar layers is compensated
-    like any other wall (the vase's first spiral layer lost 95 % of its melt)."""
+    like any other wall. The vase's first spiral layer lost 95 % of its melt while the twin
+    read its layer height from where its first extrusion ended (0.00625 mm here, smaller
+    still once the advance cut that move: the twin's physics of a move depended on how it
+    was cut); the twin now takes the layer's top, and the pieces keep their move's K."""
     src = tmp_path / "spiral.gcode"
     _spiral_after_perimeters(src)
     report = compensate(src, tmp_path / "out.gcode", advance=True, slip=True)

@@ -124,10 +124,10 @@ class _Kkt:
                                              minlength=self.h_band.size)
             # upper storage ab[b − k, j] = M[j − k, j] is, transposed, the lower rows
             # low[j, b − k] = M[j, j − k]
-            low = np.ascontiguousarray(band.reshape(self.b + 1, self.n).T, dtype=np.float64)
-            delta = 1e-13 * float(np.max(np.abs(low[:, self.b])))
-            for _ in range(4):
-                fac = low.copy()
+            upper = band.reshape(self.b + 1, self.n)
+            delta = 1e-13 * float(np.max(np.abs(upper[self.b])))
+            for _ in range(4):  # one transposed copy per attempt (it is factorised in place)
+                fac = np.ascontiguousarray(upper.T, dtype=np.float64)
                 fac[:, self.b] += delta
                 if band_cholesky(fac):
                     return _BandedFactor(fac)
