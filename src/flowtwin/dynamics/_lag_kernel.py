@@ -245,6 +245,28 @@ def _root(which: int, regime: int, x0: float, c0: float, c1: float, c2: float, c
 
 
 @njit(cache=True)
+def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: float,
+           out: float, slip: float, grind: float, gtime: float, time: float, xhi: float,
+           xlo: float, k_s: float, kc: float) -> None:
+    """Add a run of pieces of one accumulator row (``xhi``, ``xlo``: extremes of ``Δl``)."""
+    acc[row, A_CMD] += cmd
+    acc[row, A_TIME] += time
+    acc[row, A_FWD] += fwd
+    acc[row, A_GRIND] += grind
+    acc[row, A_FED] += fed
+    acc[row, A_SLIP] += slip
+    acc[row, A_GTIME] += gtime
+    acc[row, A_OUT] += out
+    # (division is monotone: the largest quotient is the quotient of the largest)
+    if xhi / kc > acc[row, A_FMAX]:
+        acc[row, A_FMAX] = xhi / kc
+    if xhi / k_s > acc[row, A_QMAX]:
+        acc[row, A_QMAX] = xhi / k_s
+    if xlo / k_s < acc[row, A_QMIN]:
+        acc[row, A_QMIN] = xlo / k_s
+
+
+@njit(cache=True)
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
                      move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
@@ -282,6 +304,13 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         js += 1
     k_last = 1.0
     kc_last = 1.0
+    # accumulators of the current row, kept in registers and flushed when the row changes
+    # (same additions in the same order as into the row itself: bit-identical sums)
+    cur = -1
+    kk = kcc = 1.0
+    l_cmd = l_fwd = l_fed = l_out = l_slip = l_grind = l_gtime = l_time = 0.0
+    l_xhi = 0.0
+    l_xlo = math.inf
     for i in range(nseg):
         c0 = coef[i, 0]
         c1 = coef[i, 1]
@@ -298,6 +327,14 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
             slot = nmoves
         else:
             slot = stop_row[mi]
+        if slot != cur:
+            if cur >= 0:
+                _flush(acc, cur, l_cmd, l_fwd, l_fed, l_out, l_slip, l_grind, l_gtime, l_time,
+                       l_xhi, l_xlo, kk, kcc)
+            cur = slot
+            l_cmd = l_fwd = l_fed = l_out = l_slip = l_grind = l_gtime = l_time = 0.0
+            l_xhi = 0.0
+            l_xlo = math.inf
         kk = k_s[p]
         kcc = kc[p]
         k_last = kk
@@ -417,20 +454,20 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 length = tend - tau
                 b0, b1, b2, b3 = shift4(c0, c1, c2, c3, tau, 1.0)
                 cmd = ipoly4(b0, b1, b2, b3, length)
-                acc[slot, A_CMD] += cmd
-                acc[slot, A_TIME] += length
+                l_cmd += cmd
+                l_time += length
                 if vpos:
-                    acc[slot, A_FWD] += cmd
+                    l_fwd += cmd
                 if regime == GRIND:
-                    acc[slot, A_GRIND] += cmd
+                    l_grind += cmd
                 else:
-                    acc[slot, A_FED] += ascale * cmd - igx
+                    l_fed += ascale * cmd - igx
                     if vpos:
-                        acc[slot, A_SLIP] += kpp * cmd + igx
+                        l_slip += kpp * cmd + igx
                 if grinding:
-                    acc[slot, A_GTIME] += length
+                    l_gtime += length
                 if regime != FREE:
-                    acc[slot, A_OUT] += ix / kk
+                    l_out += ix / kk
                     xhi = max(x, xe)
                     xlo = min(x, xe)
                     if event == _EV_NONE and turn_t > tau and turn_t < tend:
@@ -443,12 +480,10 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 else:
                     xlo = 0.0
                     xhi = 0.0
-                if xhi / kcc > acc[slot, A_FMAX]:
-                    acc[slot, A_FMAX] = xhi / kcc
-                if xhi / kk > acc[slot, A_QMAX]:
-                    acc[slot, A_QMAX] = xhi / kk
-                if xlo / kk < acc[slot, A_QMIN]:
-                    acc[slot, A_QMIN] = xlo / kk
+                if xhi > l_xhi:
+                    l_xhi = xhi
+                if xlo < l_xlo:
+                    l_xlo = xlo
                 # ---- samples inside [tau, tend)
                 while js < ns and sample_t[js] < t0[i] + tend:
                     ts = sample_t[js] - t0[i]
@@ -481,6 +516,9 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 elif event == _EV_RELEASE:
                     grinding = False
             pa = pb
+    if cur >= 0:
+        _flush(acc, cur, l_cmd, l_fwd, l_fed, l_out, l_slip, l_grind, l_gtime, l_time, l_xhi,
+               l_xlo, k_last, kc_last)
     # samples after the end: final state at rest
     e_end = 0.0
     if nseg > 0:
