@@ -230,3 +230,27 @@ def test_numbers_parse_like_python_float() -> None:
     assert len(xs) == len(expected)
     assert np.array_equal(xs, np.array(expected))
     assert math.isfinite(float(xs.sum()))
+
+
+def test_klipper_heater_macros_become_temperature_events() -> None:
+    """Klipper slicer profiles heat in the start macro (``M104 S0`` then ``START_PRINT
+    EXTRUDER_TEMP=220``): without reading it the twin would print the whole file with the
+    heater off."""
+    text = (b"M104 S0\nSTART_PRINT EXTRUDER_TEMP=220 BED_TEMP=60\n"
+            b"PRINT_START EXTRUDER=205\nSET_HEATER_TEMPERATURE HEATER=extruder1 TARGET=215\n"
+            b"SET_HEATER_TEMPERATURE HEATER=heater_bed TARGET=60\nSTART_PRINT BED=55\n"
+            b"G1 X10 E1 F1000\n")
+    table = read_gcode(text)
+    assert [(e.code, e.params, e.line) for e in table.events] == [
+        ("M104", {"S": 0.0}, 1), ("M109", {"S": 220.0}, 2), ("M109", {"S": 205.0}, 3),
+        ("M104", {"S": 215.0, "T": 1.0}, 4)]
+    # the bed heater and a start macro without a nozzle temperature stay unknown commands
+    assert table.unknown_commands == {"SET_HEATER_TEMPERATURE": 1, "START_PRINT": 1}
+    notes = [w for w in table.warnings if "read as M109 S220" in w]
+    assert len(notes) == 1 and ":2:" in notes[0]  # said once, with its line
+    with pytest.raises(GcodeError) as info:
+        read_gcode(b"G28\nSTART_PRINT EXTRUDER_TEMP=hot\n")
+    assert info.value.line == 2 and info.value.field == "EXTRUDER_TEMP"
+    assert "hot" in str(info.value)
+    with pytest.raises(GcodeError, match="0–1000"):
+        read_gcode(b"START_PRINT EXTRUDER_TEMP=5000\n")

@@ -10,8 +10,20 @@ from typing import Any
 from flowtwin.gcode.moves import Event
 
 __all__ = [
-    "EVENT_CODES", "EVENT_SETTERS", "HARMLESS_CODES", "IS_EVENT", "IS_HARMLESS", "IS_UNKNOWN",
-    "LETTERS", "NUMERIC_PARAMS", "Span", "event_setters", "is_rrf_g10", "number_param",
+    "EVENT_CODES",
+    "EVENT_SETTERS",
+    "HARMLESS_CODES",
+    "HEATER_MACROS",
+    "IS_EVENT",
+    "IS_HARMLESS",
+    "IS_UNKNOWN",
+    "LETTERS",
+    "NUMERIC_PARAMS",
+    "Span",
+    "event_setters",
+    "heater_event",
+    "is_rrf_g10",
+    "number_param",
 ]
 
 #: Commands kept as :class:`Event` for the planner and the physics.
@@ -37,6 +49,41 @@ NUMERIC_PARAMS: dict[str, frozenset[str]] = {
                                      "MINIMUM_CRUISE_RATIO", "ACCEL_TO_DECEL"}),
     "SET_PRESSURE_ADVANCE": frozenset({"ADVANCE", "SMOOTH_TIME"}),
 }
+
+#: Klipper commands that set the nozzle temperature without an M104/M109: the start macro
+#: slicers call with the first layer's temperature (its body is the printer's; by the
+#: common convention it heats and waits), and Klipper's own heater command.
+HEATER_MACROS = frozenset({"START_PRINT", "PRINT_START", "SET_HEATER_TEMPERATURE"})
+#: Parameter names of the nozzle temperature in start macros, by common use.
+_MACRO_TEMP_KEYS = ("EXTRUDER_TEMP", "EXTRUDER_TEMPERATURE", "EXTRUDER", "HOTEND_TEMP",
+                    "HOTEND", "NOZZLE_TEMP", "NOZZLE")
+
+
+def heater_event(code: str, params: dict[str, float | str]
+                 ) -> tuple[str, dict[str, float | str], str] | None:
+    """The temperature command a Klipper heater macro stands for, or ``None``.
+
+    ``START_PRINT EXTRUDER_TEMP=220`` → ``("M109", {"S": 220.0}, "EXTRUDER_TEMP")``;
+    ``SET_HEATER_TEMPERATURE HEATER=extruder1 TARGET=215`` →
+    ``("M104", {"S": 215.0, "T": 1.0}, "TARGET")``. A macro without a nozzle temperature,
+    or a heater that is not an extruder, gives ``None``. The third item is the parameter
+    read (to name it in messages); its value may be text (the caller checks).
+    """
+    if code == "SET_HEATER_TEMPERATURE":
+        heater = str(params.get("HEATER", "")).lower()
+        if not heater.startswith("extruder") or "TARGET" not in params:
+            return None
+        index = heater[len("extruder"):]
+        out: dict[str, float | str] = {"S": params["TARGET"]}
+        if index:
+            if not index.isdigit():
+                return None
+            out["T"] = float(index)
+        return "M104", out, "TARGET"
+    for key in _MACRO_TEMP_KEYS:
+        if key in params:
+            return "M109", {"S": params[key]}, key
+    return None
 
 
 LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"

@@ -33,12 +33,14 @@ from flowtwin.gcode._commands import (
     EVENT_CODES,
     EVENT_SETTERS,
     HARMLESS_CODES,
+    HEATER_MACROS,
     IS_EVENT,
     IS_HARMLESS,
     IS_UNKNOWN,
     LETTERS,
     NUMERIC_PARAMS,
     Span,
+    heater_event,
     is_rrf_g10,
     number_param,
 )
@@ -137,6 +139,7 @@ class _Reader:
         self.retracted = False
         self.comments = CommentInterpreter()
         self.unknown: dict[str, int] = {}
+        self._macro_noted = False
         self._codes: dict[int, tuple[str, tuple[str, ...], int]] = {}
         self.warnings: list[str] = []
         self.n_moves = 0            # moves emitted in earlier chunks
@@ -287,12 +290,30 @@ class _Reader:
             if not checked:  # kernel-parsed commands hold numbers only
                 self._check_numeric(code, params, line, text)
             self.events.append(Event(move_index, line, code, params))
+        elif code in HEATER_MACROS and (heat := heater_event(code, params)) is not None:
+            self._heater_macro(code, heat, line, move_index, text)
         elif code not in HARMLESS_CODES:
             if self.options.strict:
                 raise GcodeError(f"unknown command {code}", source=self.name, line=line,
                                  value=str(text).strip(), allowed="commands flowtwin interprets "
                                  "(run without --strict to count and skip unknown ones)")
             self.unknown[code] = self.unknown.get(code, 0) + 1
+
+    def _heater_macro(self, code: str, heat: tuple[str, dict[str, float | str], str],
+                      line: int, move_index: int, text: str | Span) -> None:
+        """A Klipper macro that sets the nozzle temperature, kept as the M104/M109 it means."""
+        m_code, m_params, key = heat
+        value = m_params["S"]
+        if not isinstance(value, float) or not 0.0 <= value <= 1000.0:
+            raise GcodeError(f"{code} {key} is not a temperature", source=self.name,
+                             line=line, field=key, value=str(value),
+                             allowed="a number of °C, 0–1000")
+        self.events.append(Event(move_index, line, m_code, m_params))
+        if not self._macro_noted:
+            self._macro_noted = True
+            self.warnings.append(f"{self.name}:{line}: {str(text).strip()} read as "
+                                 f"{m_code} S{value:g} (the macro's body is the printer's: "
+                                 "the twin takes the nozzle temperature it is given)")
 
     def _code_info(self, key: int) -> tuple[str, tuple[str, ...], int]:
         """Command name, parameter letters and category of a kernel-parsed command."""
