@@ -117,8 +117,9 @@ def _seg_of(bt0: npt.NDArray[np.float64], x: float, j: int) -> int:
 def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
                    bv0: npt.NDArray[np.float64], ba: npt.NDArray[np.float64],
                    be0: npt.NDArray[np.float64], bk: npt.NDArray[np.float64],
-                   u: npt.NDArray[np.float64], hp: npt.NDArray[np.float64],
-                   move_t0: npt.NDArray[np.float64], move_t1: npt.NDArray[np.float64],
+                   u: npt.NDArray[np.float64], reg_end: npt.NDArray[np.int64],
+                   reg_h: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
+                   move_t1: npt.NDArray[np.float64],
                    out_coef: npt.NDArray[np.float64], out_e0: npt.NDArray[np.float64],
                    out_move: npt.NDArray[np.int64], out_gap: npt.NDArray[np.bool_]) -> None:
     """Smoothed advanced speed (cubic per piece) and position at every piece start.
@@ -130,7 +131,9 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
     Base segment ``j`` covers ``[bt0[j], bt0[j] + bdt[j])`` with speed ``bv0 + ba τ``,
     position ``be0`` at its start and advance ``bk`` (s); the first and last base segments
     must be at rest (they are extended to ±infinity). Piece ``k`` is
-    ``[u[k], u[k+1])`` with window half width ``hp[k]`` (0: no smoothing and no advance).
+    ``[u[k], u[k+1])``; pieces ``reg_end[r-1] <= k < reg_end[r]`` (``reg_end`` increasing,
+    its last entry ``len(u) - 1``) have the window half width ``reg_h[r]`` (0: no smoothing
+    and no advance).
     """
     nb = bt0.shape[0]
     jc = 0
@@ -140,9 +143,12 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
     jb = 0
     nm = move_t0.shape[0]
     owner = -1
+    r = 0
     for k in range(u.shape[0] - 1):
         t = u[k]
-        h = hp[k]
+        while k >= reg_end[r]:
+            r += 1
+        h = reg_h[r]
         # The segments holding t - h, t and t + h throughout the piece: looked up at the
         # piece's midpoint, because t ± h may round to the wrong side of a breakpoint b ∓ h.
         tm = 0.5 * (t + u[k + 1])

@@ -423,15 +423,16 @@ def _smoothed(feed: CommandedFeed, sched: AdvanceSchedule) -> tuple[_Arrays, lis
         counts.append(u.shape[0] - 1)
     u_all = np.concatenate([*pieces, [t_hi]])
     del pieces
-    hp = np.repeat(np.asarray(widths), counts)
-    m = hp.shape[0]
+    reg_end = np.cumsum(np.asarray(counts, dtype=np.int64))
+    reg_h = np.asarray(widths, dtype=np.float64)
+    m = int(reg_end[-1]) if reg_end.size else 0
     out_coef = np.empty((m, 4))
     out_e0 = np.empty(m)
     owner = np.empty(m, dtype=np.int64)
     gap = np.empty(m, dtype=np.bool_)
-    klipper_smooth(t0, dt, v0, acc, e0, k_seg, u_all, hp, feed.move_t0_s, feed.move_t1_s,
-                   out_coef, out_e0, owner, gap)
-    del t0, dt, v0, acc, e0, k_seg, hp
+    klipper_smooth(t0, dt, v0, acc, e0, k_seg, u_all, reg_end, reg_h, feed.move_t0_s,
+                   feed.move_t1_s, out_coef, out_e0, owner, gap)
+    del t0, dt, v0, acc, e0, k_seg
     phase = np.where(gap, np.int8(PHASE_GAP), np.int8(PHASE_MIXED))
     p_dt = np.diff(u_all)
     notes: list[str] = []
