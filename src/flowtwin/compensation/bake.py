@@ -89,6 +89,28 @@ class PassReport:
     relief_retraction_mm: float = 0.0
 
 
+def _gaps(elig: npt.NDArray[np.bool_], timeline: Timeline,
+          min_time_s: FloatArray) -> list[tuple[int, int]]:
+    """Stretches ``i .. j-1`` of non-printing rows between two runs (rows ``i-1`` and ``j``
+    print) lasting at least ``min_time_s[i-1]``, as ``(i, j)``."""
+    n = elig.shape[0]
+    if n < 3:
+        return []
+    e = elig.astype(np.int8)
+    first = np.flatnonzero(np.diff(e) == -1) + 1  # a printing row, then not
+    last = np.flatnonzero(np.diff(e) == 1) + 1    # not, then a printing row
+    if not first.size or not last.size:
+        return []
+    # pair each gap start with the next printing row after it
+    k = np.searchsorted(last, first, side="left")
+    ok = k < last.size
+    i, j = first[ok], last[k[ok]]
+    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
+    end = timeline.end_time_s
+    keep = start[j] - end[i - 1] >= min_time_s[i - 1]
+    return list(zip(i[keep].tolist(), j[keep].tolist(), strict=True))
+
+
 def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
               timeline: Timeline, min_time_s: FloatArray) -> list[tuple[int, int]]:
     """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
@@ -98,26 +120,13 @@ def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: I
     one lets little melt ooze, and a relief would only add two stops);
     ``first``/``last`` are its first and last XY travels.
     """
-    n = elig.shape[0]
-    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
-    end = timeline.end_time_s
     out: list[tuple[int, int]] = []
-    i = 0
-    while i < n:
-        if elig[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and not elig[j]:
-            j += 1
-        # rows i .. j-1 are between run ending at i-1 and run starting at j
-        long_enough = i > 0 and j < n and start[j] - end[i - 1] >= min_time_s[i - 1]
-        if long_enough and np.all(row_e[i:j] == 0):
+    for i, j in _gaps(elig, timeline, min_time_s):
+        if np.all(row_e[i:j] == 0):
             xy = [k for k in range(i, j)
                   if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
             if xy:
                 out.append((xy[0], xy[-1]))
-        i = j
     return out
 
 
@@ -141,20 +150,9 @@ def _retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8
     list of tuple
         ``(first interim row, push-back row)``.
     """
-    n = elig.shape[0]
-    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
-    end = timeline.end_time_s
     out: list[tuple[int, int]] = []
-    i = 0
-    while i < n:
-        if elig[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and not elig[j]:
-            j += 1
-        if (i > 0 and j < n and start[j] - end[i - 1] >= min_time_s[i - 1]
-                and np.all(tool[i - 1:j + 1] == tool[i - 1])):
+    for i, j in _gaps(elig, timeline, min_time_s):
+        if np.all(tool[i - 1:j + 1] == tool[i - 1]):
             e = row_e[i:j]
             neg = np.flatnonzero(e < 0)
             pos = np.flatnonzero(e > 0)
@@ -162,7 +160,6 @@ def _retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8
                 r = i + int(pos[-1])
                 if (kind[r] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0:
                     out.append((i, r))
-        i = j
     return out
 
 
