@@ -1,10 +1,11 @@
-"""The compiled banded Cholesky factorisation of the interior-point steps."""
+"""The banded Cholesky factorisation of the interior-point steps (LAPACK, one BLAS thread)."""
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
-from flowtwin.compensation._qp import band_cholesky, band_solve
+from flowtwin.compensation._qp import _BandedFactor, _Kkt
 
 
 def _band_spd(n: int, b: int, seed: int) -> np.ndarray:
@@ -18,29 +19,30 @@ def _band_spd(n: int, b: int, seed: int) -> np.ndarray:
     return m
 
 
-def _lower_rows(m: np.ndarray, b: int) -> np.ndarray:
-    n = m.shape[0]
-    low = np.zeros((n, b + 1))
-    for j in range(n):
-        for k in range(0, min(b, j) + 1):
-            low[j, b - k] = m[j, j - k]
-    return low
-
-
-def test_band_cholesky_matches_numpy() -> None:
-    for n, b, seed in [(40, 3, 0), (25, 24, 1), (60, 1, 2), (5, 0, 3)]:
+def test_banded_step_matrix_solves_like_numpy() -> None:
+    """``H + Cᵀ·diag(d)·C`` (band ``b``, C = identity) factorised in band storage solves
+    like numpy's dense solve, and numpy's factor is what LAPACK returns."""
+    for n, b, seed in [(40, 3, 0), (25, 11, 1), (60, 1, 2), (5, 0, 3)]:
         m = _band_spd(n, b, seed)
-        fac = _lower_rows(m, b)
-        assert band_cholesky(fac)
-        lower = np.linalg.cholesky(m)
-        # the factor in lower-row storage equals numpy's dense factor
-        np.testing.assert_allclose(fac, _lower_rows(lower, b), rtol=1e-12, atol=1e-12)
+        d = np.random.default_rng(seed + 10).uniform(0.5, 2.0, size=n)
+        kkt = _Kkt(sp.csc_matrix(m), sp.csr_matrix(sp.identity(n)))
+        assert kkt.banded and kkt.b == b
+        fac = kkt.factor(d)
+        assert isinstance(fac, _BandedFactor)
+        full = m + np.diag(d)
+        upper = np.linalg.cholesky(full).T
+        for k in range(b + 1):  # LAPACK upper band storage: ab[b − k, j] = U[j − k, j]
+            np.testing.assert_allclose(fac.factor[b - k, k:], np.diag(upper, k),
+                                       rtol=1e-9, atol=1e-9)
         rhs = np.random.default_rng(seed).normal(size=n)
-        x = rhs.copy()
-        band_solve(fac, x)
-        np.testing.assert_allclose(m @ x, rhs, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(full @ fac.solve(rhs), rhs, rtol=1e-10, atol=1e-10)
 
 
-def test_band_cholesky_refuses_an_indefinite_matrix() -> None:
-    m = np.array([[1.0, 2.0], [2.0, 1.0]])   # eigenvalues 3 and −1
-    assert not band_cholesky(_lower_rows(m, 1))
+def test_indefinite_step_matrix_is_not_factorised_as_banded() -> None:
+    m = np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # eigenvalue −1
+    kkt = _Kkt(sp.csc_matrix(m), sp.csr_matrix(sp.identity(3)))
+    assert kkt.banded
+    fac = kkt.factor(np.zeros(3))
+    assert not isinstance(fac, _BandedFactor)  # the LU fallback takes it
+    rhs = np.array([1.0, 2.0, 3.0])
+    np.testing.assert_allclose(m @ fac.solve(rhs), rhs, rtol=1e-9)

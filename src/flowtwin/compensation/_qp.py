@@ -9,9 +9,9 @@ with ``H`` symmetric positive (semi)definite and ``H + Cᵀ·D·C`` positive def
 positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
 ``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``;
 every Newton step solves ``(H + Cᵀ(z/s + w/t)C)·Δx = r``, which keeps the sparsity
-(banded for the lag model): a banded Cholesky factorisation (compiled here, single
-threaded: LAPACK's ``pbtrf`` through a threaded BLAS on narrow bands ran 40× slower on a
-busy machine), or SuperLU when the band is wide. Nocedal & Wright, *Numerical
+(banded for the lag model): a banded Cholesky factorisation (LAPACK ``pbtrf``, with BLAS
+held to one thread: on narrow bands a threaded BLAS ran 1000× slower on a busy machine),
+or SuperLU when the band is wide. Nocedal & Wright, *Numerical
 Optimization* (2nd ed.), §16.6.
 """
 
@@ -22,8 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from numba import njit
+from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 from scipy.sparse.linalg import splu
+from threadpoolctl import threadpool_limits
 
 __all__ = ["solve_box_qp"]
 
@@ -122,16 +123,17 @@ class _Kkt:
         if self.banded:
             band = self.h_band + np.bincount(self.p_index, weights=dd[self.p_row] * self.p_val,
                                              minlength=self.h_band.size)
-            # upper storage ab[b − k, j] = M[j − k, j] is, transposed, the lower rows
-            # low[j, b − k] = M[j, j − k]
-            upper = band.reshape(self.b + 1, self.n)
-            delta = 1e-13 * float(np.max(np.abs(upper[self.b])))
-            for _ in range(4):  # one transposed copy per attempt (it is factorised in place)
-                fac = np.ascontiguousarray(upper.T, dtype=np.float64)
-                fac[:, self.b] += delta
-                if band_cholesky(fac):
-                    return _BandedFactor(fac)
-                delta *= 1e3
+            ab = band.reshape(self.b + 1, self.n)  # LAPACK's upper band storage
+            delta = 1e-13 * float(np.max(np.abs(ab[self.b])))
+            for _ in range(4):
+                reg = ab.copy()
+                reg[self.b] += delta
+                try:
+                    with threadpool_limits(limits=1, user_api="blas"):
+                        return _BandedFactor(cholesky_banded(reg, lower=False,
+                                                             check_finite=False))
+                except LinAlgError:  # not positive definite after round-off
+                    delta *= 1e3
         m = sp.csc_matrix(self.h + self.ct @ sp.diags(dd) @ self.c)
         return splu(m + sp.identity(self.n, format="csc")
                     * (1e-13 * float(np.max(np.abs(m.diagonal())))))
@@ -142,51 +144,9 @@ class _BandedFactor:
         self.factor = factor
 
     def solve(self, rhs: FloatArray) -> FloatArray:
-        out = np.ascontiguousarray(rhs, dtype=np.float64).copy()
-        band_solve(self.factor, out)
-        return out
-
-
-@njit(cache=True)
-def band_cholesky(a: FloatArray) -> bool:
-    """In place: ``M = L·Lᵀ`` for a symmetric band matrix in lower rows.
-
-    ``a[j, b − k]`` holds ``M[j, j − k]`` (``k = 0 … b``) on entry and ``L[j, j − k]`` on
-    return; ``False`` if a pivot is not positive (the matrix is not positive definite).
-    """
-    n, w = a.shape
-    b = w - 1
-    for j in range(n):
-        k0 = max(0, j - b)
-        for k in range(k0, j + 1):
-            m0 = max(k0, k - b)
-            acc = a[j, b - (j - k)]
-            for m in range(m0, k):
-                acc -= a[j, b - (j - m)] * a[k, b - (k - m)]
-            if k < j:
-                a[j, b - (j - k)] = acc / a[k, b]
-            else:
-                if not acc > 0.0:
-                    return False
-                a[j, b] = np.sqrt(acc)
-    return True
-
-
-@njit(cache=True)
-def band_solve(fac: FloatArray, x: FloatArray) -> None:
-    """In place: ``x ← (L·Lᵀ)⁻¹·x`` with ``L`` from :func:`band_cholesky`."""
-    n, w = fac.shape
-    b = w - 1
-    for j in range(n):
-        acc = x[j]
-        for m in range(max(0, j - b), j):
-            acc -= fac[j, b - (j - m)] * x[m]
-        x[j] = acc / fac[j, b]
-    for j in range(n - 1, -1, -1):
-        acc = x[j]
-        for i in range(j + 1, min(n, j + b + 1)):
-            acc -= fac[i, b - (i - j)] * x[i]
-        x[j] = acc / fac[j, b]
+        with threadpool_limits(limits=1, user_api="blas"):
+            return np.asarray(cho_solve_banded((self.factor, False), rhs,
+                                               check_finite=False))
 
 
 def _step_to_boundary(v: FloatArray, dv: FloatArray) -> float:
