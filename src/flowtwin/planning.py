@@ -17,6 +17,7 @@ from typing import BinaryIO
 import numpy as np
 
 from flowtwin.errors import ProfileError
+from flowtwin.gcode.groups import group_sums
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
@@ -81,10 +82,8 @@ class PlanResult:
         t = self.table
         m = t.moves
         written = (m["kind"] & MoveKind.FW_RETRACT) == 0
-        extruded: dict[str, float] = {}
-        for tool in np.unique(m["tool"]).tolist():
-            sel = m["tool"] == tool
-            extruded[str(tool)] = float(np.sum(m["de"][sel] * m["flow"][sel]))
+        tools, _, (sums,) = group_sums(m["tool"], m["de"] * m["flow"])
+        extruded = {str(k): v for k, v in zip(tools.tolist(), sums.tolist(), strict=True)}
         return {
             "file": t.source,
             "printer": self.printer,

@@ -19,6 +19,8 @@ from enum import IntFlag
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.gcode.groups import group_sums
+
 __all__ = ["MOVE_DTYPE", "Event", "MoveKind", "MoveTable"]
 
 
@@ -125,10 +127,6 @@ class MoveTable:
         Firmware retractions (``G10``/``G11``) are motions of the extruder but not
         filament the G-code asks for, so they are not counted here.
         """
-        out: dict[int, float] = {}
         written = (self.moves["kind"] & MoveKind.FW_RETRACT) == 0
-        tools = self.moves["tool"]
-        for tool in np.unique(tools):
-            sel = written & (tools == tool)
-            out[int(tool)] = float(np.sum(self.moves["de"][sel]))
-        return out
+        tools, _, (sums,) = group_sums(self.moves["tool"], np.where(written, self.moves["de"], 0.0))
+        return {int(t): float(v) for t, v in zip(tools.tolist(), sums.tolist(), strict=True)}

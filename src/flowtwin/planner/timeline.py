@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import DataError
+from flowtwin.gcode.groups import group_sums
 
 if TYPE_CHECKING:
     from flowtwin.gcode.moves import MoveTable
@@ -164,15 +165,14 @@ def time_by_feature(timeline: Timeline, table: MoveTable) -> dict[str, float]:
     dict[str, float]
         Feature name → seconds; the values sum to the timeline's motion and dwell time.
     """
-    feature = np.asarray(table.moves["feature"], dtype=np.int64)
+    feature = table.moves["feature"]
     n = feature.shape[0]
     if timeline.phases.shape[0] != n:
         raise DataError("timeline and move table have different lengths",
                         field="phases", value=timeline.phases.shape[0], allowed=f"{n} rows")
     out: dict[str, float] = {}
     if n:
-        keys, inv = np.unique(feature, return_inverse=True)
-        sums = np.bincount(inv, weights=timeline.move_time_s, minlength=keys.shape[0])
+        keys, _, (sums,) = group_sums(feature, timeline.move_time_s)
         for k, v in zip(keys.tolist(), sums.tolist(), strict=True):
             name = table.features[k] if 0 <= k < len(table.features) else "unknown"
             out[name] = out.get(name, 0.0) + v

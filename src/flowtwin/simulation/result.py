@@ -15,6 +15,7 @@ from flowtwin.dynamics import DynamicsResult
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.planning import PlanResult
+from flowtwin.simulation import _summary_kernel as sk
 from flowtwin.simulation._deposit_kernel import bead_metrics
 from flowtwin.simulation.parameters import MoveParameters
 
@@ -32,6 +33,8 @@ METRIC_DTYPE = np.dtype([
 ], align=True)
 
 _BEAD = 1.0 - math.pi / 4.0
+#: A move lays a bead when it extrudes with XY motion (and has a commanded volume).
+_PRINTING_BITS = int(MoveKind.EXTRUDE | MoveKind.XY)
 
 
 @dataclass(slots=True)
@@ -66,9 +69,11 @@ class SimulationResult:
 
     # ---- aggregates -----------------------------------------------------------------------
     def _extruding(self) -> npt.NDArray[np.bool_]:
-        m = self.plan.table.moves
-        cmd = self.dynamics.moves["cmd_mm3"]
-        return ((m["kind"] & MoveKind.EXTRUDE) != 0) & ((m["kind"] & MoveKind.XY) != 0) & (cmd > 0)
+        """Moves that lay a bead: extruding XY moves with a commanded volume."""
+        out = np.empty(len(self.plan.table.moves), np.bool_)
+        sk.extruding_mask(self.plan.table.moves["kind"], self.dynamics.moves["cmd_mm3"],
+                       _PRINTING_BITS, out)
+        return out
 
     def _rms(self, sel: npt.NDArray[np.bool_]) -> float:
         """Volume-weighted RMS of the per-move flow error over ``sel``."""
@@ -82,35 +87,33 @@ class SimulationResult:
         """Whole-print figures as plain JSON-able values."""
         d = self.dynamics.moves
         met = self.metrics
-        ext = self._extruding()
-        grinding = d["grinding"].astype(np.int8)
-        events = int(np.count_nonzero(np.diff(np.concatenate(([0], grinding))) == 1))
-        margin = met["force_margin_n"]
-        finite_margin = margin[np.isfinite(margin)]
-        width_dev = (met["width_mean_mm"] - met["width_nominal_mm"])[ext]
+        t = sk.print_totals(self.plan.table.moves["kind"], _PRINTING_BITS, d["cmd_mm3"],
+                         d["out_mm3"], d["stop_out_mm3"], d["fed_cmd_mm3"],
+                         d["slip_loss_mm3"], d["ooze_mm3"], d["peak_force_n"], d["grinding"],
+                         met["flow_error"], met["width_mean_mm"], met["width_nominal_mm"],
+                         met["force_margin_n"], met["narrow"])
         plan = self.plan.summary()
+        w = float(t[sk.T_RMS_W])
         return {
             "file": plan["file"], "machine": self.machine_name, "printer": plan["printer"],
             "firmware": plan["firmware"], "pressure_advance": self.advance,
             "total_time_s": plan["total_time_s"], "moves": plan["moves"],
             "layers": plan["layers"],
-            "commanded_volume_mm3": float(np.sum(d["cmd_mm3"])),
-            "delivered_volume_mm3": float(np.sum(d["out_mm3"] + d["stop_out_mm3"])),
-            "delivered_in_beads_mm3": float(np.sum(d["out_mm3"][ext])),
-            "volume_error": _ratio(float(np.sum(d["out_mm3"] + d["stop_out_mm3"])),
-                                   float(np.sum(d["cmd_mm3"]))),
-            "rms_flow_error": self._rms(ext),
-            "peak_overextrusion": float(np.max(met["flow_error"][ext], initial=0.0)),
-            "peak_underextrusion": float(-np.min(met["flow_error"][ext], initial=0.0)),
-            "worst_width_error_mm": float(np.max(np.abs(width_dev), initial=0.0)),
-            "mean_slip": _share(float(np.sum(d["slip_loss_mm3"])),
-                                float(np.sum(np.maximum(d["fed_cmd_mm3"], 0.0)))),
-            "max_feed_force_n": float(np.max(d["peak_force_n"], initial=0.0)),
-            "min_force_margin_n": float(np.min(finite_margin)) if finite_margin.size else None,
-            "grinding_events": events,
-            "grinding_moves": int(np.count_nonzero(grinding)),
-            "ooze_volume_mm3": float(np.sum(d["ooze_mm3"])),
-            "narrow_beads": int(np.count_nonzero(met["narrow"] & ext)),
+            "commanded_volume_mm3": float(t[sk.T_CMD]),
+            "delivered_volume_mm3": float(t[sk.T_DELIVERED]),
+            "delivered_in_beads_mm3": float(t[sk.T_EXT_OUT]),
+            "volume_error": _ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
+            "rms_flow_error": math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
+            "peak_overextrusion": float(t[sk.T_OVER]),
+            "peak_underextrusion": float(t[sk.T_UNDER]),
+            "worst_width_error_mm": float(t[sk.T_WIDTH_DEV]),
+            "mean_slip": _share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
+            "max_feed_force_n": float(t[sk.T_FORCE_MAX]),
+            "min_force_margin_n": float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
+            "grinding_events": int(t[sk.T_GRIND_EVENTS]),
+            "grinding_moves": int(t[sk.T_GRIND_MOVES]),
+            "ooze_volume_mm3": float(t[sk.T_OOZE]),
+            "narrow_beads": int(t[sk.T_NARROW]),
             "net_filament_mm": plan["net_filament_mm"],
             "warnings": list(self.warnings),
         }
@@ -225,10 +228,11 @@ def deposition_metrics(plan: PlanResult, dyn: DynamicsResult, params: MoveParame
     d = dyn.moves
 
     def col(a: npt.NDArray[np.generic]) -> npt.NDArray[np.float64]:
-        return np.ascontiguousarray(a, dtype=np.float64)
+        # record fields are strided views: the kernel reads them in place (no copies)
+        return np.asarray(a, dtype=np.float64)
 
     bead_metrics(col(m["x"]), col(m["y"]), float(plan.table.start_xyze[0]),
-                 float(plan.table.start_xyze[1]), np.ascontiguousarray(m["kind"]),
+                 float(plan.table.start_xyze[1]), m["kind"],
                  int(MoveKind.EXTRUDE), col(d["cmd_mm3"]), col(d["out_mm3"]),
                  col(d["duration_s"]), col(d["q_min_mm3_s"]), col(d["q_max_mm3_s"]),
                  col(d["peak_force_n"]), col(params.layer_height_mm),
