@@ -7,6 +7,8 @@ the original file (untouched lines stay byte for byte):
    (:mod:`flowtwin.compensation.trajectory`);
 2. **guard** [000 §4] — slower moves where the feed force would grind the filament
    (:mod:`flowtwin.compensation.guard`);
+2b. **pace** — slower stretches where the intended flow would change faster than the
+   melt's lag lets it follow (:mod:`flowtwin.compensation.pace`);
 3. **advance** [001 Eqs. 11, 13] — pressure advance baked into the E of pieces cut at the
    planner's phase boundaries, refined with the twin's lag model, in two passes (the
    second on the re-planned first result) (:mod:`flowtwin.compensation.bake`);
@@ -35,8 +37,9 @@ from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import PassReport, advance_pass
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.guard import GuardOptions, guard_feeds
-from flowtwin.compensation.limits import extruder_limits
+from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
 from flowtwin.compensation.metrics import FlowFigures, flow_figures
+from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
 from flowtwin.compensation.slip import SlipOptions, slip_feedforward
 from flowtwin.compensation.source import ScannedSource, read_source, row_e_grid, scan_source
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
@@ -102,6 +105,13 @@ class CompensationReport:
     lag_factor_changed_moves
         Original moves some piece of which the twin simulates with a different lag factor
         than the move itself (:func:`lag_factor_changes`; 0 when the twin is consistent).
+    paced_moves
+        Source lines the flow pacing slowed (part of).
+    pace_time_cost_s
+        Print time the pacing added (re-planned with and without it), s.
+    pace
+        Figures of the pacing stage (:class:`~flowtwin.compensation.pace.PaceReport`), or
+        ``None``.
     """
 
     source: str
@@ -129,6 +139,9 @@ class CompensationReport:
     warnings: list[str] = field(default_factory=list)
     seconds: float = 0.0
     lag_factor_changed_moves: int = 0
+    paced_moves: list[int] = field(default_factory=list)
+    pace_time_cost_s: float = 0.0
+    pace: dict[str, object] | None = None
 
     def summary(self) -> dict[str, object]:
         """The figures as plain JSON-able values (the ``--json`` object)."""
@@ -162,6 +175,9 @@ class CompensationReport:
             "slowed_moves": len(self.slowed_moves),
             "slowed_lines": list(self.slowed_moves[:1000]),
             "guard_time_cost_s": self.guard_time_cost_s,
+            "paced_moves": len(self.paced_moves),
+            "paced_lines": list(self.paced_moves[:1000]),
+            "pace_time_cost_s": self.pace_time_cost_s, "pace": self.pace,
             "time_before_s": self.time_before_s, "time_after_s": self.time_after_s,
             "grinding_moves_before": self.grinding_moves_before,
             "grinding_moves_after": self.grinding_moves_after,
@@ -207,6 +223,7 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                slip: SlipOptions | bool | None = None,
                guard: GuardOptions | bool | None = None,
                trajectory: TrajectoryOptions | bool | None = None,
+               pace: PaceOptions | bool | None = None,
                firmware_pressure_advance: bool | None = None, advance_passes: int = 2,
                progress: Progress | None = None) -> CompensationReport:
     """Compensate ``source`` for ``machine`` and write ``destination`` (atomically).
@@ -225,6 +242,9 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     advance, slip, guard, trajectory
         ``True`` (defaults), an options object, or ``None``/``False`` (off). With all off
         the output is a byte-identical copy.
+    pace
+        Flow pacing (:mod:`flowtwin.compensation.pace`), after the guard and before the
+        advance: ``True``, a :class:`~flowtwin.compensation.pace.PaceOptions`, or off.
     firmware_pressure_advance
         Simulate the firmware's own pressure advance; default: off when the advance is
         baked into the file (the firmware's must then be off), else on.
@@ -248,6 +268,8 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     sl = _option(slip, SlipOptions)
     gd = _option(guard, GuardOptions)
     tr = _option(trajectory, TrajectoryOptions)
+    pc = _option(pace, PaceOptions)
+    assert pc is None or isinstance(pc, PaceOptions)
     assert adv is None or isinstance(adv, AdvanceOptions)
     assert sl is None or isinstance(sl, SlipOptions)
     assert gd is None or isinstance(gd, GuardOptions)
@@ -281,6 +303,8 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     traj_report: TrajectoryReport | None = None
     slowed = np.zeros(len(table), dtype=bool)
     guard_cost = 0.0
+    pace_cost = 0.0
+    pace_report: PaceReport | None = None
     added_grid = 0
     with tempfile.TemporaryDirectory(prefix="flowtwin-compensate-") as tmpdir:
         work = Path(tmpdir) / ("draft" + "".join(src.suffixes[-1:]) if src.suffix else "draft")
@@ -306,6 +330,15 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                 slowed |= now
                 current = refresh(draft)
             guard_cost = current.plan.timeline.total_time_s - time0
+        if pc is not None:
+            step("pace")
+            time0 = current.plan.timeline.total_time_s
+            draft, pace_report = _pace_step(draft, current, scanned, limits,
+                                            float(m.filament.area_mm2), pc)
+            if pace_report.paced_rows.size:
+                names.append("pace")
+                current = refresh(draft)
+                pace_cost = current.plan.timeline.total_time_s - time0
         if adv is not None and not adv.is_identity:
             step("advance")
             # the advance is computed for the file without the firmware's own advance
@@ -429,7 +462,11 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         trajectory=None if traj_report is None else traj_report.as_dict(),
         limits=limits.as_dict(), lines_rewritten=result.lines_rewritten,
         warnings=warnings, seconds=time.perf_counter() - t_start,
-        lag_factor_changed_moves=int(changed_k.size))
+        lag_factor_changed_moves=int(changed_k.size),
+        paced_moves=([] if pace_report is None else
+                     [int(x) for x in table.moves["line"][pace_report.paced_rows].tolist()]),
+        pace_time_cost_s=float(pace_cost),
+        pace=None if pace_report is None else pace_report.as_dict())
 
 
 #: Relative change of a piece's lag factor against its original move's that is reported.
@@ -516,3 +553,27 @@ def _guard_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
     return guard_feeds(draft, cruise, d["peak_force_n"], steady, pp.max_feed_force_n, flow,
                        printing, speed_factor, options)
 
+
+
+def _pace_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
+               limits: ExtruderLimits, filament_area_mm2: float,
+               options: PaceOptions) -> tuple[Draft, PaceReport]:
+    """Flow pacing on the current draft with the twin's lag factors and the plan's speeds."""
+    ph = sim.plan.timeline.phases
+    start = draft.start_xyz()
+    length = np.sqrt(np.sum((draft.xyz_mm - start) ** 2, axis=1))
+    cmd = np.asarray(sim.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        area = np.where(length > 0, cmd / length, 0.0)
+    lines = draft.table.moves["line"][draft.row]
+    speed_factor = np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
+                             else 1.0 for ln in lines.tolist()])
+    push = filament_area_mm2 * min(limits.jump_mm_s, limits.max_e_speed_mm_s)
+    return pace_feeds(draft, printing=_printing(sim, draft), cross_section_mm2=area,
+                      lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
+                      start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
+                      cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
+                      end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
+                      t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
+                      t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
+                      speed_factor=speed_factor, push_mm3_s=push, options=options)

@@ -1,0 +1,540 @@
+"""Flow pacing: slow the path where the intended flow changes faster than the melt can follow.
+
+The melt follows the extruder through a first-order lag, ``K·Q̇ = v_in − Q`` [001 Eq. 15]
+(``Q`` the outflow, ``v_in`` the volumetric feed, ``K`` the twin's lag factor of the move).
+A G-code can lower ``v_in`` to zero at most (no negative extrusion outside retractions), so
+the outflow can fall no faster than ``Q̇ ≥ −Q/K``: an *exponential* decay with time
+constant ``K`` (0.05–0.2 s). Where the intended flow ``Q = a·v`` (cross-section ``a``,
+path speed ``v``) falls faster — the planner's deceleration into a slow junction, a thin
+transition move between two full perimeters — no E of the moves can follow it, and the
+stored volume ``K·Q`` is dumped into the slow stretch. Likewise the outflow can rise no
+faster than the extruder can push above the intent (the E speed step the firmware allows
+at a junction, its E speed limit).
+
+E cannot fix this, time can (OrcaSlicer's "extrusion rate smoothing",
+``max_volumetric_extrusion_rate_slope``, slows the path where the flow would change too
+fast). Here the limit comes from the twin:
+
+* **Falling flow.** With ``a`` constant along a stretch, ``d ln Q/dt = (1/v)·dv/dt =
+  dv/ds``: the bound ``d ln Q/dt ≥ −m/K`` (margin ``m < 1``, so the advance keeps a
+  positive feed) is a speed that falls at most *linearly in path distance*, with slope
+  ``m/K`` (1/s). Going back from a junction where the flow falls by at least
+  ``min_drop`` (the planner's junction speed ``v_J``), the path speed may be at most
+  ``v_J + (m/K)·d`` at a distance ``d`` before it (:func:`drop_envelope`).
+* **Cross-section steps.** The path speed is continuous through a junction, so a step of
+  the cross-section ``a_i → a_j`` steps the flow by ``a_i/a_j`` whatever the speed. The
+  outflow then needs ``K·ln(a_i/a_j)`` to follow, ``v·K·ln(a_i/a_j)`` of path: the
+  junction speed is capped at ``adjust_mm / (K·ln(a_i/a_j))`` so that the melt adjusts
+  within ``adjust_mm`` of path (:func:`step_speed_mm_s`); the advance then places that
+  adjustment (the refinement puts it where the volume is large).
+* **Rising flow.** The extruder can command at most ``V = A_f·J`` mm³/s above the intended
+  flow without the planner slowing the junction (``J`` the firmware's E speed step,
+  :mod:`flowtwin.compensation.limits`; ``A_f`` the filament area), so the outflow can rise
+  at ``Q̇ ≤ V/K``: a path acceleration of at most ``A = m·V/(K·a)`` after a run start or a
+  rising cross-section step, ``v(s)² ≤ v₀² + 2·A·s`` (:func:`rise_envelope`).
+
+A move whose planned speed exceeds the envelope is cut (the existing
+:meth:`~flowtwin.compensation.draft.Draft.split`): the paced part becomes a staircase of
+pieces whose feeds step by at most ``step_ratio`` and lie under the envelope; E is shared in
+proportion to length on the file's exact E grid, so the volume is kept exactly. No speed is
+ever raised; a floor (``min_speed_mm_s``, ``max_slowdown`` of the planned speed) bounds the
+added print time. The pipeline re-plans the paced file before the advance.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation.draft import Draft
+from flowtwin.errors import ProfileError
+
+__all__ = ["PaceOptions", "PaceReport", "drop_envelope", "pace_feeds", "rise_envelope",
+           "staircase", "step_speed_mm_s"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+#: Relative tolerance below which a speed counts as the planned one (no new piece).
+_SAME = 1e-6
+
+
+@dataclass(frozen=True, slots=True)
+class PaceOptions:
+    """How far the flow pacing may slow the path.
+
+    Attributes
+    ----------
+    margin
+        Share ``m`` of the fastest decay (rise) the melt can follow that the paced flow
+        uses: ``d ln Q/dt ≥ −m/K`` (0 < m < 1; the advance keeps a feed of ``(1 − m)·Q``).
+    min_drop
+        Pace only junctions where the flow falls (rises) by at least this factor (> 1).
+    adjust_mm
+        Path over which the melt may adjust at a cross-section step, mm.
+    step_ratio
+        Largest ratio of the feeds of two neighbouring paced pieces (> 1).
+    min_speed_mm_s
+        Never pace below this speed, mm/s.
+    max_slowdown
+        Never pace a piece below this share of its planned speed (0 < f ≤ 1).
+    min_piece_mm
+        Shortest paced piece, mm.
+    rise
+        Also pace the rise of the flow (run starts, rising cross-section steps).
+    run_ends
+        Also pace the fall of the flow to the end of a run (before a travel, a retraction or
+        a stop), to the planner's end speed of the run.
+    gap_lags
+        A run followed by the next one within ``gap_lags·K`` (too short for the advance's
+        pressure relief over the travel, :class:`~flowtwin.compensation.advance.
+        AdvanceOptions` ``relief_min_lags``) is treated as a cross-section step to the next
+        run's first piece, the outflow decaying by ``exp(−gap/K)`` in between.
+    """
+
+    margin: float = 0.8
+    min_drop: float = 2.0
+    adjust_mm: float = 0.5
+    step_ratio: float = 1.3
+    min_speed_mm_s: float = 2.0
+    max_slowdown: float = 0.1
+    min_piece_mm: float = 0.1
+    rise: bool = True
+    run_ends: bool = True
+    gap_lags: float = 0.5
+
+    def __post_init__(self) -> None:
+        checks = {
+            "margin": (self.margin, 0.0 < self.margin < 1.0, "0 < m < 1"),
+            "min_drop": (self.min_drop, 1.0 < self.min_drop <= 1e3, "1 < r <= 1000"),
+            "adjust_mm": (self.adjust_mm, 0.01 <= self.adjust_mm <= 100.0, "0.01 .. 100 mm"),
+            "step_ratio": (self.step_ratio, 1.01 <= self.step_ratio <= 10.0, "1.01 .. 10"),
+            "min_speed_mm_s": (self.min_speed_mm_s, 0.1 <= self.min_speed_mm_s <= 100.0,
+                               "0.1 .. 100 mm/s"),
+            "max_slowdown": (self.max_slowdown, 0.0 < self.max_slowdown <= 1.0, "0 < f <= 1"),
+            "min_piece_mm": (self.min_piece_mm, 0.01 <= self.min_piece_mm <= 10.0,
+                             "0.01 .. 10 mm"),
+            "gap_lags": (self.gap_lags, 0.0 <= self.gap_lags <= 100.0, "0 .. 100"),
+        }
+        for name, (value, ok, allowed) in checks.items():
+            if not (ok and math.isfinite(float(value))):
+                raise ProfileError("invalid flow-pacing option", field=name, value=value,
+                                   allowed=allowed)
+
+
+@dataclass(slots=True)
+class PaceReport:
+    """What the pacing changed.
+
+    Attributes
+    ----------
+    paced_rows
+        Original rows some piece of which got a lower feed, sorted.
+    pieces_added
+        Pieces the staircases added.
+    drop_junctions, step_junctions, rise_starts
+        Junctions paced for a falling flow, capped for a cross-section step, and starts
+        paced for a rising flow.
+    gap_junctions
+        Run ends capped as a cross-section step over a short gap to the next run.
+    floored_pieces
+        Paced pieces held at the floor (``min_speed_mm_s`` / ``max_slowdown``) above the
+        envelope.
+    """
+
+    paced_rows: IntArray
+    pieces_added: int = 0
+    drop_junctions: int = 0
+    step_junctions: int = 0
+    rise_starts: int = 0
+    gap_junctions: int = 0
+    floored_pieces: int = 0
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain dict for reports."""
+        return {"paced_moves": int(self.paced_rows.size), "pieces_added": self.pieces_added,
+                "drop_junctions": self.drop_junctions, "step_junctions": self.step_junctions,
+                "rise_starts": self.rise_starts, "gap_junctions": self.gap_junctions,
+                "floored_pieces": self.floored_pieces}
+
+
+def step_speed_mm_s(a_before_mm2: FloatArray, a_after_mm2: FloatArray, lag_k_s: FloatArray, *,
+                    adjust_mm: float) -> FloatArray:
+    """Junction speed at which the melt follows a cross-section step within ``adjust_mm``.
+
+    The outflow of the lag ``K·Q̇ = v_in − Q`` [001 Eq. 15] changes by a factor
+    ``ρ = a_before/a_after`` in ``K·ln ρ`` at best (``v_in = 0`` falling); at path speed
+    ``v`` that is ``v·K·ln ρ`` of path, so ``v ≤ adjust / (K·|ln ρ|)``.
+
+    Parameters
+    ----------
+    a_before_mm2, a_after_mm2
+        Cross-sections before and after the junction, mm², shape ``(n,)``.
+    lag_k_s
+        Lag factor at the junction, s, shape ``(n,)``.
+    adjust_mm
+        Path over which the melt may adjust, mm.
+
+    Returns
+    -------
+    ndarray
+        Largest junction speed, mm/s (``inf`` where the cross-section does not change).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        log_rho = np.abs(np.log(np.asarray(a_before_mm2, dtype=np.float64)
+                                / np.asarray(a_after_mm2, dtype=np.float64)))
+        v = np.where(log_rho > 0, adjust_mm / (np.asarray(lag_k_s, dtype=np.float64)
+                                               * log_rho), np.inf)
+    return np.asarray(v)
+
+
+def drop_envelope(v_anchor_mm_s: float, lag_k_s: float, distance_mm: FloatArray, *,
+                  margin: float) -> FloatArray:
+    """Largest path speed ``d`` before a junction of speed ``v_J`` for a paced fall.
+
+    ``d ln Q/dt ≥ −m/K`` with ``Q = a·v`` and ``a`` constant is ``dv/ds ≥ −m/K``
+    (``d ln v/dt = v'(s)``), so ``v(d) = v_J + (m/K)·d``: the flow then decays as
+    ``exp(−m·t/K)``, the fastest the lag [001 Eq. 15] can follow with a feed of
+    ``(1 − m)·Q``.
+
+    Parameters
+    ----------
+    v_anchor_mm_s
+        Speed at the junction, mm/s.
+    lag_k_s
+        Lag factor ``K``, s.
+    distance_mm
+        Path distance before the junction, mm, shape ``(n,)``.
+    margin
+        ``m`` (0 < m < 1).
+
+    Returns
+    -------
+    ndarray
+        Speed bound, mm/s, shape ``(n,)``.
+    """
+    d = np.asarray(distance_mm, dtype=np.float64)
+    return np.asarray(v_anchor_mm_s + margin / lag_k_s * d)
+
+
+def rise_envelope(v_start_mm_s: float, accel_mm_s2: float, distance_mm: FloatArray
+                  ) -> FloatArray:
+    """Largest path speed ``s`` after a start when the flow may rise at ``a·A`` only.
+
+    The outflow rises at most as ``Q̇ ≤ V/K`` when the feed may exceed the intent by ``V``
+    (lag [001 Eq. 15]); with ``Q = a·v`` that is a path acceleration ``A = m·V/(K·a)``:
+    ``v(s) = sqrt(v₀² + 2·A·s)``.
+
+    Parameters
+    ----------
+    v_start_mm_s
+        Speed at the start, mm/s.
+    accel_mm_s2
+        Paced acceleration ``A``, mm/s².
+    distance_mm
+        Path distance after the start, mm, shape ``(n,)``.
+
+    Returns
+    -------
+    ndarray
+        Speed bound, mm/s.
+    """
+    s = np.maximum(np.asarray(distance_mm, dtype=np.float64), 0.0)
+    return np.asarray(np.sqrt(v_start_mm_s ** 2 + 2.0 * accel_mm_s2 * s))
+
+
+def staircase(length_mm: float, v_plan_mm_s: float, *, end_v_mm_s: float, end_slope_1_s: float,
+              start_v_mm_s: float, start_accel_mm_s2: float, step_ratio: float,
+              min_piece_mm: float, floor_mm_s: float) -> tuple[list[float], list[float]]:
+    """Cut a straight piece into sub-pieces whose speeds lie under both envelopes.
+
+    The bound at distance ``s`` from the start is
+    ``min(v_plan, end_v + g·(L − s), sqrt(start_v² + 2·A·s))``; a sub-piece runs at the
+    bound's minimum over its extent (the drop bound is smallest at the sub-piece's end, the
+    rise bound at its start), never below ``floor``. Cuts sit where the envelopes cross the
+    speed levels ``v·step_ratioᵏ``, so neighbouring feeds differ by about ``step_ratio``;
+    sub-pieces shorter than ``min_piece_mm`` are merged into the slower neighbour.
+
+    Parameters
+    ----------
+    length_mm
+        Length ``L`` of the piece, mm.
+    v_plan_mm_s
+        Planned top speed, mm/s (the result never exceeds it).
+    end_v_mm_s, end_slope_1_s
+        Drop envelope: speed at the piece's end and slope ``g = m/K``, 1/s (``inf`` end
+        speed: none).
+    start_v_mm_s, start_accel_mm_s2
+        Rise envelope: speed at the start and acceleration ``A``, mm/s² (``inf`` start
+        speed: none).
+    step_ratio
+        Feed ratio between sub-pieces.
+    min_piece_mm
+        Shortest sub-piece, mm.
+    floor_mm_s
+        Lowest speed, mm/s.
+
+    Returns
+    -------
+    tuple of list
+        End distances of the sub-pieces from the piece's start (last = ``L``) and their
+        speeds (``v_plan`` where the piece is not paced), mm and mm/s.
+    """
+    big = v_plan_mm_s * (1.0 - _SAME)
+    cuts = {0.0, length_mm}
+    q = step_ratio
+    if math.isfinite(end_v_mm_s) and end_v_mm_s < big:
+        level = max(end_v_mm_s, floor_mm_s, 1e-9)
+        while level < big:
+            d = (level - end_v_mm_s) / end_slope_1_s
+            if 0.0 < d < length_mm:
+                cuts.add(length_mm - d)
+            level *= q
+        d = (v_plan_mm_s - end_v_mm_s) / end_slope_1_s
+        if 0.0 < d < length_mm:
+            cuts.add(length_mm - d)
+    if math.isfinite(start_v_mm_s) and start_v_mm_s < big:
+        level = max(start_v_mm_s, floor_mm_s, 1e-9)
+        while level < big:
+            s = (level * level - start_v_mm_s ** 2) / (2.0 * start_accel_mm_s2)
+            if 0.0 < s < length_mm:
+                cuts.add(s)
+            level *= q
+        s = (v_plan_mm_s ** 2 - start_v_mm_s ** 2) / (2.0 * start_accel_mm_s2)
+        if 0.0 < s < length_mm:
+            cuts.add(s)
+    pts = sorted(cuts)
+    ends: list[float] = []
+    speeds: list[float] = []
+    for s0, s1 in itertools.pairwise(pts):
+        v = v_plan_mm_s
+        if math.isfinite(end_v_mm_s):
+            v = min(v, end_v_mm_s + end_slope_1_s * (length_mm - s1))
+        if math.isfinite(start_v_mm_s):
+            v = min(v, math.sqrt(start_v_mm_s ** 2 + 2.0 * start_accel_mm_s2 * s0))
+        v = max(v, min(floor_mm_s, v_plan_mm_s))
+        ends.append(s1)
+        speeds.append(v)
+    # merge short sub-pieces into the slower neighbour (keeps every speed under the bound)
+    k = 0
+    while len(ends) > 1 and k < len(ends):
+        start = ends[k - 1] if k > 0 else 0.0
+        if ends[k] - start >= min_piece_mm:
+            k += 1
+            continue
+        if k == 0:
+            j = 1
+        elif k == len(ends) - 1:
+            j = k - 1
+        else:
+            j = k - 1 if speeds[k - 1] <= speeds[k + 1] else k + 1
+        lo, hi = min(j, k), max(j, k)
+        speeds[lo] = min(speeds[lo], speeds[hi])
+        ends[lo] = ends[hi]
+        del ends[hi], speeds[hi]
+        k = max(lo - 1, 0) if lo == k else lo
+    # neighbours at the same speed become one
+    out_e: list[float] = []
+    out_v: list[float] = []
+    for e, v in zip(ends, speeds, strict=True):
+        if out_v and abs(out_v[-1] - v) <= _SAME * max(v, 1e-9):
+            out_e[-1] = e
+        else:
+            out_e.append(e)
+            out_v.append(v)
+    return out_e, out_v
+
+
+def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArray,
+               lag_k_s: FloatArray, start_v_mm_s: FloatArray, cruise_v_mm_s: FloatArray,
+               end_v_mm_s: FloatArray, t_start_s: FloatArray, t_end_s: FloatArray,
+               speed_factor: FloatArray, push_mm3_s: float,
+               options: PaceOptions) -> tuple[Draft, PaceReport]:
+    """Cut the pieces that run faster than the pacing envelopes into slower staircases.
+
+    Parameters
+    ----------
+    draft
+        The draft; every array below has one entry per piece, shape ``(n,)``.
+    printing
+        Pieces that print (XY motion, positive E); the others break runs.
+    cross_section_mm2
+        Intended cross-section ``a = V/L`` of every piece, mm².
+    lag_k_s
+        The twin's lag factor ``K`` of every piece, s.
+    start_v_mm_s, cruise_v_mm_s, end_v_mm_s
+        The planner's speeds of every piece, mm/s.
+    t_start_s, t_end_s
+        Start and end of every piece on the printer clock, s.
+    speed_factor
+        ``M220`` factor in force on every piece (G-code ``F = 60·v/factor``).
+    push_mm3_s
+        Volumetric feed the extruder may add above the intent at once, mm³/s (``A_f·J``;
+        ``inf``: no rise pacing).
+    options
+        The limits.
+
+    Returns
+    -------
+    tuple
+        The paced draft (same pieces where nothing is paced; E per sub-piece in proportion
+        to its length, exactly on the E grid) and the report.
+    """
+    n = len(draft)
+    start = draft.start_xyz()
+    seg = draft.xyz_mm - start
+    length = np.sqrt(np.sum(seg * seg, axis=1))
+    pr = np.asarray(printing, dtype=bool) & (length > 0)
+    a = np.where(pr, np.asarray(cross_section_mm2, dtype=np.float64), 0.0)
+    k = np.asarray(lag_k_s, dtype=np.float64)
+    sv = np.asarray(start_v_mm_s, dtype=np.float64)
+    cv = np.asarray(cruise_v_mm_s, dtype=np.float64)
+    ev = np.asarray(end_v_mm_s, dtype=np.float64)
+    m = options.margin
+    # junction i -> i+1 inside a run
+    nxt = np.zeros(n, dtype=bool)
+    if n > 1:
+        nxt[:-1] = pr[:-1] & pr[1:]
+    a_next = np.concatenate((a[1:], [0.0]))
+    k_j = np.concatenate((np.maximum(k[:-1], k[1:]), [k[-1]])) if n else k
+    step_cap = np.where(nxt & (a > options.min_drop * a_next),
+                        step_speed_mm_s(a, np.where(a_next > 0, a_next, 1.0), k_j,
+                                        adjust_mm=options.adjust_mm), np.inf)
+    # flow falls by min_drop: from the piece's top flow to the flow after the junction
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_j = np.minimum(ev, step_cap)
+        drop = nxt & (a * cv > options.min_drop * a_next * v_j)
+    anchor = np.where(drop, v_j, np.inf)
+    run_end = pr & ~np.concatenate((pr[1:], [False])) if n else pr
+    if options.run_ends:
+        anchor = np.where(run_end, ev, anchor)
+        drop = drop | (run_end & (ev < cv))
+    if options.gap_lags > 0 and n:
+        # the next printing piece after every run end, and the time between
+        idx = np.flatnonzero(pr)
+        pos = np.searchsorted(idx, np.arange(n), side="right")
+        has = pos < idx.size
+        j = np.where(has, idx[np.minimum(pos, max(idx.size - 1, 0))], 0) if idx.size else \
+            np.zeros(n, dtype=np.int64)
+        gap = np.where(has, np.asarray(t_start_s, dtype=np.float64)[j]
+                       - np.asarray(t_end_s, dtype=np.float64), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            short = run_end & has & (gap < options.gap_lags * k) & (a[j] > 0)
+            rho = np.where(short, a / np.where(a[j] > 0, a[j], 1.0) * np.exp(-gap / k), 1.0)
+            cap = np.where(short & (rho > options.min_drop),
+                           options.adjust_mm / (k * np.log(np.maximum(rho, 1.0 + 1e-12))),
+                           np.inf)
+        gapped = np.isfinite(cap) & (cap < np.minimum(ev, anchor))
+        report_gaps = int(np.count_nonzero(gapped))
+        anchor = np.where(gapped, cap, anchor)
+        drop = drop | gapped
+    else:
+        report_gaps = 0
+    report = PaceReport(paced_rows=np.zeros(0, dtype=np.int64),
+                        drop_junctions=int(np.count_nonzero(drop)),
+                        step_junctions=int(np.count_nonzero(drop & np.isfinite(step_cap)
+                                                            & (step_cap < ev))),
+                        gap_junctions=report_gaps)
+    # backward pass: the drop envelope's speed at the end of every piece
+    g = np.where(pr, m / np.where(k > 0, k, np.inf), 0.0)
+    end_bound = np.full(n, np.inf)
+    bound = math.inf
+    g_l = g.tolist()
+    len_l = length.tolist()
+    anc_l = anchor.tolist()
+    pr_l = pr.tolist()
+    nxt_l = nxt.tolist()
+    for i in range(n - 1, -1, -1):
+        if not pr_l[i]:
+            bound = math.inf
+            continue
+        b = min(bound if nxt_l[i] else math.inf, anc_l[i])
+        end_bound[i] = b
+        bound = b + g_l[i] * len_l[i] if math.isfinite(b) else math.inf
+    # forward pass: the rise envelope's speed at the start of every piece
+    start_bound = np.full(n, np.inf)
+    acc = np.full(n, np.inf)
+    if options.rise and math.isfinite(push_mm3_s) and push_mm3_s > 0:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            acc = np.where(pr & (a > 0) & (k > 0), m * push_mm3_s / (k * a), np.inf)
+        prev_pr = np.concatenate(([False], pr[:-1]))
+        a_prev = np.concatenate(([0.0], a[:-1]))
+        run_start = pr & ~prev_pr
+        rising = pr & prev_pr & (a > options.min_drop * a_prev)
+        cap_rise = np.where(rising, step_speed_mm_s(a_prev, a, k, adjust_mm=options.adjust_mm),
+                            np.inf)
+        v0 = np.where(run_start, sv, np.where(rising, np.minimum(sv, cap_rise), np.inf))
+        report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))
+        acc_l = acc.tolist()
+        v0_l = v0.tolist()
+        cv_l = cv.tolist()
+        carry = math.inf
+        for i in range(n):
+            if not pr_l[i]:
+                carry = math.inf
+                continue
+            b = min(carry, v0_l[i])
+            start_bound[i] = b
+            if math.isfinite(b):
+                end = math.sqrt(b * b + 2.0 * acc_l[i] * len_l[i])
+                carry = end if end < cv_l[i] else math.inf
+            else:
+                carry = math.inf
+    # pieces to cut
+    floor = np.maximum(options.min_speed_mm_s, options.max_slowdown * cv)
+    over = pr & (cv > floor * (1.0 + _SAME)) & ((end_bound < cv * (1.0 - _SAME))
+                                               | (start_bound < cv * (1.0 - _SAME)))
+    pieces = np.flatnonzero(over)
+    if pieces.size == 0:
+        return draft, report
+    new_counts = np.ones(n, dtype=np.int64)
+    sub_ends: dict[int, list[float]] = {}
+    sub_v: dict[int, list[float]] = {}
+    floored = 0
+    for i in pieces.tolist():
+        ends, speeds = staircase(
+            len_l[i], float(cv[i]), end_v_mm_s=float(end_bound[i]),
+            end_slope_1_s=float(g[i]) if g[i] > 0 else math.inf,
+            start_v_mm_s=float(start_bound[i]),
+            start_accel_mm_s2=float(acc[i]) if math.isfinite(acc[i]) else math.inf,
+            step_ratio=options.step_ratio, min_piece_mm=options.min_piece_mm,
+            floor_mm_s=float(floor[i]))
+        if all(v >= cv[i] * (1.0 - _SAME) for v in speeds):
+            continue
+        floored += sum(1 for v in speeds if v <= floor[i] * (1.0 + _SAME))
+        sub_ends[i] = ends
+        sub_v[i] = speeds
+        new_counts[i] = len(ends)
+    report.floored_pieces = floored
+    if not sub_ends:
+        return draft, report
+    piece = np.repeat(np.arange(n, dtype=np.int64), new_counts)
+    offsets = np.concatenate(([0], np.cumsum(new_counts)))
+    xyz = draft.xyz_mm[piece].copy()
+    e = draft.e_grid[piece].copy()
+    feed = draft.piece_feed_mm_min[piece].copy()
+    sf = np.asarray(speed_factor, dtype=np.float64)
+    for i, ends in sub_ends.items():
+        o = int(offsets[i])
+        frac = np.asarray(ends) / len_l[i]
+        frac[-1] = 1.0
+        xyz[o:o + frac.size] = start[i] + frac[:, None] * seg[i]
+        xyz[o + frac.size - 1] = draft.xyz_mm[i]
+        total = int(draft.e_grid[i])
+        cum = np.rint(total * frac).astype(np.int64)
+        cum[-1] = total
+        e[o:o + frac.size] = np.diff(np.concatenate(([0], cum)))
+        old = float(draft.piece_feed_mm_min[i])
+        for jj, v in enumerate(sub_v[i]):
+            if v >= cv[i] * (1.0 - _SAME):
+                continue  # not paced: the line's (or the piece's own) feed
+            f = round(60.0 * v / float(sf[i]), 3)
+            feed[o + jj] = min(f, old) if math.isfinite(old) else f
+    report.pieces_added = int(offsets[-1] - n)
+    report.paced_rows = np.unique(draft.row[np.fromiter(sub_ends.keys(), dtype=np.int64)])
+    return draft.split(piece, xyz, e, feed), report
