@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 import typer
 from typer.testing import CliRunner
 
 from flowtwin.cli.compensate import register
+from flowtwin.errors import ProfileError
 
 runner = CliRunner()
 
@@ -41,6 +43,22 @@ def test_json_keys_and_figures(example: Path, tmp_path: Path) -> None:
     assert s["transformations"] == ["guard", "advance", "slip"]
     assert s["rms_flow_error_after"] * 5 <= s["rms_flow_error_before"]
     assert s["added_volume_mm3"] > 0
+
+
+def test_pace_flag_reports_its_moves_and_time(thin_gcode: Path, tmp_path: Path) -> None:
+    src = thin_gcode
+    out = tmp_path / "out.gcode"
+    res = runner.invoke(app(), ["compensate", str(src), "-o", str(out), "--pace", "--json"])
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    assert s["transformations"] == ["pace"]
+    assert s["paced_moves"] > 0 and s["pace_time_cost_s"] > 0
+    # only the pacing ran: the result's print time is the original's plus its cost
+    assert s["time_after_s"] == pytest.approx(s["time_before_s"] + s["pace_time_cost_s"],
+                                              rel=1e-12)
+    res = runner.invoke(app(), ["compensate", str(src), "-o", str(out), "--pace",
+                                "--pace-max-slowdown", "0"])
+    assert isinstance(res.exception, ProfileError) and "max_slowdown" in str(res.exception)
 
 
 def test_table_output_prints_before_and_after(example: Path, tmp_path: Path) -> None:

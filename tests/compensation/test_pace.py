@@ -59,23 +59,6 @@ def step_drop_gcode(path: Path, *, feed: float = 3000.0) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def thin_transition_gcode(path: Path, *, loops: int = 6, feed: float = 3000.0) -> None:
-    """Straight full-speed walls joined by 0.9 mm thin transition moves at 6 % of their
-    cross-section (Cura 2.3.1 line 22638 in small), back and forth on one layer."""
-    lines = _header()
-    x, y = 60.0, 60.0
-    for k in range(loops):
-        d = 1.0 if k % 2 == 0 else -1.0
-        x += d * 20.0
-        lines.append(_line(x, y, 20.0, 1.0, feed))
-        y += 0.9
-        lines.append(_line(x, y, 0.9, 0.06, feed))
-    x += 20.0 if loops % 2 == 0 else -20.0
-    lines.append(_line(x, y, 20.0, 1.0, feed))
-    lines += ["G1 E-0.8 F2100", "G1 X10 Y10 F9000", "M104 S0"]
-    path.write_text("\n".join(lines) + "\n")
-
-
 def _draft(path: Path) -> tuple[Draft, SimulationResult, float]:
     m = load_machine(DEFAULT_MACHINE)
     sim = simulate(path, machine=m, pressure_advance=False)
@@ -155,7 +138,7 @@ def test_paced_step_drop_meets_the_exponential_bound(tmp_path: Path) -> None:
     sub = np.flatnonzero(paced.row == draft.row[first])
     assert sub.size > 5
     k = float(sim.parameters.params.lag_k_s[first])
-    v_cap = 1.0 / (k * math.log(5.0))  # adjust_mm = 1
+    v_cap = opts.adjust_mm / (k * math.log(5.0))
     start = paced.start_xyz()[sub]
     lengths = np.linalg.norm(paced.xyz_mm[sub] - start, axis=1)
     feed = paced.piece_feed_mm_min[sub] / 60.0
@@ -181,9 +164,9 @@ def test_paced_step_drop_meets_the_exponential_bound(tmp_path: Path) -> None:
     assert e_unit > 0
 
 
-def test_pace_never_raises_a_speed_and_keeps_the_volume(tmp_path: Path) -> None:
-    src = tmp_path / "thin.gcode"
-    thin_transition_gcode(src)
+def test_pace_never_raises_a_speed_and_keeps_the_volume(thin_gcode: Path,
+                                                        tmp_path: Path) -> None:
+    src = thin_gcode
     draft, sim, _ = _draft(src)
     paced, report = _pace(draft, sim, PaceOptions(), push=FIL_AREA * 2.5)
     assert report.paced_rows.size > 0  # type: ignore[attr-defined]
@@ -203,11 +186,10 @@ def test_pace_never_raises_a_speed_and_keeps_the_volume(tmp_path: Path) -> None:
                   <= sim.plan.timeline.phases["cruise_v"][paced.row] * (1 + 1e-9))
 
 
-def test_pacing_and_advance_fix_thin_transitions(tmp_path: Path) -> None:
+def test_pacing_and_advance_fix_thin_transitions(thin_gcode: Path, tmp_path: Path) -> None:
     """A thin transition move between two full-speed walls dumps the stored volume K·Q:
     the advance alone cannot take it out (no negative extrusion), pacing first lets it."""
-    src = tmp_path / "thin.gcode"
-    thin_transition_gcode(src)
+    src = thin_gcode
     plain = compensate(src, tmp_path / "plain.gcode", advance=True)
     paced = compensate(src, tmp_path / "paced.gcode", advance=True, pace=True)
     b, a0, a1 = plain.before, plain.after, paced.after

@@ -19,6 +19,7 @@ from flowtwin.compensation import (
     AdvanceOptions,
     CompensationReport,
     GuardOptions,
+    PaceOptions,
     RefineOptions,
     SlipOptions,
     TrajectoryOptions,
@@ -74,6 +75,9 @@ def render_report(report: CompensationReport) -> None:
     notes = [f"lines rewritten: {report.lines_rewritten:,}"]
     if "slip" in report.transformations:
         notes.append(f"slip feed-forward added {report.added_volume_mm3:.2f} mm³")
+    if "pace" in report.transformations:
+        notes.append(f"pacing slowed {len(report.paced_moves)} moves "
+                     f"(+{report.pace_time_cost_s:.1f} s)")
     if "guard" in report.transformations:
         notes.append(f"guard slowed {len(report.slowed_moves)} moves "
                      f"(+{report.guard_time_cost_s:.1f} s)")
@@ -112,6 +116,14 @@ def register(app: typer.Typer) -> None:
             "--guard", help="Slow moves that would grind the filament [000 §4].")] = False,
         trajectory: Annotated[bool, typer.Option(
             "--trajectory", help="Nozzle paths that lay the intended road [004].")] = False,
+        pace: Annotated[bool, typer.Option(
+            "--pace", help="Slow the path where the flow would change faster than the melt "
+                           "can follow (before the advance).")] = False,
+        pace_min_speed: Annotated[float, typer.Option(
+            "--pace-min-speed", help="Pacing: lowest paced speed, mm/s.")] = 2.0,
+        pace_max_slowdown: Annotated[float, typer.Option(
+            "--pace-max-slowdown", help="Pacing: lowest share of a move's planned speed.")
+        ] = 0.1,
         law: Annotated[str, typer.Option(
             "--law", help="Advance law: smoothed ([001 Eq. 11]) or discrete ([001 Eq. 13])."
         )] = "smoothed",
@@ -137,7 +149,9 @@ def register(app: typer.Typer) -> None:
             gcode, output, machine=profile, klipper_config=klipper_config, advance=adv,
             slip=SlipOptions() if slip else None,
             guard=GuardOptions(safety=safety, max_flow_mm3_s=max_flow) if guard else None,
-            trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None)
+            trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None,
+            pace=PaceOptions(min_speed_mm_s=pace_min_speed, max_slowdown=pace_max_slowdown)
+            if pace else None)
         if json_out:
             print_json(report.summary())
         else:
