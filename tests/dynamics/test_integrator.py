@@ -386,3 +386,100 @@ def test_constant_speed_slip_is_the_exact_exponential_over_long_segments(make_fe
     assert res.moves["out_mm3"][0] == pytest.approx(area * ix / K, rel=1e-13)
     assert res.moves["slip_loss_mm3"][0] == pytest.approx(
         area * (kp * v * t + v * sp / KC * ix), rel=1e-13)
+
+
+def _hand_feed(dt: npt.NDArray[np.float64], v: npt.NDArray[np.float64],
+               move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_], n_moves: int):
+    """A feed of constant-speed segments with the given owners (moves without segments
+    allowed: they get a zero-length span at the time the next segment starts)."""
+    from flowtwin.dynamics import CommandedFeed
+
+    t0 = np.concatenate(([0.0], np.cumsum(dt)[:-1]))
+    e0 = np.concatenate(([0.0], np.cumsum(dt * v)[:-1]))
+    coef = np.zeros((dt.size, 4))
+    coef[:, 0] = v
+    mt0 = np.zeros(n_moves)
+    mt1 = np.zeros(n_moves)
+    de = np.zeros(n_moves)
+    t_next = t0[-1] + dt[-1]
+    for i in range(n_moves - 1, -1, -1):
+        own = np.flatnonzero((move == i) & ~gap)
+        if own.size:
+            mt0[i], mt1[i] = t0[own[0]], t0[own[-1]] + dt[own[-1]]
+            de[i] = float(np.sum(dt[own] * v[own]))
+        else:
+            mt0[i] = mt1[i] = t_next
+        t_next = mt0[i]
+    return CommandedFeed(t0_s=t0, dt_s=dt, coef=coef, e0_mm=e0, move=move, gap=gap,
+                         phase=np.zeros(dt.size, dtype=np.int8), move_t0_s=mt0, move_t1_s=mt1,
+                         move_de_mm=de)
+
+
+def test_per_move_bookkeeping_over_many_moves_against_the_closed_form(rng):
+    # 900 moves (several of the kernel's 256-move buffers), some split into two segments,
+    # some without segments, stops after some (and a rest before the first move); no slip
+    # and a positive column throughout, so each segment is x' = v - x/K exactly:
+    # x1 = vK + (x0 - vK) e^(-dt/K) [001 Eq. 10] and the melt out is v dt - (x1 - x0)
+    # (filament in = out + stored). The reference is accumulated here per move and stop.
+    n = 900
+    owners: list[tuple[int, bool]] = [(-1, True)]
+    for i in range(n):
+        if rng.uniform() < 0.05:
+            continue  # no segment: a move of zero duration
+        owners += [(i, False)] * (2 if rng.uniform() < 0.3 else 1)
+        if rng.uniform() < 0.2:
+            owners.append((i, True))
+    move = np.array([o[0] for o in owners], dtype=np.int64)
+    gap = np.array([o[1] for o in owners], dtype=bool)
+    dt = rng.uniform(0.005, 0.2, move.size)
+    v = np.where(gap, 0.0, rng.uniform(0.5, 8.0, move.size))
+    k_s = 0.05
+    feed = _hand_feed(dt, v, move, gap, n)
+    x0 = 0.2
+    res = integrate(feed, params(n, lag_k_s=k_s), initial_compression_mm=x0)
+    area = params().filament_area_mm2
+    out_move = np.zeros(n)
+    out_stop = np.zeros(n)
+    out_pre = 0.0
+    x = x0
+    for j in range(move.size):
+        x1 = v[j] * k_s + (x - v[j] * k_s) * math.exp(-dt[j] / k_s)
+        out = v[j] * dt[j] - (x1 - x)
+        if move[j] < 0:
+            out_pre += out
+        elif gap[j]:
+            out_stop[move[j]] += out
+        else:
+            out_move[move[j]] += out
+        x = x1
+    # the kernel's φ-series and exponentials against math.exp: rounding of a few
+    # operations per segment, far below 1e-11 of each move's output
+    m = res.moves
+    assert np.allclose(m["out_mm3"], area * out_move, rtol=1e-11, atol=1e-15)
+    assert np.allclose(m["stop_out_mm3"], area * out_stop, rtol=1e-11, atol=1e-15)
+    assert res.before_first_move["stop_out_mm3"][0] == pytest.approx(area * out_pre,
+                                                                      rel=1e-11)
+    has = np.zeros(n, dtype=bool)
+    has[move[~gap]] = True
+    assert np.all(m["duration_s"][~has] == 0.0) and np.all(m["out_mm3"][~has] == 0.0)
+    assert np.allclose(m["duration_s"], feed.move_t1_s - feed.move_t0_s, rtol=0, atol=0)
+    assert np.allclose(m["fed_mm3"], area * feed.move_de_mm, rtol=1e-13, atol=0)
+    # a stopping move's ooze is its stop; a move without E oozes its own output as well
+    assert np.array_equal(m["ooze_mm3"], np.where(feed.move_de_mm > 0.0, m["stop_out_mm3"],
+                                                  m["out_mm3"] + m["stop_out_mm3"]))
+    assert res.final_compression_mm == pytest.approx(x, rel=1e-12)
+    total = area * (out_move.sum() + out_stop.sum() + out_pre)
+    assert res.summary.out_mm3 == pytest.approx(total, rel=1e-12)
+
+
+def test_feed_out_of_move_order_is_refused(make_feed):
+    # the kernel writes each move's results when the next one starts: a feed whose
+    # segments go back to an earlier move (or a stop before its move) is refused
+    feed = make_feed([0.1, 0.1, 0.1], [[1.0], [1.0], [1.0]])
+    for move, gap in (([0, 1, 0], [False, False, False]), ([0, 1, 1], [False, True, False])):
+        bad = type(feed)(t0_s=feed.t0_s, dt_s=feed.dt_s, coef=feed.coef, e0_mm=feed.e0_mm,
+                         move=np.array(move), gap=np.array(gap), phase=feed.phase,
+                         move_t0_s=feed.move_t0_s, move_t1_s=feed.move_t1_s,
+                         move_de_mm=feed.move_de_mm)
+        with pytest.raises(DataError, match="move order"):
+            integrate(bad, params(3))

@@ -47,8 +47,14 @@ from flowtwin.dynamics._acc_kernel import (
     A_OUT,
     A_QMAX,
     A_QMIN,
+    A_SEEN,
     A_SLIP,
     A_TIME,
+    BUF_ROWS,
+    BUF_WIDTH,
+    CHUNK,
+    N_ACC,
+    PRE_ROW,
     S_E,
     S_F,
     S_Q,
@@ -57,6 +63,10 @@ from flowtwin.dynamics._acc_kernel import (
     S_VCMD,
     S_VFIL,
     S_X,
+    add_row,
+    clear_row,
+    finish_chunk,
+    finish_totals,
 )
 from flowtwin.dynamics._expint import (
     FREE,
@@ -257,6 +267,7 @@ def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: 
     acc[row, A_SLIP] += slip
     acc[row, A_GTIME] += gtime
     acc[row, A_OUT] += out
+    acc[row, A_SEEN] = 1.0
     # (division is monotone: the largest quotient is the quotient of the largest)
     if xhi / kc > acc[row, A_FMAX]:
         acc[row, A_FMAX] = xhi / kc
@@ -270,19 +281,28 @@ def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: 
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
                      move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
-                     stop_row: npt.NDArray[np.int64],
                      k_s: npt.NDArray[np.float64], kc: npt.NDArray[np.float64],
                      kp: npt.NDArray[np.float64], sa: npt.NDArray[np.float64],
                      sb: npt.NDArray[np.float64], sc: npt.NDArray[np.float64],
                      fmax: npt.NDArray[np.float64], release: float,
                      x_init: float, grind_init: bool, stiffness: float, min_stages: int,
                      sample_t: npt.NDArray[np.float64],
-                     samples: npt.NDArray[np.float64], acc: npt.NDArray[np.float64]
+                     samples: npt.NDArray[np.float64], area: float,
+                     move_de: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
+                     move_t1: npt.NDArray[np.float64],
+                     cols: tuple[npt.NDArray[np.float64], ...],
+                     grind_col: npt.NDArray[np.bool_], stops: npt.NDArray[np.float64],
+                     tot: npt.NDArray[np.float64], pre: npt.NDArray[np.float64]
                      ) -> tuple[float, bool, int]:
-    """Integrate all segments; fill ``acc`` (slots × N_ACC) and ``samples``.
+    """Integrate all segments; write the per-move results, ``samples``, the totals and the
+    rest before the first move.
 
-    ``move``, ``gap``: owner and stop flag of each segment; ``stop_row``: accumulator row of
-    the stop after each move (``_acc_kernel.stop_rows``, checked by ``prepare_segments``).
+    ``move``, ``gap``: owner and stop flag of each segment, in move order (checked by
+    ``_acc_kernel.prepare_segments``, which also counts the rows of ``stops``). ``cols``,
+    ``grind_col``: the result columns (``_acc_kernel.finish_chunk``); ``stops``
+    ``(n_stops, N_ACC)`` receives the stops' accumulators, ``pre`` ``(N_ACC,)`` those of
+    the rest before the first move, ``tot`` ``(2, N_ACC)`` the totals in row ``T_SUM``
+    (``_acc_kernel.add_row``).
 
     ``min_stages``: fewest stages a collocation substep may use (6: the fixed 6-stage
     method). Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
@@ -295,7 +315,15 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     ns = sample_t.shape[0]
     js = 0
     nseg = t0.shape[0]
-    nmoves = stop_row.shape[0]
+    nmoves = move_de.shape[0]
+    buf = np.empty((BUF_ROWS, BUF_WIDTH))
+    for r in range(BUF_ROWS):
+        clear_row(buf, r)
+    for r in range(2):
+        for q in range(N_ACC):
+            tot[r, q] = 0.0
+    base = 0         # first move of the buffer (the moves before it are written)
+    n_stops = 0
     # samples before the first segment: initial state at rest
     while js < ns and nseg > 0 and sample_t[js] < t0[0]:
         samples[js, S_T] = sample_t[js]
@@ -306,7 +334,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     kc_last = 1.0
     # accumulators of the current row, kept in registers and flushed when the row changes
     # (same additions in the same order as into the row itself: bit-identical sums)
-    cur = -1
+    cur = -2
     kk = kcc = 1.0
     l_cmd = l_fwd = l_fed = l_out = l_slip = l_grind = l_gtime = l_time = 0.0
     l_xhi = 0.0
@@ -321,16 +349,16 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         # (prepare_segments checked the indices)
         mi = move[i]
         p = min(max(mi, 0), nmoves - 1)
-        if not gap[i]:
-            slot = mi
-        elif mi < 0:
-            slot = nmoves
-        else:
-            slot = stop_row[mi]
+        slot = 2 * mi + (1 if gap[i] else 0)  # -1: the rest before the first move
         if slot != cur:
-            if cur >= 0:
-                _flush(acc, cur, l_cmd, l_fwd, l_fed, l_out, l_slip, l_grind, l_gtime, l_time,
-                       l_xhi, l_xlo, kk, kcc)
+            if cur >= -1:
+                _flush(buf, PRE_ROW if cur < 0 else cur - 2 * base, l_cmd, l_fwd, l_fed, l_out,
+                       l_slip, l_grind, l_gtime, l_time, l_xhi, l_xlo, kk, kcc)
+            while mi >= base + CHUNK:
+                # past the buffered moves: write their results
+                n_stops = finish_chunk(buf, base, CHUNK, area, move_de, move_t0, move_t1,
+                                       cols, grind_col, stops, n_stops, tot)
+                base += CHUNK
             cur = slot
             l_cmd = l_fwd = l_fed = l_out = l_slip = l_grind = l_gtime = l_time = 0.0
             l_xhi = 0.0
@@ -516,9 +544,21 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                 elif event == _EV_RELEASE:
                     grinding = False
             pa = pb
-    if cur >= 0:
-        _flush(acc, cur, l_cmd, l_fwd, l_fed, l_out, l_slip, l_grind, l_gtime, l_time, l_xhi,
-               l_xlo, k_last, kc_last)
+    if cur >= -1:
+        _flush(buf, PRE_ROW if cur < 0 else cur - 2 * base, l_cmd, l_fwd, l_fed, l_out, l_slip,
+               l_grind, l_gtime, l_time, l_xhi, l_xlo, k_last, kc_last)
+    while base < nmoves:
+        count = min(CHUNK, nmoves - base)
+        n_stops = finish_chunk(buf, base, count, area, move_de, move_t0, move_t1, cols,
+                               grind_col, stops, n_stops, tot)
+        base += count
+    # totals in the order moves, rest before the first move, stops
+    add_row(tot, buf, PRE_ROW)
+    for r in range(n_stops):
+        add_row(tot, stops, r)
+    finish_totals(tot)
+    for q in range(N_ACC):
+        pre[q] = buf[PRE_ROW, q]
     # samples after the end: final state at rest
     e_end = 0.0
     if nseg > 0:

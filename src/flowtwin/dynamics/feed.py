@@ -68,7 +68,10 @@ class CommandedFeed:
         Commanded extruder position at each segment start, mm, shape ``(n,)``.
     move
         Owning move index per segment, shape ``(n,)``; for stop segments the index of the
-        move before the stop (``-1`` before the first move).
+        move before the stop (``-1`` before the first move). In *move order* (what
+        :func:`~flowtwin.dynamics.integrator.integrate` requires): a move's segments are
+        contiguous, its stop segments follow them, moves come in index order
+        (``2 · move + gap`` never decreases).
     gap
         ``True`` for segments between moves (stops, dwells, lead-in and tail), shape ``(n,)``.
     phase

@@ -45,6 +45,7 @@ from flowtwin.dynamics._acc_kernel import (
     A_OUT,
     A_SLIP,
     A_TIME,
+    BAD_ORDER,
     N_ACC,
     N_SER,
     S_E,
@@ -55,10 +56,8 @@ from flowtwin.dynamics._acc_kernel import (
     S_VCMD,
     S_VFIL,
     S_X,
-    acc_totals,
-    fill_move_results,
+    T_SUM,
     prepare_segments,
-    stop_rows,
 )
 from flowtwin.dynamics._lag_kernel import integrate_kernel
 from flowtwin.dynamics.feed import CommandedFeed
@@ -78,6 +77,11 @@ MAX_SERIES_SAMPLES = 20_000_000
 
 #: Fewest collocation stages a substep may use (``MAX_STAGES``: the fixed 6-stage method).
 _MIN_STAGES = 2
+
+#: Float columns of ``MOVE_RESULT_DTYPE`` in the order ``_acc_kernel.finish_move`` writes.
+_FLOAT_COLUMNS = ("cmd_mm3", "fed_cmd_mm3", "fed_mm3", "out_mm3", "stop_out_mm3", "ooze_mm3",
+                  "q_mean_mm3_s", "q_min_mm3_s", "q_max_mm3_s", "peak_force_n", "slip",
+                  "slip_loss_mm3", "grind_loss_mm3", "duration_s")
 
 
 def _series_times(feed: CommandedFeed, t_end: float, dt_s: float,
@@ -175,31 +179,42 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         gap = np.append(gap, True)
     move = np.ascontiguousarray(move, dtype=np.int64)
     gap = np.ascontiguousarray(gap, dtype=np.bool_)
-    stop_row = np.empty(n, dtype=np.int64)
-    rows = stop_rows(move, gap, n, stop_row)
-    acc = np.empty((rows, N_ACC))
-    if not prepare_segments(move, gap, np.ascontiguousarray(dt, dtype=np.float64),
-                            np.ascontiguousarray(coef, dtype=np.float64), n, stop_row, acc):
-        raise DataError("commanded feed is inconsistent (move index out of range, segment "
-                        "without a move, non-positive duration or non-finite speed)",
-                        field="feed", value=feed.n_segments,
-                        allowed=f"move indices in [-1, {n}), dt > 0, finite coefficients")
+    dt = np.ascontiguousarray(dt, dtype=np.float64)
+    coef = np.ascontiguousarray(coef, dtype=np.float64)
+    n_stops = prepare_segments(move, gap, dt, coef, n)
+    if n_stops < 0:
+        why = ("segments not in move order: a move's segments must be contiguous, its stop "
+               "right after them, moves in index order" if n_stops == BAD_ORDER else
+               "move index out of range, segment without a move, non-positive duration or "
+               "non-finite speed")
+        raise DataError(f"commanded feed is inconsistent ({why})", field="feed",
+                        value=feed.n_segments,
+                        allowed=f"move indices in [-1, {n}) in order, dt > 0, finite "
+                                "coefficients")
     t_end = float(t0[-1] + dt[-1])
     sample_t = (np.zeros(0) if series_dt_s is None
                 else _series_times(feed, t_end, series_dt_s, series_window_s))
     samples = np.zeros((sample_t.shape[0], N_SER))
     p = params
-    x_end, grind_end, n_events = integrate_kernel(
-        np.ascontiguousarray(t0, dtype=np.float64), np.ascontiguousarray(dt, dtype=np.float64),
-        np.ascontiguousarray(coef, dtype=np.float64), np.ascontiguousarray(e0, dtype=np.float64),
-        move, gap, stop_row, p.lag_k_s, p.compliance_mm_per_n, p.slip_offset,
-        p.slip_gradient_per_n, p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm,
-        p.max_feed_force_n, float(p.grind_release_fraction), float(initial_compression_mm),
-        bool(initially_grinding), float(stiffness), int(min_stages), sample_t, samples, acc)
     area = p.filament_area_mm2
-    moves = _per_move(feed, acc, area, stop_row)
+    # every field of every row is written by the kernel
+    moves = np.empty(n, dtype=MOVE_RESULT_DTYPE)
+    cols = tuple(moves[name] for name in _FLOAT_COLUMNS)
+    stops = np.empty((n_stops, N_ACC))
+    tot = np.empty((2, N_ACC))
+    pre = np.empty(N_ACC)
+    x_end, grind_end, n_events = integrate_kernel(
+        np.ascontiguousarray(t0, dtype=np.float64), dt, coef,
+        np.ascontiguousarray(e0, dtype=np.float64), move, gap, p.lag_k_s,
+        p.compliance_mm_per_n, p.slip_offset, p.slip_gradient_per_n,
+        p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm, p.max_feed_force_n,
+        float(p.grind_release_fraction), float(initial_compression_mm),
+        bool(initially_grinding), float(stiffness), int(min_stages), sample_t, samples,
+        float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
+        np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
+        np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), cols, moves["grinding"],
+        stops, tot, pre)
     before = np.zeros(1, dtype=MOVE_RESULT_DTYPE)
-    pre = acc[n]
     before["cmd_mm3"] = 0.0
     before["fed_cmd_mm3"] = area * pre[A_CMD]
     before["fed_mm3"] = area * pre[A_FED]
@@ -208,21 +223,21 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     before["peak_force_n"] = pre[A_FMAX]
     before["duration_s"] = pre[A_TIME]
     before["grinding"] = pre[A_GTIME] > 0.0
-    tot = acc_totals(acc)
-    fed = area * float(tot[A_FED])
-    out = area * float(tot[A_OUT])
+    tot_ = tot[T_SUM]
+    fed = area * float(tot_[A_FED])
+    out = area * float(tot_[A_OUT])
     summary = DynamicsSummary(
         cmd_mm3=area * float(np.sum(feed.move_de_mm)),
-        fed_cmd_mm3=area * float(tot[A_CMD]),
+        fed_cmd_mm3=area * float(tot_[A_CMD]),
         fed_mm3=fed,
         out_mm3=out,
         stored_start_mm3=area * float(initial_compression_mm),
         stored_end_mm3=area * float(x_end),
         mass_balance_error_mm3=fed - out - area * (float(x_end) - float(initial_compression_mm)),
-        slip_loss_mm3=area * float(tot[A_SLIP]),
-        grind_loss_mm3=area * float(tot[A_GRIND]),
+        slip_loss_mm3=area * float(tot_[A_SLIP]),
+        grind_loss_mm3=area * float(tot_[A_GRIND]),
         ooze_mm3=float(np.sum(moves["ooze_mm3"])) + area * float(pre[A_OUT]),
-        peak_force_n=float(tot[A_FMAX]),
+        peak_force_n=float(tot_[A_FMAX]),
         grinding_moves=int(np.count_nonzero(moves["grinding"])),
         duration_s=t_end - float(t0[0]),
         n_segments=int(t0.shape[0]),
@@ -244,16 +259,3 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                           before_first_move=before, final_compression_mm=float(x_end),
                           final_grinding=bool(grind_end), feed=feed, warnings=feed.warnings)
 
-
-def _per_move(feed: CommandedFeed, acc: npt.NDArray[np.float64], area: float,
-              stop_row: npt.NDArray[np.int64]) -> npt.NDArray[np.void]:
-    res = np.zeros(feed.n_moves, dtype=MOVE_RESULT_DTYPE)
-    cols = [res[name] for name in ("cmd_mm3", "fed_cmd_mm3", "fed_mm3", "out_mm3",
-                                   "stop_out_mm3", "ooze_mm3", "q_mean_mm3_s", "q_min_mm3_s",
-                                   "q_max_mm3_s", "peak_force_n", "slip", "slip_loss_mm3",
-                                   "grind_loss_mm3", "grinding", "duration_s")]
-    fill_move_results(  # type: ignore[call-arg]
-        acc, float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
-        np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
-        np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), *cols, stop_row)
-    return res
