@@ -325,7 +325,7 @@ def test_starting_above_the_force_limit_grinds_until_released(make_feed):
     assert res.summary.as_dict()["grinding_moves"] == 1
 
 
-def test_inconsistent_inputs_are_refused_before_the_kernel(make_feed):
+def test_inconsistent_inputs_are_refused(make_feed):
     feed = make_feed([0.1, 0.1], [[1.0], [1.0]])
     bad = type(feed)(t0_s=feed.t0_s, dt_s=feed.dt_s, coef=feed.coef, e0_mm=feed.e0_mm,
                      move=np.array([0, 5]), gap=feed.gap, phase=feed.phase,

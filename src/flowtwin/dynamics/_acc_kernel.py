@@ -3,10 +3,10 @@
 :func:`flowtwin.dynamics._lag_kernel.integrate_kernel` adds, segment by segment, the
 filament commanded, fed, delivered and lost, the time and the extremes of force and flow
 of the current move (or of the stop after it, or of the rest before the first move) in
-registers (``A_*`` columns). A feed is in *move order* (:func:`prepare_segments` checks
-it): the segments of a move are contiguous, its stop follows them, moves come in index
-order. So each accumulator row is complete when the next one starts: the kernel adds it
-to a buffer of :data:`CHUNK` moves (rows ``2 j`` and ``2 j + 1``: move ``base + j`` and
+registers (``A_*`` columns). A feed is in *move order* (the kernel checks it): the
+segments of a move are contiguous, its stop follows them, moves come in index order.
+So each accumulator row is complete when the next one starts: the kernel adds it to a
+buffer of :data:`CHUNK` moves (rows ``2 j`` and ``2 j + 1``: move ``base + j`` and
 the stop after it; row :data:`PRE_ROW`: the rest before the first move) and, once the
 feed has moved past the chunk, writes its moves' results (:func:`finish_chunk`) straight
 into the columns of the result table. No accumulator table of all moves is built: on a
@@ -32,7 +32,7 @@ __all__ = [
     "A_SEEN", "A_SLIP", "A_TIME", "BAD_FEED", "BAD_ORDER", "BUF_ROWS", "BUF_WIDTH", "CHUNK",
     "N_ACC", "N_COLS", "N_SER", "PRE_ROW", "S_E", "S_F", "S_Q", "S_SLIP", "S_T", "S_VCMD",
     "S_VFIL", "S_X", "T_COMP", "T_SUM", "add_row", "clear_row", "finish_chunk", "finish_move",
-    "finish_totals", "prepare_segments",
+    "finish_totals",
 ]
 
 # Accumulator columns (per move, per stop): filament lengths in mm, times in s.
@@ -76,9 +76,9 @@ S_SLIP = 6    # slip fraction
 S_X = 7       # Δl, mm
 N_SER = 8
 
-#: Failure codes of :func:`prepare_segments` (negative; success is the stop count).
-BAD_FEED = -1   # move index out of range, move segment without a move, dt, coefficients
-BAD_ORDER = -2  # segments not in move order
+#: Failure codes of the kernel's check of a feed (``_lag_kernel.integrate_kernel``).
+BAD_FEED = 1   # move index out of range, move segment without a move, dt, coefficients
+BAD_ORDER = 2  # segments not in move order (``2 · move + gap`` decreasing)
 
 
 @njit(cache=True, inline="always")
@@ -175,35 +175,3 @@ def finish_chunk(buf: npt.NDArray[np.float64], base: int, count: int, area: floa
         clear_row(buf, mrow)
         clear_row(buf, srow)
     return n_stops
-
-
-@njit(cache=True)
-def prepare_segments(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
-                     dt: npt.NDArray[np.float64], coef: npt.NDArray[np.float64],
-                     n: int) -> int:
-    """Check a feed for the kernel; the number of stops (moves followed by gap segments).
-
-    The kernel gives segment ``i`` the parameters of move ``clip(move[i], 0, n - 1)`` and
-    accumulates it into move ``move[i]``, the stop after it (``gap[i]``) or the rest
-    before the first move (``move[i] == -1``, a gap). Returns :data:`BAD_FEED` when a
-    move index is out of ``[-1, n)``, a move segment has none, a duration is not > 0 or a
-    coefficient is not finite; :data:`BAD_ORDER` when the segments are not in move order
-    (``2 · move + gap`` must not decrease: a move's segments contiguous, its stop after
-    them, moves in index order).
-    """
-    stops = 0
-    last = -2
-    for i in range(move.shape[0]):
-        m = move[i]
-        if m >= n or m < -1 or (m < 0 and not gap[i]) or not dt[i] > 0.0:
-            return BAD_FEED
-        if not (math.isfinite(coef[i, 0]) and math.isfinite(coef[i, 1])
-                and math.isfinite(coef[i, 2]) and math.isfinite(coef[i, 3])):
-            return BAD_FEED
-        key = 2 * m + (1 if gap[i] else 0)
-        if key < last:
-            return BAD_ORDER
-        if key != last and gap[i] and m >= 0:
-            stops += 1
-        last = key
-    return stops

@@ -50,6 +50,8 @@ from flowtwin.dynamics._acc_kernel import (
     A_SEEN,
     A_SLIP,
     A_TIME,
+    BAD_FEED,
+    BAD_ORDER,
     BUF_ROWS,
     BUF_WIDTH,
     CHUNK,
@@ -278,6 +280,16 @@ def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: 
 
 
 @njit(cache=True)
+def _room(stops: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
+    """``stops`` with room for ``rows`` rows (doubled and copied when too small)."""
+    if stops.shape[0] >= rows:
+        return stops
+    grown = np.empty((max(rows, 2 * stops.shape[0]), stops.shape[1]))
+    grown[:stops.shape[0]] = stops
+    return grown
+
+
+@njit(cache=True)
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
                      move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
@@ -291,21 +303,23 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      move_de: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
                      move_t1: npt.NDArray[np.float64],
                      cols: tuple[npt.NDArray[np.float64], ...],
-                     grind_col: npt.NDArray[np.bool_], stops: npt.NDArray[np.float64],
-                     tot: npt.NDArray[np.float64], pre: npt.NDArray[np.float64]
-                     ) -> tuple[float, bool, int]:
+                     grind_col: npt.NDArray[np.bool_], tot: npt.NDArray[np.float64],
+                     pre: npt.NDArray[np.float64]) -> tuple[float, bool, int, int]:
     """Integrate all segments; write the per-move results, ``samples``, the totals and the
     rest before the first move.
 
-    ``move``, ``gap``: owner and stop flag of each segment, in move order (checked by
-    ``_acc_kernel.prepare_segments``, which also counts the rows of ``stops``). ``cols``,
-    ``grind_col``: the result columns (``_acc_kernel.finish_chunk``); ``stops``
-    ``(n_stops, N_ACC)`` receives the stops' accumulators, ``pre`` ``(N_ACC,)`` those of
-    the rest before the first move, ``tot`` ``(2, N_ACC)`` the totals in row ``T_SUM``
-    (``_acc_kernel.add_row``).
+    ``move``, ``gap``: owner and stop flag of each segment. The feed is checked on the way
+    (no separate pass over it): a move index out of ``[-1, n)``, a move segment without a
+    move, a duration not > 0 or a coefficient not finite stops the kernel with
+    ``_acc_kernel.BAD_FEED``, segments out of move order (``2 · move + gap`` decreasing)
+    with ``BAD_ORDER``; the results are then incomplete. ``cols``, ``grind_col``: the
+    result columns (``_acc_kernel.finish_chunk``); ``pre`` ``(N_ACC,)`` receives the
+    accumulators of the rest before the first move, ``tot`` ``(2, N_ACC)`` the totals in
+    row ``T_SUM`` (``_acc_kernel.add_row``: moves, the rest before them, the stops).
 
     ``min_stages``: fewest stages a collocation substep may use (6: the fixed 6-stage
-    method). Returns the final ``Δl`` (mm), the final grinding flag and the number of events.
+    method). Returns the final ``Δl`` (mm), the final grinding flag, the number of events
+    and a status (0 or a ``BAD_*`` code).
     """
     ws = np.empty((WS_ROWS, MAX_STAGES))
     roots = np.empty(8)
@@ -324,6 +338,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
             tot[r, q] = 0.0
     base = 0         # first move of the buffer (the moves before it are written)
     n_stops = 0
+    stops = np.empty((CHUNK, N_ACC))  # accumulators of the stops, for the totals
     # samples before the first segment: initial state at rest
     while js < ns and nseg > 0 and sample_t[js] < t0[0]:
         samples[js, S_T] = sample_t[js]
@@ -346,16 +361,22 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         c3 = coef[i, 3]
         seg_len = dt[i]
         # parameters of the owning move (a stop: of the move before it); accumulator row
-        # (prepare_segments checked the indices)
         mi = move[i]
+        if mi >= nmoves or mi < -1 or (mi < 0 and not gap[i]) or not seg_len > 0.0 or not (
+                math.isfinite(c0) and math.isfinite(c1) and math.isfinite(c2)
+                and math.isfinite(c3)):
+            return x, grinding, n_events, BAD_FEED
         p = min(max(mi, 0), nmoves - 1)
         slot = 2 * mi + (1 if gap[i] else 0)  # -1: the rest before the first move
         if slot != cur:
+            if slot < cur:
+                return x, grinding, n_events, BAD_ORDER
             if cur >= -1:
                 _flush(buf, PRE_ROW if cur < 0 else cur - 2 * base, l_cmd, l_fwd, l_fed, l_out,
                        l_slip, l_grind, l_gtime, l_time, l_xhi, l_xlo, kk, kcc)
             while mi >= base + CHUNK:
                 # past the buffered moves: write their results
+                stops = _room(stops, n_stops + CHUNK)
                 n_stops = finish_chunk(buf, base, CHUNK, area, move_de, move_t0, move_t1,
                                        cols, grind_col, stops, n_stops, tot)
                 base += CHUNK
@@ -549,6 +570,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                l_grind, l_gtime, l_time, l_xhi, l_xlo, k_last, kc_last)
     while base < nmoves:
         count = min(CHUNK, nmoves - base)
+        stops = _room(stops, n_stops + count)
         n_stops = finish_chunk(buf, base, count, area, move_de, move_t0, move_t1, cols,
                                grind_col, stops, n_stops, tot)
         base += count
@@ -572,4 +594,4 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         samples[js, S_F] = xp / kc_last
         samples[js, S_X] = x
         js += 1
-    return x, grinding, n_events
+    return x, grinding, n_events, 0

@@ -223,19 +223,19 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
         raise DataError("lead/tail time must be finite and >= 0", field="lead_s/tail_s",
                         value=(lead_s, tail_s), allowed=">= 0")
     # one compiled pass: planner residue like -2e-18 s in phase times is clamped to 0, the
-    # phase times, move order and motion of extruding moves are checked, E speeds computed
-    ts, te, ta, tc, td, sv, cv, ev, de = (np.empty(n) for _ in range(9))
-    err = np.zeros(2)
+    # phase times, move order and motion of extruding moves are checked
+    ts, te, de = (np.empty(n) for _ in range(3))
+    err = np.zeros(7)
     bad = prepare_moves(ph, moves.moves, -1 if tool is None else int(tool), tool is None,
-                        _PHASE_RESIDUE_S, _OVERLAP_TOL_S, ts, te, ta, tc, td, sv, cv, ev, de,
-                        err)
+                        _PHASE_RESIDUE_S, _OVERLAP_TOL_S, ts, te, de, err)
     if bad != BAD_NONE:
         i = int(err[0])
         line = int(moves.moves["line"][i])
         if bad == BAD_PHASE_TIME:
             raise DataError("phase times must be finite and >= 0", source=moves.source,
                             line=line, field="timeline.phases",
-                            value=(float(ta[i]), float(tc[i]), float(td[i]), float(ts[i])),
+                            value=(float(err[1]), float(err[2]), float(err[3]),
+                                   float(err[4])),
                             allowed=">= 0")
         if bad == BAD_OVERLAP:
             raise DataError("move starts before the previous one ends", source=moves.source,
@@ -245,9 +245,10 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
                         "or zero duration)", source=moves.source, line=line,
                         field="timeline.phases", value=float(err[1]),
                         allowed="moves with de != 0 need a duration > 0")
-    t0_s, dt_s, coef, e0_mm, move, phase_k = build_segments(
-        ts, te, ta, tc, td, sv, cv, ev, de, float(e_start_mm), float(lead_s), float(tail_s))
-    gap = phase_k == PHASE_GAP
+    # the segments, with the E speeds at the phase ends computed on the way (no move-sized
+    # temporaries)
+    t0_s, dt_s, coef, e0_mm, move, phase_k, gap = build_segments(
+        ph, ts, te, de, _PHASE_RESIDUE_S, float(e_start_mm), float(lead_s), float(tail_s))
     return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
                          phase=phase_k, move_t0_s=ts, move_t1_s=te,
                          move_de_mm=de, e_start_mm=float(e_start_mm))

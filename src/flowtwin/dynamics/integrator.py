@@ -57,7 +57,6 @@ from flowtwin.dynamics._acc_kernel import (
     S_VFIL,
     S_X,
     T_SUM,
-    prepare_segments,
 )
 from flowtwin.dynamics._lag_kernel import integrate_kernel
 from flowtwin.dynamics.feed import CommandedFeed
@@ -181,16 +180,6 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     gap = np.ascontiguousarray(gap, dtype=np.bool_)
     dt = np.ascontiguousarray(dt, dtype=np.float64)
     coef = np.ascontiguousarray(coef, dtype=np.float64)
-    n_stops = prepare_segments(move, gap, dt, coef, n)
-    if n_stops < 0:
-        why = ("segments not in move order: a move's segments must be contiguous, its stop "
-               "right after them, moves in index order" if n_stops == BAD_ORDER else
-               "move index out of range, segment without a move, non-positive duration or "
-               "non-finite speed")
-        raise DataError(f"commanded feed is inconsistent ({why})", field="feed",
-                        value=feed.n_segments,
-                        allowed=f"move indices in [-1, {n}) in order, dt > 0, finite "
-                                "coefficients")
     t_end = float(t0[-1] + dt[-1])
     sample_t = (np.zeros(0) if series_dt_s is None
                 else _series_times(feed, t_end, series_dt_s, series_window_s))
@@ -200,10 +189,9 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     # every field of every row is written by the kernel
     moves = np.empty(n, dtype=MOVE_RESULT_DTYPE)
     cols = tuple(moves[name] for name in _FLOAT_COLUMNS)
-    stops = np.empty((n_stops, N_ACC))
     tot = np.empty((2, N_ACC))
     pre = np.empty(N_ACC)
-    x_end, grind_end, n_events = integrate_kernel(
+    x_end, grind_end, n_events, status = integrate_kernel(
         np.ascontiguousarray(t0, dtype=np.float64), dt, coef,
         np.ascontiguousarray(e0, dtype=np.float64), move, gap, p.lag_k_s,
         p.compliance_mm_per_n, p.slip_offset, p.slip_gradient_per_n,
@@ -213,7 +201,16 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
         np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
         np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), cols, moves["grinding"],
-        stops, tot, pre)
+        tot, pre)
+    if status != 0:
+        why = ("segments not in move order: a move's segments must be contiguous, its stop "
+               "right after them, moves in index order" if status == BAD_ORDER else
+               "move index out of range, segment without a move, non-positive duration or "
+               "non-finite speed")
+        raise DataError(f"commanded feed is inconsistent ({why})", field="feed",
+                        value=feed.n_segments,
+                        allowed=f"move indices in [-1, {n}) in order, dt > 0, finite "
+                                "coefficients")
     before = np.zeros(1, dtype=MOVE_RESULT_DTYPE)
     before["cmd_mm3"] = 0.0
     before["fed_cmd_mm3"] = area * pre[A_CMD]
