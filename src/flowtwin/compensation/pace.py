@@ -414,33 +414,13 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     if options.run_ends:
         anchor = np.where(run_end, ev, anchor)
         drop = drop | (run_end & (ev < cv))
-    if options.gap_lags > 0 and n:
-        # the next printing piece after every run end, and the time between
-        idx = np.flatnonzero(pr)
-        pos = np.searchsorted(idx, np.arange(n), side="right")
-        has = pos < idx.size
-        j = np.where(has, idx[np.minimum(pos, max(idx.size - 1, 0))], 0) if idx.size else \
-            np.zeros(n, dtype=np.int64)
-        gap = np.where(has, np.asarray(t_start_s, dtype=np.float64)[j]
-                       - np.asarray(t_end_s, dtype=np.float64), np.inf)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            short = run_end & has & (gap < options.gap_lags * k) & (a[j] > 0)
-            rho = np.where(short, a / np.where(a[j] > 0, a[j], 1.0) * np.exp(-gap / k), 1.0)
-            cap = np.where(short & (rho > options.min_drop),
-                           options.adjust_mm / (k * np.log(np.maximum(rho, 1.0 + 1e-12))),
-                           np.inf)
-        gapped = np.isfinite(cap) & (cap < np.minimum(ev, anchor))
-        report_gaps = int(np.count_nonzero(gapped))
-        anchor = np.where(gapped, cap, anchor)
-        drop = drop | gapped
-    else:
-        report_gaps = 0
     report = PaceReport(paced_rows=np.zeros(0, dtype=np.int64),
                         drop_junctions=int(np.count_nonzero(drop)),
                         step_junctions=int(np.count_nonzero(drop & np.isfinite(step_cap)
-                                                            & (step_cap < ev))),
-                        gap_junctions=report_gaps)
-    # backward pass: the drop envelope's speed at the end of every piece
+                                                            & (step_cap < ev))))
+    # backward pass: the drop envelope's speed at the end of every piece. Across a gap
+    # shorter than gap_lags·K (no relief over it) the bound is carried in flow: the outflow
+    # may decay by exp(m·gap/K) between the end of a run and the paced top flow of the next
     g = np.where(pr, m / np.where(k > 0, k, np.inf), 0.0)
     end_bound = np.full(n, np.inf)
     bound = math.inf
@@ -449,13 +429,32 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     anc_l = anchor.tolist()
     pr_l = pr.tolist()
     nxt_l = nxt.tolist()
+    a_l = a.tolist()
+    k_l = k.tolist()
+    cv_l = cv.tolist()
+    ts_l = np.asarray(t_start_s, dtype=np.float64).tolist()
+    te_l = np.asarray(t_end_s, dtype=np.float64).tolist()
+    next_start = -1  # first piece of the next run
+    next_flow = math.inf  # its paced top flow, mm³/s
+    gaps = 0
     for i in range(n - 1, -1, -1):
         if not pr_l[i]:
             bound = math.inf
             continue
         b = min(bound if nxt_l[i] else math.inf, anc_l[i])
+        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0:
+            gap = ts_l[next_start] - te_l[i]
+            if gap < options.gap_lags * k_l[i] and math.isfinite(next_flow):
+                carried = next_flow * math.exp(m * max(gap, 0.0) / k_l[i]) / a_l[i]
+                if carried < b and carried < cv_l[i]:
+                    b = carried
+                    gaps += 1
         end_bound[i] = b
         bound = b + g_l[i] * len_l[i] if math.isfinite(b) else math.inf
+        if i == 0 or not pr_l[i - 1]:  # a run starts here
+            next_start = i
+            next_flow = a_l[i] * min(cv_l[i], bound)
+    report.gap_junctions = gaps
     # forward pass: the rise envelope's speed at the start of every piece
     start_bound = np.full(n, np.inf)
     acc = np.full(n, np.inf)
@@ -468,11 +467,28 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         rising = pr & prev_pr & (a > options.min_drop * a_prev)
         cap_rise = np.where(rising, step_speed_mm_s(a_prev, a, k, adjust_mm=options.adjust_mm),
                             np.inf)
-        v0 = np.where(run_start, sv, np.where(rising, np.minimum(sv, cap_rise), np.inf))
+        # a run start builds from the outflow the gap leaves: relaxed after a gap long
+        # enough for the advance's relief, exp(-gap/K) of the last run's end flow after a
+        # shorter one; before the first run (a prime, a purge) the state is not known to
+        # the pacing: not paced
+        idx = np.flatnonzero(pr)
+        pos = np.searchsorted(idx, np.arange(n), side="left") - 1
+        has_prev = pos >= 0
+        p_end = idx[np.maximum(pos, 0)] if idx.size else np.zeros(n, dtype=np.int64)
+        t_end = np.asarray(t_end_s, dtype=np.float64)
+        gap_in = np.where(has_prev, np.asarray(t_start_s, dtype=np.float64) - t_end[p_end],
+                          np.inf)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            q_carry = np.where(has_prev & (gap_in < options.gap_lags * k),
+                               a[p_end] * np.minimum(ev[p_end], end_bound[p_end])
+                               * np.exp(-gap_in / k), 0.0)
+            v_carry = np.where(a > 0, q_carry / np.where(a > 0, a, 1.0), 0.0)
+        start_ok = run_start & has_prev & (a * cv > options.min_drop * q_carry)
+        v0 = np.where(start_ok, np.maximum(sv, v_carry),
+                      np.where(rising, np.minimum(sv, cap_rise), np.inf))
         report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))
         acc_l = acc.tolist()
         v0_l = v0.tolist()
-        cv_l = cv.tolist()
         carry = math.inf
         for i in range(n):
             if not pr_l[i]:
