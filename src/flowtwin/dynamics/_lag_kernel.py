@@ -53,7 +53,6 @@ from flowtwin.dynamics._acc_kernel import (
     BAD_FEED,
     BAD_ORDER,
     BUF_ROWS,
-    BUF_WIDTH,
     CHUNK,
     N_ACC,
     PRE_ROW,
@@ -74,9 +73,7 @@ from flowtwin.dynamics._expint import (
     FREE,
     GRIND,
     LAG,
-    MAX_STAGES,
     SLIP,
-    WS_ROWS,
     colloc4,
     dpoly4,
     free4,
@@ -86,6 +83,7 @@ from flowtwin.dynamics._expint import (
     shift4,
     slope_factor,
     stages_for,
+    unowned,
 )
 from flowtwin.dynamics._roots import hermite_root, speed_roots
 
@@ -304,7 +302,9 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      move_t1: npt.NDArray[np.float64],
                      cols: tuple[npt.NDArray[np.float64], ...],
                      grind_col: npt.NDArray[np.bool_], tot: npt.NDArray[np.float64],
-                     pre: npt.NDArray[np.float64]) -> tuple[float, bool, int, int]:
+                     pre: npt.NDArray[np.float64], ws_own: npt.NDArray[np.float64],
+                     roots_own: npt.NDArray[np.float64], buf_own: npt.NDArray[np.float64]
+                     ) -> tuple[float, bool, int, int]:
     """Integrate all segments; write the per-move results, ``samples``, the totals and the
     rest before the first move.
 
@@ -318,11 +318,14 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     row ``T_SUM`` (``_acc_kernel.add_row``: moves, the rest before them, the stops).
 
     ``min_stages``: fewest stages a collocation substep may use (6: the fixed 6-stage
-    method). Returns the final ``Δl`` (mm), the final grinding flag, the number of events
-    and a status (0 or a ``BAD_*`` code).
+    method). ``ws_own`` ``(WS_ROWS, MAX_STAGES)``, ``roots_own`` ``(8,)`` and ``buf_own``
+    ``(BUF_ROWS, BUF_WIDTH)``: scratch arrays held by the caller, used through
+    ``_expint.unowned`` views (no reference counting in the calls of the loop). Returns
+    the final ``Δl`` (mm), the final grinding flag, the number of events and a status (0
+    or a ``BAD_*`` code).
     """
-    ws = np.empty((WS_ROWS, MAX_STAGES))
-    roots = np.empty(8)
+    ws = unowned(ws_own)
+    roots = unowned(roots_own)
     x = x_init
     grinding = grind_init
     n_events = 0
@@ -330,7 +333,7 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     js = 0
     nseg = t0.shape[0]
     nmoves = move_de.shape[0]
-    buf = np.empty((BUF_ROWS, BUF_WIDTH))
+    buf = unowned(buf_own)
     for r in range(BUF_ROWS):
         clear_row(buf, r)
     for r in range(2):

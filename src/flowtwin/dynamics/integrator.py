@@ -46,6 +46,8 @@ from flowtwin.dynamics._acc_kernel import (
     A_SLIP,
     A_TIME,
     BAD_ORDER,
+    BUF_ROWS,
+    BUF_WIDTH,
     N_ACC,
     N_SER,
     S_E,
@@ -58,6 +60,7 @@ from flowtwin.dynamics._acc_kernel import (
     S_X,
     T_SUM,
 )
+from flowtwin.dynamics._expint import MAX_STAGES, WS_ROWS
 from flowtwin.dynamics._lag_kernel import integrate_kernel
 from flowtwin.dynamics.feed import CommandedFeed
 from flowtwin.dynamics.params import ExtrusionParams
@@ -201,7 +204,7 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
         float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
         np.ascontiguousarray(feed.move_t0_s, dtype=np.float64),
         np.ascontiguousarray(feed.move_t1_s, dtype=np.float64), cols, moves["grinding"],
-        tot, pre)
+        tot, pre, np.empty((WS_ROWS, MAX_STAGES)), np.empty(8), np.empty((BUF_ROWS, BUF_WIDTH)))
     if status != 0:
         why = ("segments not in move order: a move's segments must be contiguous, its stop "
                "right after them, moves in index order" if status == BAD_ORDER else
