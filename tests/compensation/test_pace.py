@@ -59,6 +59,20 @@ def step_drop_gcode(path: Path, *, feed: float = 3000.0) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def ramp_gcode(path: Path, *, feed: float = 3000.0) -> None:
+    """A wall whose cross-section falls from 1 to 0.5 in five 0.08 mm steps (variable-width
+    walls), then runs on at half width: each junction alone drops less than 1.25×."""
+    lines = _header()
+    x = 100.0
+    lines.append(_line(x, 60.0, 40.0, 1.0, feed))
+    for share in (0.87, 0.76, 0.66, 0.57, 0.5):
+        x += 0.08
+        lines.append(_line(x, 60.0, 0.08, share, feed))
+    lines.append(_line(x + 30.0, 60.0, 30.0, 0.5, feed))
+    lines += ["G1 E-0.8 F2100", "M104 S0"]
+    path.write_text("\n".join(lines) + "\n")
+
+
 def _draft(path: Path) -> tuple[Draft, SimulationResult, float]:
     m = load_machine(DEFAULT_MACHINE)
     sim = simulate(path, machine=m, pressure_advance=False)
@@ -162,6 +176,32 @@ def test_paced_step_drop_meets_the_exponential_bound(tmp_path: Path) -> None:
     de1 = read_gcode(out).moves["de"]
     assert abs(de1.sum() - de0.sum()) <= 1e-9 * de0.sum()
     assert e_unit > 0
+
+
+def test_a_cross_section_ramp_is_paced_as_one_step(tmp_path: Path) -> None:
+    """Five small steps (each < ``min_step``) within ``adjust_mm`` are one step of 2×: the
+    last junction of the ramp is capped at ``adjust/(K·ln ρ)`` with ``ρ`` the largest
+    cross-section within ``adjust_mm`` before it over the one after it."""
+    src = tmp_path / "ramp.gcode"
+    ramp_gcode(src)
+    draft, sim, _ = _draft(src)
+    opts = PaceOptions(rise=False, run_ends=False)
+    paced, report = _pace(draft, sim, opts)
+    assert report.step_junctions >= 1  # type: ignore[attr-defined]
+    cmd = sim.dynamics.moves["cmd_mm3"]
+    length = np.linalg.norm(draft.xyz_mm - draft.start_xyz(), axis=1)
+    ext = np.flatnonzero(cmd > 0)
+    a = cmd[ext] / length[ext]
+    last_step = ext[-2]  # the last ramp piece, before the half-width run
+    k = float(sim.parameters.params.lag_k_s[last_step])
+    back = np.cumsum(length[ext][-2::-1])  # path back from the junction
+    window = a[-2::-1][back - length[ext][-2::-1] < opts.adjust_mm]
+    rho = float(window.max() / a[-1])
+    assert 1.8 < rho < 2.2 and np.all(a[1:-1] / a[2:] < opts.min_step)
+    cap = opts.adjust_mm / (k * math.log(rho))
+    sub = np.flatnonzero(paced.row == draft.row[last_step])
+    v_end = paced.piece_feed_mm_min[sub[-1]] / 60.0
+    assert v_end == pytest.approx(max(cap, opts.min_speed_mm_s), rel=1e-3)
 
 
 def test_pace_never_raises_a_speed_and_keeps_the_volume(thin_gcode: Path,

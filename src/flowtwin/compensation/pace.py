@@ -75,6 +75,9 @@ class PaceOptions:
         uses: ``d ln Q/dt ≥ −m/K`` (0 < m < 1; the advance keeps a feed of ``(1 − m)·Q``).
     min_drop
         Pace only junctions where the flow falls (rises) by at least this factor (> 1).
+    min_step
+        Cap the junction speed where the cross-section falls by at least this factor within
+        ``adjust_mm`` of path (> 1).
     adjust_mm
         Path over which the melt may adjust at a cross-section step, mm.
     step_ratio
@@ -99,6 +102,7 @@ class PaceOptions:
 
     margin: float = 0.8
     min_drop: float = 2.0
+    min_step: float = 1.25
     adjust_mm: float = 0.5
     step_ratio: float = 1.3
     min_speed_mm_s: float = 2.0
@@ -112,6 +116,7 @@ class PaceOptions:
         checks = {
             "margin": (self.margin, 0.0 < self.margin < 1.0, "0 < m < 1"),
             "min_drop": (self.min_drop, 1.0 < self.min_drop <= 1e3, "1 < r <= 1000"),
+            "min_step": (self.min_step, 1.0 < self.min_step <= 1e3, "1 < r <= 1000"),
             "adjust_mm": (self.adjust_mm, 0.01 <= self.adjust_mm <= 100.0, "0.01 .. 100 mm"),
             "step_ratio": (self.step_ratio, 1.01 <= self.step_ratio <= 10.0, "1.01 .. 10"),
             "min_speed_mm_s": (self.min_speed_mm_s, 0.1 <= self.min_speed_mm_s <= 100.0,
@@ -350,6 +355,28 @@ def staircase(length_mm: float, v_plan_mm_s: float, *, end_v_mm_s: float, end_sl
     return out_e, out_v
 
 
+def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: float
+                ) -> FloatArray:
+    """Largest ``a`` of the pieces within ``window_mm`` of path before the end of each
+    piece, inside its run (``nxt[i]``: piece ``i`` continues into ``i + 1``)."""
+    out = np.asarray(a, dtype=np.float64).copy()
+    a_l = out.tolist()
+    len_l = np.asarray(length, dtype=np.float64).tolist()
+    nxt_l = np.asarray(nxt, dtype=bool).tolist()
+    for i in range(len(a_l)):
+        if not nxt_l[i]:
+            continue
+        best = a_l[i]
+        walked = len_l[i]
+        j = i - 1
+        while j >= 0 and walked < window_mm and nxt_l[j]:
+            best = max(best, a_l[j])
+            walked += len_l[j]
+            j -= 1
+        out[i] = best
+    return out
+
+
 def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArray,
                lag_k_s: FloatArray, start_v_mm_s: FloatArray, cruise_v_mm_s: FloatArray,
                end_v_mm_s: FloatArray, t_start_s: FloatArray, t_end_s: FloatArray,
@@ -402,8 +429,12 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         nxt[:-1] = pr[:-1] & pr[1:]
     a_next = np.concatenate((a[1:], [0.0]))
     k_j = np.concatenate((np.maximum(k[:-1], k[1:]), [k[-1]])) if n else k
-    step_cap = np.where(nxt & (a > options.min_drop * a_next),
-                        step_speed_mm_s(a, np.where(a_next > 0, a_next, 1.0), k_j,
+    # a cross-section that falls over a stretch shorter than adjust_mm (variable-width
+    # walls fall in many small steps) is one step: the largest cross-section within
+    # adjust_mm of path before the junction against the one after it
+    a_ref = _window_max(a, length, nxt, options.adjust_mm)
+    step_cap = np.where(nxt & (a_ref > options.min_step * a_next),
+                        step_speed_mm_s(a_ref, np.where(a_next > 0, a_next, 1.0), k_j,
                                         adjust_mm=options.adjust_mm), np.inf)
     # flow falls by min_drop: from the piece's top flow to the flow after the junction
     with np.errstate(divide="ignore", invalid="ignore"):
