@@ -22,16 +22,18 @@ fast). Here the limit comes from the twin:
   ``min_drop`` (the planner's junction speed ``v_J``), the path speed may be at most
   ``v_J + (m/K)·d`` at a distance ``d`` before it (:func:`drop_envelope`).
 * **Cross-section steps.** The path speed is continuous through a junction, so a step of
-  the cross-section ``a_i → a_j`` steps the flow by ``a_i/a_j`` whatever the speed. The
-  outflow then needs ``K·ln(a_i/a_j)`` to follow, ``v·K·ln(a_i/a_j)`` of path: the
-  junction speed is capped at ``adjust_mm / (K·ln(a_i/a_j))`` so that the melt adjusts
-  within ``adjust_mm`` of path (:func:`step_speed_mm_s`); the advance then places that
-  adjustment (the refinement puts it where the volume is large).
+  the cross-section steps the flow by ``ρ`` whatever the speed; the outflow needs
+  ``K·ln ρ`` to follow, ``v·K·ln ρ`` of path: the junction speed is capped at
+  ``adjust_mm / (K·ln ρ)`` (:func:`step_speed_mm_s`), ``ρ`` the largest cross-section
+  within ``adjust_mm`` before the junction over the one after (variable-width walls narrow
+  in many small steps). Runs less than ``gap_lags·K`` apart (no relief over the travel)
+  carry the envelope in flow: ``Q_end ≤ Q_next·exp(m·gap/K)``.
 * **Rising flow.** The extruder can command at most ``V = A_f·J`` mm³/s above the intended
   flow without the planner slowing the junction (``J`` the firmware's E speed step,
   :mod:`flowtwin.compensation.limits`; ``A_f`` the filament area), so the outflow can rise
   at ``Q̇ ≤ V/K``: a path acceleration of at most ``A = m·V/(K·a)`` after a run start or a
-  rising cross-section step, ``v(s)² ≤ v₀² + 2·A·s`` (:func:`rise_envelope`).
+  rising cross-section step, ``v(s)² ≤ v₀² + 2·A·s`` (:func:`rise_envelope`), from the
+  flow the gap before leaves (none before a file's first run: a prime's state is unknown).
 
 A move whose planned speed exceeds the envelope is cut (the existing
 :meth:`~flowtwin.compensation.draft.Draft.split`): the paced part becomes a staircase of
