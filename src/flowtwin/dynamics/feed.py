@@ -29,6 +29,7 @@ from flowtwin.dynamics._feed_kernel import (
     BAD_OVERLAP,
     BAD_PHASE_TIME,
     build_segments,
+    count_segments,
     prepare_moves,
 )
 from flowtwin.errors import DataError
@@ -247,8 +248,14 @@ def nominal_feed(moves: MoveTable, timeline: Timeline, *, tool: int | None = Non
                         allowed="moves with de != 0 need a duration > 0")
     # the segments, with the E speeds at the phase ends computed on the way (no move-sized
     # temporaries)
-    t0_s, dt_s, coef, e0_mm, move, phase_k, gap = build_segments(
-        ph, ts, te, de, _PHASE_RESIDUE_S, float(e_start_mm), float(lead_s), float(tail_s))
+    m = count_segments(ph, ts, te, _PHASE_RESIDUE_S, float(lead_s), float(tail_s))
+    t0_s, dt_s, e0_mm = np.empty(m), np.empty(m), np.empty(m)
+    coef = np.empty((m, 4))
+    move = np.empty(m, dtype=np.int64)
+    phase_k = np.empty(m, dtype=np.int8)
+    gap = np.empty(m, dtype=np.bool_)
+    build_segments(ph, ts, te, de, _PHASE_RESIDUE_S, float(e_start_mm), float(lead_s),
+                   float(tail_s), t0_s, dt_s, coef, e0_mm, move, phase_k, gap)
     return CommandedFeed(t0_s=t0_s, dt_s=dt_s, coef=coef, e0_mm=e0_mm, move=move, gap=gap,
                          phase=phase_k, move_t0_s=ts, move_t1_s=te,
                          move_de_mm=de, e_start_mm=float(e_start_mm))
