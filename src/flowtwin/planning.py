@@ -16,10 +16,10 @@ from typing import BinaryIO
 
 import numpy as np
 
-from flowtwin.errors import ProfileError
-from flowtwin.gcode.groups import group_sums
+from flowtwin.errors import DataError, ProfileError
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
+from flowtwin.planner._totals_kernel import plan_totals
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import (
@@ -28,7 +28,7 @@ from flowtwin.planner.klipper_config import (
     load_printer_cfg,
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
-from flowtwin.planner.timeline import Timeline, time_by_feature, time_by_layer
+from flowtwin.planner.timeline import DWELL_FEATURE, Timeline, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
@@ -81,24 +81,46 @@ class PlanResult:
         """The whole-print figures as plain JSON-able values."""
         t = self.table
         m = t.moves
-        written = (m["kind"] & MoveKind.FW_RETRACT) == 0
-        tools, _, (sums,) = group_sums(m["tool"], m["de"] * m["flow"])
-        extruded = {str(k): v for k, v in zip(tools.tolist(), sums.tolist(), strict=True)}
+        n = len(m)
+        extruded: dict[str, float] = {}
+        net: dict[str, float] = {}
+        by_feature: dict[str, float] = {}
+        ext_written = 0
+        layers = 0
+        if n:
+            p = self.timeline.phases
+            if p.shape[0] != n:
+                raise DataError("timeline and move table have different lengths",
+                                field="phases", value=p.shape[0], allowed=f"{n} rows")
+            (t_lo, t_count, written, ext, f_lo, f_count, f_time, ext_written,
+             max_layer) = plan_totals(m["kind"], m["tool"], m["de"], m["flow"], m["feature"],
+                                      m["layer"], p["accel_t"], p["cruise_t"], p["decel_t"],
+                                      int(MoveKind.EXTRUDE), int(MoveKind.FW_RETRACT))
+            for b in np.flatnonzero(t_count).tolist():
+                net[str(t_lo + b)] = float(written[b])
+                extruded[str(t_lo + b)] = float(ext[b])
+            for g in np.flatnonzero(f_count).tolist():
+                k = f_lo + g
+                name = t.features[k] if 0 <= k < len(t.features) else "unknown"
+                by_feature[name] = by_feature.get(name, 0.0) + float(f_time[g])
+            layers = max_layer + 1
+        dwell = float(sum(d[1] for d in self.timeline.dwell_s))
+        if dwell:
+            by_feature[DWELL_FEATURE] = dwell
         return {
             "file": t.source,
             "printer": self.printer,
             "firmware": self.timeline.firmware,
             "total_time_s": float(self.timeline.total_time_s),
-            "net_filament_mm": {str(k): v for k, v in t.net_filament_mm().items()},
+            "net_filament_mm": net,
             "extruded_filament_mm": extruded,
-            "moves": int(len(m)),
-            "extruding_moves": int(np.count_nonzero((m["kind"] & MoveKind.EXTRUDE) != 0
-                                                    & written)),
+            "moves": int(n),
+            "extruding_moves": int(ext_written),
             "lines": t.n_lines,
-            "layers": int(m["layer"].max() + 1) if len(m) else 0,
+            "layers": int(layers),
             "unknown_commands": t.unknown_commands,
             "warnings": len(t.warnings) + len(self.timeline.warnings),
-            "time_by_feature_s": time_by_feature(self.timeline, t),
+            "time_by_feature_s": by_feature,
             "slicer": t.metadata.get("slicer"),
             "slicer_time_s": t.metadata.get("slicer_time_s"),
             "slicer_filament_mm": t.metadata.get("slicer_filament_mm"),
