@@ -226,6 +226,23 @@ def test_pace_never_raises_a_speed_and_keeps_the_volume(thin_gcode: Path,
                   <= sim.plan.timeline.phases["cruise_v"][paced.row] * (1 + 1e-9))
 
 
+def test_no_paced_piece_prints_nothing(tmp_path: Path) -> None:
+    """A run end with 300 E grid units over 40 mm is cut into a staircase; with 3 units it
+    cannot be without pieces of zero E (they would become travels), so it is left whole."""
+    for e_word, cut in (("0.00300", True), ("0.00003", False)):
+        src = tmp_path / "tiny.gcode"
+        lines = _header()
+        lines += [_line(100.0, 60.0, 40.0, 1.0, 3000.0), f"G1 X140 Y60 E{e_word} F3000",
+                  "G1 E-0.8 F2100", "M104 S0"]
+        src.write_text("\n".join(lines) + "\n")
+        draft, sim, _ = _draft(src)
+        paced, _report = _pace(draft, sim, PaceOptions(rise=False))
+        tiny = int(np.flatnonzero(draft.e_grid == int(round(float(e_word) * 1e5)))[0])
+        assert (np.count_nonzero(paced.row == draft.row[tiny]) > 1) == cut
+        printing = paced.e_grid[np.isin(paced.row, draft.row[draft.e_grid > 0])]
+        assert np.all(printing > 0)
+
+
 def test_pacing_and_advance_fix_thin_transitions(thin_gcode: Path, tmp_path: Path) -> None:
     """A thin transition move between two full-speed walls dumps the stored volume K·Q:
     the advance alone cannot take it out (no negative extrusion), pacing first lets it."""

@@ -555,6 +555,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
             floor_mm_s=float(floor[i]))
         if all(v >= cv[i] * (1.0 - _SAME) for v in speeds):
             continue
+        share = np.rint(int(draft.e_grid[i]) * np.asarray(ends) / len_l[i])
+        if np.any(np.diff(np.concatenate(([0.0], share))) <= 0):
+            continue  # a sub-piece would print nothing: it would become a travel
         floored += sum(1 for v in speeds if v <= floor[i] * (1.0 + _SAME))
         sub_ends[i] = ends
         sub_v[i] = speeds
@@ -582,7 +585,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         for jj, v in enumerate(sub_v[i]):
             if v >= cv[i] * (1.0 - _SAME):
                 continue  # not paced: the line's (or the piece's own) feed
-            f = round(60.0 * v / float(sf[i]), 3)
+            f = math.floor(60e3 * v / float(sf[i])) / 1e3  # never above v
             feed[o + jj] = min(f, old) if math.isfinite(old) else f
     report.pieces_added = int(offsets[-1] - n)
     report.paced_rows = np.unique(draft.row[np.fromiter(sub_ends.keys(), dtype=np.int64)])
