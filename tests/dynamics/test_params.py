@@ -19,6 +19,14 @@ def test_scalar_array_and_callable():
     assert out.tolist() == [0.0, 10.0, 20.0]
 
 
+def test_scalar_is_a_stride_zero_view():
+    # one value for every move: no memory per move (a read-only view with stride 0)
+    out = resolve_per_move(0.25, 1_000_000, name="x")
+    assert out.shape == (1_000_000,) and out.strides == (0,)
+    assert not out.flags.writeable
+    assert out[999_999] == 0.25
+
+
 def test_ranges_and_messages():
     with pytest.raises(ProfileError, match=r"\[x\].*move 1.*got -1.0"):
         resolve_per_move([1.0, -1.0], 2, name="x", lo=0.0)

@@ -287,6 +287,15 @@ def _room(stops: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
     return grown
 
 
+@njit(cache=True, inline="always")
+def _step(values: npt.NDArray[np.float64], nmoves: int) -> int:
+    """Index step of a per-move parameter: 1 for ``(nmoves,)``, 0 for one value, -1 for
+    any other length."""
+    if values.shape[0] == nmoves:
+        return 1
+    return 0 if values.shape[0] == 1 else -1
+
+
 @njit(cache=True)
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
@@ -308,6 +317,8 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     """Integrate all segments; write the per-move results, ``samples``, the totals and the
     rest before the first move.
 
+    ``k_s`` … ``fmax``: the per-move parameters, each of shape ``(n_moves,)`` or ``(1,)``
+    (one value for every move; any other length: ``BAD_FEED``).
     ``move``, ``gap``: owner and stop flag of each segment. The feed is checked on the way
     (no separate pass over it): a move index out of ``[-1, n)``, a move segment without a
     move, a duration not > 0 or a coefficient not finite stops the kernel with
@@ -326,6 +337,16 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     """
     ws = unowned(ws_own)
     roots = unowned(roots_own)
+    # a parameter of length 1 is the same for every move (index 0)
+    st_k = _step(k_s, move_de.shape[0])
+    st_kc = _step(kc, move_de.shape[0])
+    st_kp = _step(kp, move_de.shape[0])
+    st_sa = _step(sa, move_de.shape[0])
+    st_sb = _step(sb, move_de.shape[0])
+    st_sc = _step(sc, move_de.shape[0])
+    st_fm = _step(fmax, move_de.shape[0])
+    if min(st_k, st_kc, st_kp, st_sa, st_sb, st_sc, st_fm) < 0:
+        return x_init, grind_init, 0, BAD_FEED
     x = x_init
     grinding = grind_init
     n_events = 0
@@ -350,6 +371,9 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
         js += 1
     k_last = 1.0
     kc_last = 1.0
+    p_par = -1  # the move whose parameters are loaded
+    kpp = saa = sbb = scc = thr = rel = 0.0
+    has_slip = False
     # accumulators of the current row, kept in registers and flushed when the row changes
     # (same additions in the same order as into the row itself: bit-identical sums)
     cur = -2
@@ -387,17 +411,20 @@ def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
             l_cmd = l_fwd = l_fed = l_out = l_slip = l_grind = l_gtime = l_time = 0.0
             l_xhi = 0.0
             l_xlo = math.inf
-        kk = k_s[p]
-        kcc = kc[p]
-        k_last = kk
-        kc_last = kcc
-        kpp = kp[p]
-        saa = sa[p]
-        sbb = sb[p]
-        scc = sc[p]
-        has_slip = saa != 0.0 or sbb != 0.0
-        thr = kcc * fmax[p]
-        rel = (1.0 - release) * thr
+        if p != p_par:
+            # (a move's segments and its stop share its parameters: read once)
+            p_par = p
+            kk = k_s[p * st_k]
+            kcc = kc[p * st_kc]
+            k_last = kk
+            kc_last = kcc
+            kpp = kp[p * st_kp]
+            saa = sa[p * st_sa]
+            sbb = sb[p * st_sb]
+            scc = sc[p * st_sc]
+            has_slip = saa != 0.0 or sbb != 0.0
+            thr = kcc * fmax[p * st_fm]
+            rel = (1.0 - release) * thr
         nr = speed_roots(c0, c1, c2, c3, seg_len, roots)
         pa = 0.0
         for q in range(nr + 1):

@@ -149,6 +149,16 @@ def integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                       stiffness=stiffness, min_stages=_MIN_STAGES)
 
 
+def _per_move(values: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """A parameter for the kernel: the ``(n_moves,)`` array, or its one value as an array
+    of length 1 when it has stride 0 (a constant broadcast by
+    :func:`~flowtwin.dynamics.params.resolve_per_move`: nothing per move is read or
+    written; the kernel indexes a length-1 array at 0)."""
+    if values.shape[0] > 1 and values.strides[0] == 0:
+        return np.array([values[0]], dtype=np.float64)
+    return np.ascontiguousarray(values, dtype=np.float64)
+
+
 def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
                initial_compression_mm: float, initially_grinding: bool, tail_s: float,
                series_dt_s: float | None, series_window_s: tuple[float, float] | None,
@@ -196,9 +206,10 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     pre = np.empty(N_ACC)
     x_end, grind_end, n_events, status = integrate_kernel(
         np.ascontiguousarray(t0, dtype=np.float64), dt, coef,
-        np.ascontiguousarray(e0, dtype=np.float64), move, gap, p.lag_k_s,
-        p.compliance_mm_per_n, p.slip_offset, p.slip_gradient_per_n,
-        p.slip_velocity_gain_per_n, p.slip_velocity_decay_s_per_mm, p.max_feed_force_n,
+        np.ascontiguousarray(e0, dtype=np.float64), move, gap, _per_move(p.lag_k_s),
+        _per_move(p.compliance_mm_per_n), _per_move(p.slip_offset),
+        _per_move(p.slip_gradient_per_n), _per_move(p.slip_velocity_gain_per_n),
+        _per_move(p.slip_velocity_decay_s_per_mm), _per_move(p.max_feed_force_n),
         float(p.grind_release_fraction), float(initial_compression_mm),
         bool(initially_grinding), float(stiffness), int(min_stages), sample_t, samples,
         float(area), np.ascontiguousarray(feed.move_de_mm, dtype=np.float64),
