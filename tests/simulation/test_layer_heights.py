@@ -116,3 +116,23 @@ def test_simulation_warns_and_stream_agrees(unmarked_spiral: Path) -> None:
     a, b = whole.summary(), st.summary()
     for key in ("delivered_volume_mm3", "rms_flow_error", "max_feed_force_n"):
         assert abs(float(b[key]) - float(a[key])) <= 1e-9 * max(abs(float(a[key])), 1e-9), key  # type: ignore[arg-type]
+
+
+def test_layer_top_z_matches_numpy_maximum_at():
+    # the compiled per-layer maximum must be np.maximum.at's (NaN wins, -inf: no extrusion)
+    from flowtwin.simulation.parameters import _layer_top_z
+
+    rng = np.random.default_rng(7)
+    n, n_layers = 5000, 40
+    layer = rng.integers(-1, n_layers - 5, n).astype(np.int32)  # some layers stay empty
+    z = rng.uniform(0.0, 10.0, n)
+    z[rng.random(n) < 0.002] = np.nan
+    kind = rng.integers(0, 4, n).astype(np.uint8)
+    ext = (kind & int(MoveKind.EXTRUDE)) != 0
+    ref = np.full(n_layers, -np.inf)
+    sel = ext & (layer >= 0)
+    with np.errstate(invalid="ignore"):  # (NaN is meant)
+        np.maximum.at(ref, layer[sel], z[sel])
+    got = _layer_top_z(layer, z, kind, int(MoveKind.EXTRUDE), n_layers)
+    assert np.isnan(ref).any() and np.isneginf(ref).any()  # both special cases occur
+    assert got.tobytes() == ref.tobytes()

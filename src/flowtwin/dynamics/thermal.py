@@ -56,7 +56,15 @@ class TemperatureSchedule:
     def at(self, t_s: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Nozzle temperature at times ``t_s``, °C (same shape as ``t_s``)."""
         t = np.asarray(t_s, dtype=np.float64)
-        i = np.clip(np.searchsorted(self.t_s, t, side="right") - 1, 0, self.t_s.shape[0] - 1)
+        return self._at(t, self._index(t))
+
+    def _index(self, t: npt.NDArray[np.float64]) -> npt.NDArray[np.intp]:
+        """Index of the set point in force at each time."""
+        return np.clip(np.searchsorted(self.t_s, t, side="right") - 1, 0,
+                       self.t_s.shape[0] - 1)
+
+    def _at(self, t: npt.NDArray[np.float64], i: npt.NDArray[np.intp]
+            ) -> npt.NDArray[np.float64]:
         if self.tau_s == 0.0:
             return self.set_c[i]
         dt = np.maximum(t - self.t_s[i], 0.0)
@@ -70,10 +78,10 @@ class TemperatureSchedule:
         """
         a = np.asarray(t0_s, dtype=np.float64)
         b = np.asarray(t1_s, dtype=np.float64)
-        start = self.at(a)
+        i = self._index(a)
+        start = self._at(a, i)
         if self.tau_s == 0.0:
             return start
-        i = np.clip(np.searchsorted(self.t_s, a, side="right") - 1, 0, self.t_s.shape[0] - 1)
         dur = b - a
         setp = self.set_c[i]
         frac = np.ones_like(dur)
@@ -123,8 +131,8 @@ def temperature_schedule(moves: MoveTable, timeline: Timeline, *, initial_c: flo
                            value=heater_tau_s, allowed=">= 0 s")
     want = 0 if tool is None else tool
     ts = np.asarray(timeline.phases["t_start"], dtype=np.float64)
-    dur = np.asarray(timeline.phases["accel_t"] + timeline.phases["cruise_t"]
-                     + timeline.phases["decel_t"], dtype=np.float64)
+    last = timeline.phases[-1:]  # (the end of the print: the last move's duration only)
+    dur = np.asarray(last["accel_t"] + last["cruise_t"] + last["decel_t"], dtype=np.float64)
     t_end = float(ts[-1] + dur[-1]) if ts.shape[0] else 0.0
     times = [float(ts[0]) if ts.shape[0] else 0.0]
     sets = [float(initial_c)]
@@ -172,6 +180,8 @@ def move_temperatures(moves: MoveTable, timeline: Timeline, *, initial_c: float,
     sched = temperature_schedule(moves, timeline, initial_c=initial_c,
                                  heater_tau_s=heater_tau_s, tool=tool, ambient_c=ambient_c)
     ts = np.asarray(timeline.phases["t_start"], dtype=np.float64)
+    if sched.tau_s == 0.0:
+        return sched.at(ts)  # the set point all through each move: no durations needed
     dur = np.asarray(timeline.phases["accel_t"] + timeline.phases["cruise_t"]
                      + timeline.phases["decel_t"], dtype=np.float64)
     return sched.mean(ts, ts + dur)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from flowtwin.dynamics import ExtrusionParams, move_temperatures
 from flowtwin.gcode.moves import MoveKind, MoveTable
@@ -118,16 +119,15 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
                    ) -> tuple[npt.NDArray[np.float64], int]:
     m = table.moves
     n = len(m)
-    layer = m["layer"].astype(np.int64)
+    layer = m["layer"]
+    kind = m["kind"]
+    extrude = int(MoveKind.EXTRUDE)
     n_layers = int(layer.max()) + 1 if n else 0
     z = np.full(n_layers, np.nan)
     z[: min(n_layers, len(table.layer_z))] = table.layer_z[:n_layers]
-    extruding = (m["kind"] & MoveKind.EXTRUDE) != 0
     missing = np.flatnonzero(np.isnan(z))
     if missing.size:
-        sel = np.flatnonzero(extruding & (layer >= 0))
-        z_top = np.full(n_layers, -np.inf)
-        np.maximum.at(z_top, layer[sel], m["z"][sel].astype(np.float64))
+        z_top = _layer_top_z(layer, m["z"], kind, extrude, n_layers)
         z_top[np.isneginf(z_top)] = np.nan
         z[missing] = z_top[missing]
     h_layer = np.diff(np.concatenate(([0.0], z)))
@@ -135,11 +135,43 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
     thin = h_layer < THIN_LAYER_FRACTION * default_mm
     ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm) & ~thin
     h_layer = np.where(ok, h_layer, default_mm)
-    out = np.full(n, default_mm)
-    inside = layer >= 0
-    out[inside] = h_layer[layer[inside]]
-    n_thin = int(np.count_nonzero(thin[layer[inside]] & extruding[inside])) if n else 0
+    out = np.empty(n)  # (numpy's pages: huge pages on large arrays)
+    n_thin = _spread_heights(layer, kind, extrude, h_layer, thin, float(default_mm), out)
     return out, n_thin
+
+
+@njit(cache=True)
+def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
+                 kind: npt.NDArray[np.uint8], extrude: int, n_layers: int
+                 ) -> npt.NDArray[np.float64]:
+    """Highest Z of the extruding moves of each layer (``-inf``: none; NaN if any is NaN,
+    as ``np.maximum``), one pass over the record fields in place."""
+    top = np.full(n_layers, -np.inf)
+    for k in range(layer.shape[0]):
+        lay = layer[k]
+        if lay >= 0 and (kind[k] & extrude) != 0:
+            v = float(z[k])
+            if v != v or v > top[lay]:  # (a NaN top stays NaN: v > NaN is False)
+                top[lay] = v
+    return top
+
+
+@njit(cache=True)
+def _spread_heights(layer: npt.NDArray[np.int32], kind: npt.NDArray[np.uint8], extrude: int,
+                    h_layer: npt.NDArray[np.float64], thin: npt.NDArray[np.bool_],
+                    default_mm: float, out: npt.NDArray[np.float64]) -> int:
+    """``out[k]``: the height of move ``k``'s layer (``default_mm`` before the first
+    layer); returns the number of extruding moves in thin layers."""
+    n_thin = 0
+    for k in range(layer.shape[0]):
+        lay = layer[k]
+        if lay >= 0:
+            out[k] = h_layer[lay]
+            if thin[lay] and (kind[k] & extrude) != 0:
+                n_thin += 1
+        else:
+            out[k] = default_mm
+    return n_thin
 
 
 def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
