@@ -230,7 +230,7 @@ def run(quick: bool = False) -> dict[str, object]:
         simulate(ref, klipper_config=cfg)
     warm: dict[str, dict[str, object]] = {}
     for name, path in files.items():
-        repeat = 1 if (name == "big" or quick) else 3
+        repeat = 1 if quick else (3 if name == "big" else 5)
         for mname, mcfg in (("default", None), ("klipper_B_pa", cfg)):
             if mname != "default" and mcfg is None:
                 continue
