@@ -14,7 +14,7 @@ from flowtwin.compensation._qp import solve_box_qp
 from flowtwin.compensation._refine_kernel import lag_gain, model_pass
 from flowtwin.compensation.advance import eligible_rows
 from flowtwin.compensation.pieces import split_rows
-from flowtwin.compensation.refine import build_lag_model
+from flowtwin.compensation.refine import RefineOptions, build_lag_model, refine_qp
 from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.dynamics import ExtrusionParams, predict
 from flowtwin.simulation import simulate
@@ -129,3 +129,45 @@ def test_box_qp_with_a_bidiagonal_map() -> None:
         y[i:] += 1e-4
         if np.all(np.diff(np.r_[0.0, y]) >= 0.1 - 1e-9):
             assert 0.5 * np.sum((y - target) ** 2) >= f - 1e-9
+
+
+def test_refinement_keeps_the_ratio_steps_within_the_firmware_jump(tmp_path: Path) -> None:
+    """Without the step limit the optimum steps the ratio between pieces of a run (it
+    wants less E in every deceleration); with it, no step between neighbouring pieces
+    exceeds its limit (the planner would slow that junction down, see ``limits.py``)."""
+    path = tmp_path / "lines.gcode"
+    lines = ["G21", "G90", "M83", "M104 S215", "G1 X10 Y10 F9000"]
+    for k in range(4):
+        lines += [f"G1 X{40 + 5 * k} Y{10 + 2 * k} E{1.2 + 0.2 * k:.4f} F{3000 + 900 * k}"]
+    path.write_text("\n".join(lines) + "\n")
+    res = simulate(path, pressure_advance=False)
+    table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
+    scanned = scan_source(read_source(path), table)
+    rows_e = row_e_grid(scanned, table).astype(float)
+    elig = eligible_rows(table, row_e_grid(scanned, table))
+    pieces = split_rows(tl, elig, accel_pieces=3)
+    free = elig[pieces.row]
+    length = pieces.row_length_mm
+    ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
+    group = np.where(elig, np.cumsum(elig) - 1, -1)
+    model = build_lag_model(pieces, tl, p.lag_k_s, free, ratio[pieces.row], rows_e, group,
+                            int(elig.sum()))
+    sel = np.flatnonzero(free)
+    c0 = ratio[pieces.row[sel]]
+    start = c0 * pieces.length_mm[sel]
+    intent = rows_e[elig]
+    pg = group[pieces.row[sel]]
+    opts = RefineOptions()
+    e_free, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts)
+    step = np.abs(np.diff(e_free / pieces.length_mm[sel]))
+    limit = 0.02 * float(np.mean(c0))  # 2 % of the ratio per junction
+    assert np.max(step) > 3.0 * limit  # the unconstrained optimum steps (else no test)
+    jump = np.full(sel.size, limit)
+    jump[0] = np.inf  # the run's first piece: no neighbour in the run
+    e_lim, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts,
+                         jump=jump)
+    step = np.abs(np.diff(e_lim / pieces.length_mm[sel]))
+    # interior point: feasible to its tolerance (1e-6 relative of the bounds' scale)
+    assert np.max(step) <= limit * (1 + 1e-4)
+    c = e_lim / pieces.length_mm[sel]
+    assert np.all(c >= 0.05 * c0 * (1 - 1e-9)) and np.all(c <= 10.0 * c0 * (1 + 1e-9))

@@ -273,7 +273,8 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
 def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: FloatArray,
               piece_group: IntArray, c_min: FloatArray, c_max: FloatArray,
               options: RefineOptions, *, state_max: FloatArray | None = None,
-              target: FloatArray | None = None) -> tuple[FloatArray, dict[str, float]]:
+              target: FloatArray | None = None,
+              jump: FloatArray | None = None) -> tuple[FloatArray, dict[str, float]]:
     """Optimise the free pieces' E as a sparse quadratic program in the states.
 
     With the state ``x_p`` after every free piece as the unknowns, each piece's ratio is
@@ -282,8 +283,11 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     a band structure, so ``½ Σ_g w_g (O_g − I_g)² + ½ λ Σ_p (L_p (c_p − ĉ_p))²/I_g`` with
     ``w_g = 1/I_g + μ·Ī/I_g²`` (the volume-weighted squared flow error, plus ``μ`` times the
     squared *relative* error, which keeps small moves from carrying large relative errors)
-    over the ratio box and under the state cap ``x_p ≤ x_max`` (the compression at which the
-    feed force reaches the grinding limit) is a banded convex QP
+    over the ratio box, under the state cap ``x_p ≤ x_max`` (the compression at which the
+    feed force reaches the grinding limit) and within the firmware's ratio steps
+    ``|c_p − c_(p−1)| ≤ j_p`` between neighbouring pieces of a run (a larger step makes the
+    planner slow the junction down: Marlin's E jerk, Klipper's extruder corner velocity,
+    :mod:`flowtwin.compensation.limits`) is a banded convex QP
     (:func:`flowtwin.compensation._qp.solve_box_qp`).
 
     Parameters
@@ -309,6 +313,10 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         always the intent's). A later pass aims the model at ``intent`` corrected by what
         the twin delivered against what the model predicted (see
         :func:`flowtwin.compensation.bake.advance_pass`).
+    jump
+        Largest ratio step ``|c_p − c_(p−1)|`` from the previous free piece, per free
+        piece (grid units per mm; ``inf``: none, e.g. at a run's first piece), shape
+        ``(p,)`` (:attr:`flowtwin.compensation.advance.LawResult.jump`). Default: none.
 
     Returns
     -------
@@ -375,6 +383,24 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         d_con = np.concatenate((c0, np.zeros(int(cap.sum()))))
         lo_con = np.concatenate((c_min, np.full(int(cap.sum()), -np.inf)))
         hi_con = np.concatenate((hi, state_max[cap]))
+    if jump is not None:
+        jmp = np.asarray(jump, dtype=np.float64)
+        if jmp.shape != (n,):
+            raise ProfileError("ratio step limits do not match the free pieces", field="jump",
+                               value=jmp.shape, allowed=f"shape ({n},)")
+        step = np.flatnonzero(np.isfinite(jmp[1:])) + 1  # steps p-1 -> p that are limited
+        if step.size:
+            # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1), within ±jump_p
+            sel_rows = sp.csr_matrix((np.ones(step.size), (np.arange(step.size), step)),
+                                     shape=(step.size, n))
+            sel_prev = sp.csr_matrix((np.ones(step.size), (np.arange(step.size), step - 1)),
+                                     shape=(step.size, n))
+            d_mat = (sel_rows - sel_prev) @ c_mat
+            j = np.maximum(jmp[step], 1e-9)
+            con = sp.vstack([con, d_mat], format="csr")
+            d_con = np.concatenate((d_con, c0[step] - c0[step - 1]))
+            lo_con = np.concatenate((lo_con, -j))
+            hi_con = np.concatenate((hi_con, j))
     x, iterations, _mu = solve_box_qp(h / scale, g / scale, con, d_con, lo_con, hi_con,
                                      max_iterations=options.max_iterations, x0=x_start)
     c = np.clip(c_mat @ x + c0, c_min, hi)
