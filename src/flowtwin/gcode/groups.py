@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-__all__ = ["group_sums"]
+__all__ = ["compensated_add", "group_sums"]
 
 #: Widest key range counted directly (bins beyond the number of rows).
 _MAX_SPAN = 1 << 16
@@ -38,21 +38,26 @@ def _count(key: npt.NDArray[np.integer], lo: int, counts: npt.NDArray[np.int64])
         counts[key[i] - lo] += 1
 
 
+@njit(cache=True, inline="always")
+def compensated_add(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64], b: int,
+                    v: float) -> None:
+    """``s[b] += v`` with Neumaier's compensation accumulated in ``c[b]``; the sum is
+    ``s[b] + c[b]`` (fold ``c`` in once, at the end)."""
+    t = s[b] + v
+    if abs(s[b]) >= abs(v):
+        c[b] += (s[b] - t) + v
+    else:
+        c[b] += (v - t) + s[b]
+    s[b] = t
+
+
 @njit(cache=True)
 def _sum(key: npt.NDArray[np.integer], lo: int, w: npt.NDArray[np.float64],
          out: npt.NDArray[np.float64]) -> None:
     """``out[k - lo] = Σ w[key == k]``, Neumaier-compensated."""
     comp = np.zeros(out.shape[0])
     for i in range(key.shape[0]):
-        b = key[i] - lo
-        v = w[i]
-        s = out[b]
-        t = s + v
-        if abs(s) >= abs(v):
-            comp[b] += (s - t) + v
-        else:
-            comp[b] += (v - t) + s
-        out[b] = t
+        compensated_add(out, comp, key[i] - lo, w[i])
     for b in range(out.shape[0]):
         out[b] += comp[b]
 

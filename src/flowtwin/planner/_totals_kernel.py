@@ -12,17 +12,9 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from flowtwin.gcode.groups import compensated_add
+
 __all__ = ["plan_totals"]
-
-
-@njit(cache=True)
-def _add(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64], b: int, v: float) -> None:
-    t = s[b] + v
-    if abs(s[b]) >= abs(v):
-        c[b] += (s[b] - t) + v
-    else:
-        c[b] += (v - t) + s[b]
-    s[b] = t
 
 
 @njit(cache=True)
@@ -70,13 +62,13 @@ def plan_totals(kind: npt.NDArray[np.uint8], tool: npt.NDArray[np.int16],
         k = kind[i]
         is_written = (k & fw_retract_bit) == 0
         if is_written:
-            _add(written, w_c, b, de[i])
+            compensated_add(written, w_c, b, de[i])
             if (k & extrude_bit) != 0:
                 ext_written += 1
-        _add(extruded, x_c, b, de[i] * flow[i])
+        compensated_add(extruded, x_c, b, de[i] * flow[i])
         g = int(feature[i]) - int(f_lo)
         f_count[g] += 1
-        _add(f_time, f_c, g, accel_t[i] + cruise_t[i] + decel_t[i])
+        compensated_add(f_time, f_c, g, accel_t[i] + cruise_t[i] + decel_t[i])
         max_layer = max(max_layer, layer[i])
     for b in range(nt):
         written[b] += w_c[b]

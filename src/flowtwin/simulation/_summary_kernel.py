@@ -14,6 +14,8 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from flowtwin.gcode.groups import compensated_add
+
 __all__ = [
     "N_TOTALS",
     "T_CMD",
@@ -68,16 +70,6 @@ def extruding_mask(kind: npt.NDArray[np.uint8], cmd: npt.NDArray[np.float64], bi
 
 
 @njit(cache=True)
-def _add(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64], q: int, v: float) -> None:
-    t = s[q] + v
-    if abs(s[q]) >= abs(v):
-        c[q] += (s[q] - t) + v
-    else:
-        c[q] += (v - t) + s[q]
-    s[q] = t
-
-
-@njit(cache=True)
 def print_totals(kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.float64],
                  out: npt.NDArray[np.float64], stop_out: npt.NDArray[np.float64],
                  fed_cmd: npt.NDArray[np.float64], slip_loss: npt.NDArray[np.float64],
@@ -94,11 +86,11 @@ def print_totals(kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.flo
     was_grinding = False
     for i in range(kind.shape[0]):
         ext = (kind[i] & bits) == bits and cmd[i] > 0.0
-        _add(s, c, T_CMD, cmd[i])
-        _add(s, c, T_DELIVERED, out[i] + stop_out[i])
-        _add(s, c, T_SLIP_LOSS, slip_loss[i])
-        _add(s, c, T_FED_FWD, max(fed_cmd[i], 0.0))
-        _add(s, c, T_OOZE, ooze[i])
+        compensated_add(s, c, T_CMD, cmd[i])
+        compensated_add(s, c, T_DELIVERED, out[i] + stop_out[i])
+        compensated_add(s, c, T_SLIP_LOSS, slip_loss[i])
+        compensated_add(s, c, T_FED_FWD, max(fed_cmd[i], 0.0))
+        compensated_add(s, c, T_OOZE, ooze[i])
         s[T_FORCE_MAX] = max(s[T_FORCE_MAX], peak_force[i])
         m = margin[i]
         if math.isfinite(m):
@@ -112,9 +104,9 @@ def print_totals(kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.flo
         was_grinding = g
         if ext:
             e = flow_error[i]
-            _add(s, c, T_EXT_OUT, out[i])
-            _add(s, c, T_RMS_W, cmd[i])
-            _add(s, c, T_RMS_WEE, cmd[i] * e * e)
+            compensated_add(s, c, T_EXT_OUT, out[i])
+            compensated_add(s, c, T_RMS_W, cmd[i])
+            compensated_add(s, c, T_RMS_WEE, cmd[i] * e * e)
             s[T_OVER] = max(s[T_OVER], e)
             s[T_UNDER] = max(s[T_UNDER], -e)
             s[T_WIDTH_DEV] = max(s[T_WIDTH_DEV], abs(width_mean[i] - width_nominal[i]))
