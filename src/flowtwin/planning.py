@@ -28,7 +28,7 @@ from flowtwin.planner.klipper_config import (
     load_printer_cfg,
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
-from flowtwin.planner.timeline import DWELL_FEATURE, Timeline, time_by_layer
+from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
@@ -84,7 +84,8 @@ class PlanResult:
         n = len(m)
         extruded: dict[str, float] = {}
         net: dict[str, float] = {}
-        by_feature: dict[str, float] = {}
+        feature_keys: list[int] = []
+        feature_s: list[float] = []
         ext_written = 0
         layers = 0
         if n:
@@ -99,14 +100,12 @@ class PlanResult:
             for b in np.flatnonzero(t_count).tolist():
                 net[str(t_lo + b)] = float(written[b])
                 extruded[str(t_lo + b)] = float(ext[b])
-            for g in np.flatnonzero(f_count).tolist():
-                k = f_lo + g
-                name = t.features[k] if 0 <= k < len(t.features) else "unknown"
-                by_feature[name] = by_feature.get(name, 0.0) + float(f_time[g])
+            present = np.flatnonzero(f_count)
+            feature_keys = (present + f_lo).tolist()
+            feature_s = f_time[present].tolist()
             layers = max_layer + 1
-        dwell = float(sum(d[1] for d in self.timeline.dwell_s))
-        if dwell:
-            by_feature[DWELL_FEATURE] = dwell
+        by_feature = feature_seconds(t.features, feature_keys, feature_s,
+                                     self.timeline.dwell_s)
         return {
             "file": t.source,
             "printer": self.printer,

@@ -21,7 +21,8 @@ from flowtwin.gcode.groups import group_sums
 if TYPE_CHECKING:
     from flowtwin.gcode.moves import MoveTable
 
-__all__ = ["DWELL_FEATURE", "PHASE_DTYPE", "Timeline", "time_by_feature", "time_by_layer"]
+__all__ = ["DWELL_FEATURE", "PHASE_DTYPE", "Timeline", "feature_seconds", "time_by_feature",
+           "time_by_layer"]
 
 #: Key of :func:`time_by_feature` that collects dwells and restart gaps.
 DWELL_FEATURE = "(dwell)"
@@ -170,13 +171,28 @@ def time_by_feature(timeline: Timeline, table: MoveTable) -> dict[str, float]:
     if timeline.phases.shape[0] != n:
         raise DataError("timeline and move table have different lengths",
                         field="phases", value=timeline.phases.shape[0], allowed=f"{n} rows")
+    keys, _, (sums,) = group_sums(feature, timeline.move_time_s)
+    return feature_seconds(table.features, keys.tolist(), sums.tolist(), timeline.dwell_s)
+
+
+def feature_seconds(names: list[str], keys: list[int], seconds: list[float],
+                    dwell_s: list[tuple[int, float, str]]) -> dict[str, float]:
+    """Time per feature name from time per feature index (:func:`time_by_feature`).
+
+    Parameters
+    ----------
+    names
+        ``MoveTable.features``; an index outside it is ``"unknown"``.
+    keys, seconds
+        Feature indices and their move time, s (equal length).
+    dwell_s
+        The timeline's dwells ``(move index, s, reason)``: their sum is :data:`DWELL_FEATURE`.
+    """
     out: dict[str, float] = {}
-    if n:
-        keys, _, (sums,) = group_sums(feature, timeline.move_time_s)
-        for k, v in zip(keys.tolist(), sums.tolist(), strict=True):
-            name = table.features[k] if 0 <= k < len(table.features) else "unknown"
-            out[name] = out.get(name, 0.0) + v
-    dwell = float(sum(d[1] for d in timeline.dwell_s))
+    for k, v in zip(keys, seconds, strict=True):
+        name = names[k] if 0 <= k < len(names) else "unknown"
+        out[name] = out.get(name, 0.0) + v
+    dwell = float(sum(d[1] for d in dwell_s))
     if dwell:
         out[DWELL_FEATURE] = dwell
     return out
