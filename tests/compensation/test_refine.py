@@ -158,16 +158,78 @@ def test_refinement_keeps_the_ratio_steps_within_the_firmware_jump(tmp_path: Pat
     intent = rows_e[elig]
     pg = group[pieces.row[sel]]
     opts = RefineOptions()
-    e_free, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts)
+    e_free, _, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts)
     step = np.abs(np.diff(e_free / pieces.length_mm[sel]))
     limit = 0.02 * float(np.mean(c0))  # 2 % of the ratio per junction
     assert np.max(step) > 3.0 * limit  # the unconstrained optimum steps (else no test)
     jump = np.full(sel.size, limit)
     jump[0] = np.inf  # the run's first piece: no neighbour in the run
-    e_lim, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts,
+    e_lim, _, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts,
                          jump=jump)
     step = np.abs(np.diff(e_lim / pieces.length_mm[sel]))
     # interior point: feasible to its tolerance (1e-6 relative of the bounds' scale)
     assert np.max(step) <= limit * (1 + 1e-4)
     c = e_lim / pieces.length_mm[sel]
     assert np.all(c >= 0.05 * c0 * (1 - 1e-9)) and np.all(c <= 10.0 * c0 * (1 + 1e-9))
+
+
+def test_precharge_feeds_a_short_first_move_after_a_relieved_travel(tmp_path: Path) -> None:
+    """A run after a relieved retraction starts relaxed in the lag model; its first move
+    is 0.06 mm long and must build its pressure from rest within the ratio box, so it
+    under-extrudes. A pre-charge left by the push-back (``0 ≤ y ≤ y_max``) feeds it: the
+    model's error of that move falls, ``y`` stays in its box, the QP's own outputs are
+    the model's (``LagModel.evaluate`` with the pre-charge), and a zero bound gives the
+    program without the variable, bit for bit."""
+    path = tmp_path / "runs.gcode"
+    lines = ["G21", "G90", "M83", "M104 S215", "G1 X10 Y10 F9000",
+             "G1 X50 Y10 E1.6 F3600", "G1 E-0.8 F2100", "G1 X50 Y30 F9000",
+             "G1 E0.8 F2100", "G1 X50.06 Y30 E0.0024 F3600", "G1 X90 Y30 E1.6"]
+    path.write_text("\n".join(lines) + "\n")
+    res = simulate(path, pressure_advance=False)
+    table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
+    scanned = scan_source(read_source(path), table)
+    rows_e = row_e_grid(scanned, table).astype(float)
+    elig = eligible_rows(table, row_e_grid(scanned, table))
+    pieces = split_rows(tl, elig, accel_pieces=3)
+    free = elig[pieces.row]
+    length = pieces.row_length_mm
+    ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
+    group = np.where(elig, np.cumsum(elig) - 1, -1)
+    holds = rows_e < 0  # the retraction: its push-back leaves the column relaxed
+    model = build_lag_model(pieces, tl, p.lag_k_s, free, ratio[pieces.row], rows_e, group,
+                            int(elig.sum()), travel_holds=holds)
+    sel = np.flatnonzero(free)
+    c0 = ratio[pieces.row[sel]]
+    start = c0 * pieces.length_mm[sel]
+    intent = rows_e[elig]
+    pg = group[pieces.row[sel]]
+    opts = RefineOptions()
+    lo, hi = 0.05 * c0, 3.0 * c0
+    short_move = 1  # group of the 0.06 mm move (second printing move)
+    first_var = np.array([int(np.flatnonzero(pg == short_move)[0])])
+    e0, f0, y0 = refine_qp(model, pieces, start, intent, pg, lo, hi, opts)
+    assert y0.shape == (0,)
+    out0, _ = model.evaluate(e0 / pieces.length_mm[sel], intent)
+    err0 = out0[short_move] / intent[short_move] - 1
+    assert err0 < -0.3  # from rest it cannot (else no test)
+    # the bound: the compression the first run ends with (what the hold would keep)
+    states = model.states(start / pieces.length_mm[sel])
+    y_max = np.array([float(states[np.flatnonzero(model.seg_piece == first_var[0] - 1)[-1]])])
+    assert y_max[0] > 0
+    e1, f1, y1 = refine_qp(model, pieces, start, intent, pg, lo, hi, opts,
+                           precharge=(first_var, y_max))
+    assert 0.0 < y1[0] <= y_max[0] * (1 + 1e-6)
+    out1, _ = model.evaluate(e1 / pieces.length_mm[sel], intent, (first_var, y1))
+    err1 = out1[short_move] / intent[short_move] - 1
+    assert abs(err1) < 0.5 * abs(err0)
+    assert f1["flow_after"] < f0["flow_after"]
+    # the QP's objective is the model's: recompute it from evaluate + the track terms
+    w = 1 / intent + opts.peak_weight * np.mean(intent) / intent ** 2
+    track = opts.track_weight * (e1 - start) ** 2 / intent[pg]
+    obj = 0.5 * np.sum(w * (out1 - intent) ** 2) + 0.5 * np.sum(track) \
+        + 0.5 * opts.track_weight * y1[0] ** 2 / intent[short_move]
+    # c is clipped to the box after the solve: agreement to the solver's tolerance
+    assert 2 * obj / np.sum(intent) == pytest.approx(f1["flow_after"], rel=1e-5)
+    e2, _f2, y2 = refine_qp(model, pieces, start, intent, pg, lo, hi, opts,
+                           precharge=(first_var, np.zeros(1)))
+    assert np.array_equal(e2, e0) and y2[0] == 0.0

@@ -9,19 +9,21 @@ A pass
    (:func:`flowtwin.compensation.advance.follow_law`),
 3. optionally refines the E with the twin's lag model so that every *original* move
    delivers its own volume (:mod:`flowtwin.compensation.refine`),
-4. optionally relieves the pressure over travels between printing runs (first pass only):
-   the advance law [001 Eq. 11] commands ``−K·v⁰_E`` where the flow stops, which a G-code
-   can only do as a retraction. The travel after a run retracts the compression the twin
-   predicts at the run's end, the travel's end pushes the same length back (net E zero),
-   so the melt does not ooze away during the travel [001 Fig. 8].
+4. optionally relieves the pressure over travels between printing runs
+   (:mod:`flowtwin.compensation.relief`; the first pass adds the reliefs, later passes
+   re-size their push-backs): the advance law [001 Eq. 11] commands ``−K·v⁰_E`` where the
+   flow stops, which a G-code can only do as a retraction. The travel after a run
+   retracts twice the compression the lag model predicts at the run's end and pushes
+   back all but that compression, less the pre-charge the refinement leaves for the next
+   run's first moves; a slicer's own push-back is shortened the same way.
 
-Every run of printing pieces keeps its exact E, so the file keeps its total.
+Without the refinement every run of printing pieces keeps its exact E; with it the file
+keeps its total (the printing pieces carry what the reliefs take).
 """
 
 from __future__ import annotations
 
 import heapq
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,8 +38,17 @@ from flowtwin.compensation.advance import (
 )
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.limits import ExtruderLimits
-from flowtwin.compensation.pieces import Pieces, split_rows
+from flowtwin.compensation.pieces import split_rows
 from flowtwin.compensation.refine import LagModel, build_lag_model, refine_qp
+from flowtwin.compensation.relief import (
+    first_free_pieces,
+    insert_relief,
+    relief_amounts,
+    relieved_gaps,
+    retraction_interims,
+    row_start_states,
+    travel_interims,
+)
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.planner.timeline import Timeline
 
@@ -46,12 +57,9 @@ __all__ = ["PassReport", "advance_pass"]
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-#: Relief is added only when the compression at a run's end is at least this many mm.
-_MIN_RELIEF_MM = 0.002
-#: Retract this many times the predicted compression, so the melt stops early in the move.
-_RELIEF_MARGIN = 2.0
-#: Speed of the relief retraction and push-back, mm/s (capped by the firmware's limit).
-_RELIEF_SPEED_MM_S = 35.0
+#: A pre-charge is left only where the next run starts within this time after the
+#: push-back, s.
+_PRECHARGE_MAX_GAP_S = 1e-3
 
 
 @dataclass(slots=True)
@@ -74,9 +82,13 @@ class PassReport:
         Total length retracted (and pushed back) by the reliefs, mm of filament.
     relief_retractions
         Retracting travels whose push-back was shortened by the compression at the end of
-        the run before (the next run starts relaxed).
+        the run before, less the pre-charge (a later pass: slicer push-backs it changed).
     relief_retraction_mm
-        Total length taken off those push-backs, mm of filament.
+        Total length taken off those push-backs, mm of filament (a later pass: the net
+        change it took off them; negative when it gave some back).
+    relief_precharge_mm
+        Pre-charge the relieved travels' push-backs leave for the next runs' first moves
+        (see :func:`flowtwin.compensation.refine.refine_qp`), mm of filament.
     """
 
     pieces: int = 0
@@ -87,80 +99,7 @@ class PassReport:
     relief_mm: float = 0.0
     relief_retractions: int = 0
     relief_retraction_mm: float = 0.0
-
-
-def _gaps(elig: npt.NDArray[np.bool_], timeline: Timeline,
-          min_time_s: FloatArray) -> list[tuple[int, int]]:
-    """Stretches ``i .. j-1`` of non-printing rows between two runs (rows ``i-1`` and ``j``
-    print) lasting at least ``min_time_s[i-1]``, as ``(i, j)``."""
-    n = elig.shape[0]
-    if n < 3:
-        return []
-    e = elig.astype(np.int8)
-    first = np.flatnonzero(np.diff(e) == -1) + 1  # a printing row, then not
-    last = np.flatnonzero(np.diff(e) == 1) + 1    # not, then a printing row
-    if not first.size or not last.size:
-        return []
-    # pair each gap start with the next printing row after it
-    k = np.searchsorted(last, first, side="left")
-    ok = k < last.size
-    i, j = first[ok], last[k[ok]]
-    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
-    end = timeline.end_time_s
-    keep = start[j] - end[i - 1] >= min_time_s[i - 1]
-    return list(zip(i[keep].tolist(), j[keep].tolist(), strict=True))
-
-
-def _interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
-              timeline: Timeline, min_time_s: FloatArray) -> list[tuple[int, int]]:
-    """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
-
-    An interim qualifies when it lies between two printing rows, moves no E itself, has at
-    least one XY travel and lasts at least ``min_time_s`` of the row before it (a shorter
-    one lets little melt ooze, and a relief would only add two stops);
-    ``first``/``last`` are its first and last XY travels.
-    """
-    out: list[tuple[int, int]] = []
-    for i, j in _gaps(elig, timeline, min_time_s):
-        if np.all(row_e[i:j] == 0):
-            xy = [k for k in range(i, j)
-                  if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
-            if xy:
-                out.append((xy[0], xy[-1]))
-    return out
-
-
-def _retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
-                         row_e: IntArray, tool: npt.NDArray[np.integer], timeline: Timeline,
-                         min_time_s: FloatArray) -> list[tuple[int, int]]:
-    """Retracting interims between two runs whose push-back can relieve the pressure.
-
-    The slicer's own retraction holds the compression of the run's end through the travel
-    (no backflow), and its push-back restores it: the next run starts with the pressure
-    of a full-speed end, which it cannot absorb from rest (a short first move gets it
-    all). Shortening the push-back by that compression starts the next run relaxed, as
-    the advance law wants [001 Eq. 11] (the ``−K·v⁰_E`` where the flow stops). An interim
-    qualifies when it lasts at least ``min_time_s`` of the row before it, retracts (a row
-    with negative E) and pushes back at least as much in a later E-only row written in
-    the G-code, all with one tool (a tool change loads another filament: its push-back is
-    not this column's).
-
-    Returns
-    -------
-    list of tuple
-        ``(first interim row, push-back row)``.
-    """
-    out: list[tuple[int, int]] = []
-    for i, j in _gaps(elig, timeline, min_time_s):
-        if np.all(tool[i - 1:j + 1] == tool[i - 1]):
-            e = row_e[i:j]
-            neg = np.flatnonzero(e < 0)
-            pos = np.flatnonzero(e > 0)
-            if neg.size and pos.size and pos[-1] > neg[0] and int(np.sum(e)) >= 0:
-                r = i + int(pos[-1])
-                if (kind[r] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0:
-                    out.append((i, r))
-    return out
+    relief_precharge_mm: float = 0.0
 
 
 def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: FloatArray,
@@ -231,21 +170,29 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
                      e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0)
     report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
     e_run = law.e
-    interims = (_interims(elig, kind, cur_e, timeline,
-                          options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64))
-                if relief else [])
-    retracting = (_retraction_interims(elig, kind, cur_e, table.moves["tool"], timeline,
-                                       options.relief_min_lags
-                                       * np.asarray(lag_k_s, dtype=np.float64))
+    lags = options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64)
+    travels = travel_interims(elig, kind, cur_e, timeline, lags) if relief else []
+    retracting = (retraction_interims(elig, kind, cur_e, table.moves["tool"], timeline, lags)
                   if relief else [])
+    # a later pass: the reliefs the first one made start the next runs relaxed (or
+    # pre-charged) too
+    relieved = [] if relief else relieved_gaps(elig, cur_e, group, draft.row_e, timeline)
     holds = np.zeros(n, dtype=bool)
-    for a, _b in [*interims, *retracting]:
+    spans = ([(a, b) for a, b in travels] + [(a, r) for a, r in retracting]
+             + [(h, j - 1) for h, _back, j, _short in relieved])
+    for a, _b in spans:
         holds[a] = True
+    elig_rows = np.flatnonzero(elig)
+    next_rows = elig_rows[np.minimum(np.searchsorted(elig_rows, [b for _a, b in spans],
+                                                     side="right"), elig_rows.size - 1)
+                          ] if spans else np.zeros(0, dtype=np.int64)
     elig_orig_rows = np.flatnonzero(orig_elig)
     group_index = np.full(draft.n_rows, -1, dtype=np.int64)
     group_index[elig_orig_rows] = np.arange(elig_orig_rows.size)
     row_group = np.where(elig, group_index[group], -1)
     model = None
+    precharge = np.zeros(len(spans))
+    start_state: FloatArray | None = None
     if options.refine is not None and law.sel.size:
         free = np.zeros(len(pieces), dtype=bool)
         free[law.sel] = True
@@ -255,44 +202,74 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         model = build_lag_model(pieces, timeline, np.asarray(lag_k_s, dtype=np.float64), free,
                                 ratio, row_phys, row_group, int(elig_orig_rows.size),
                                 travel_holds=holds)
+        pc_first = first_free_pieces(next_rows, pieces, model.free_pieces)
+        hold_first = np.array([a for a, _b in spans], dtype=np.int64)
         intent = draft.row_e[elig_orig_rows].astype(np.float64)
         # a first pass starts from the law; later passes from the draft's own E (already
         # refined, now re-planned), so they only correct what the new timing changed
         start_e = law.e if split else cur_e[pieces.row[law.sel]].astype(np.float64)
         cap = None if state_max is None else np.asarray(state_max)[pieces.row[law.sel]]
         target = None
+        ratios = start_e / np.maximum(pieces.length_mm[law.sel], 1e-12)
+        now = _held_precharge(model, ratios, pc_first, spans, relieved, n)
+        # a pre-charge up to the compression the run before ends with at the start (the
+        # hold would keep it): fixed, so over-feeding a run's end buys none
+        y_max = np.maximum(np.nan_to_num(row_start_states(
+            model, model.states(ratios, (pc_first, now)), n)[hold_first]), 0.0)
+        # only where the next run starts right after the push-back (no dwell, no heat-up
+        # wait between: the pre-charge would ooze away there)
+        push = np.array([b for _a, b in spans[:len(spans) - len(relieved)]]
+                        + [back for _h, back, _j, _s in relieved], dtype=np.int64)
+        t_next = np.asarray(timeline.phases["t_start"], dtype=np.float64)[next_rows]
+        y_max[(push != next_rows - 1)
+              | (t_next - timeline.end_time_s[np.maximum(push, 0)] > _PRECHARGE_MAX_GAP_S)] = 0.0
         if delivered is not None and not split:
-            ratios = start_e / np.maximum(pieces.length_mm[law.sel], 1e-12)
-            predicted, _grad = model.evaluate(ratios, intent)
+            predicted, _grad = model.evaluate(ratios, intent, (pc_first, now))
             seen = np.asarray(delivered, dtype=np.float64)[elig_orig_rows]
             # never aim below a twentieth of the intent (a model that far off is no guide)
             target = np.maximum(intent + (predicted - seen), 0.05 * intent)
-        e_run, report.refinement = refine_qp(model, pieces, start_e, intent,
-                                             row_group[pieces.row[law.sel]], law.c_min,
-                                             law.c_max, options.refine, state_max=cap,
-                                             target=target)
+        e_run, report.refinement, precharge = refine_qp(
+            model, pieces, start_e, intent, row_group[pieces.row[law.sel]], law.c_min,
+            law.c_max, options.refine, state_max=cap, target=target, jump=law.jump,
+            precharge=(pc_first, y_max))
+        states = model.states(e_run / np.maximum(pieces.length_mm[law.sel], 1e-12),
+                              (pc_first, precharge))
+        start_state = row_start_states(model, states, n)
     e_piece = cur_e[pieces.row].astype(np.int64)
-    reliefs = _relief_amounts(interims, model, pieces, e_run, e_unit_mm=e_unit_mm)
-    shortened: list[tuple[int, int]] = []
-    if retracting:
-        ends = _relief_amounts([(f, f) for f, _r in retracting], model, pieces, e_run,
-                               e_unit_mm=e_unit_mm, keep_zero=True)
-        for (_first, r), (_a, _b, ret, back) in zip(retracting, ends, strict=True):
-            take = min(ret - back, int(cur_e[r]) - 1)  # compression; keep one unit
-            if take > 0:
-                shortened.append((r, take))
+    k_t, k_r = len(travels), len(travels) + len(retracting)
+    reliefs = relief_amounts(travels, start_state, precharge[:k_t], e_unit_mm=e_unit_mm)
+    pushed: dict[int, int] = {}  # E added to existing push-back rows (negative: taken)
+    ends = relief_amounts([(f, f) for f, _r in retracting], start_state, precharge[k_t:k_r],
+                          e_unit_mm=e_unit_mm, keep_zero=True)
+    for (_first, r), (_a, _b, ret, back) in zip(retracting, ends, strict=True):
+        take = min(ret - back, int(cur_e[r]) - 1)  # compression less pre-charge; keep one
+        if take > 0:
+            pushed[r] = -take
+    report.relief_retractions = len(pushed)
+    report.relief_retraction_mm = -sum(pushed.values()) * e_unit_mm
+    if start_state is not None:
+        for (h, back, _j, short), y in zip(relieved, precharge[k_r:], strict=True):
+            x = float(start_state[h])
+            if back < 0 or not np.isfinite(x):
+                continue
+            # the push-back now leaves y: it was short by `short`, now by x − y
+            delta = min(max(short - int(round(max(x, 0.0))) + int(round(y)),
+                            1 - int(cur_e[back])), short)
+            if delta:
+                pushed[back] = pushed.get(back, 0) + delta
+                if draft.row_e[group[back]] > 0:  # the slicer's own push-back
+                    report.relief_retractions += 1
+                    report.relief_retraction_mm -= delta * e_unit_mm
+    report.relief_precharge_mm = float(np.sum(np.rint(precharge))) * e_unit_mm
     if law.sel.size:
         if model is None:  # the law keeps every run's E exactly
             e_piece[law.sel] = round_runs(e_run, law.run_first, law.run_last, law.run_total)
         else:  # the refinement moves E between runs; the file keeps its total
-            net = sum(back - ret for _a, _b, ret, back in reliefs)
-            net -= sum(take for _r, take in shortened)
+            net = sum(back - ret for _a, _b, ret, back in reliefs) + sum(pushed.values())
             total = int(np.sum(cur_e[elig])) - net
             e_piece[law.sel] = round_total(e_run, total)
-    for r, take in shortened:
-        e_piece[int(pieces.offsets[r])] -= take
-    report.relief_retractions = len(shortened)
-    report.relief_retraction_mm = sum(t for _r, t in shortened) * e_unit_mm
+    for r, de in pushed.items():
+        e_piece[int(pieces.offsets[r])] += de
     # geometry of the pieces
     mv = table.moves
     end = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
@@ -307,51 +284,33 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     piece_of = pieces.row.copy()
     feed = draft.piece_feed_mm_min[piece_of].copy()
     if reliefs:
-        piece_of, xyz, e_piece, feed = _insert_relief(reliefs, piece_of, xyz, e_piece, feed,
-                                                      start, end, limits, report,
-                                                      e_unit_mm=e_unit_mm)
+        piece_of, xyz, e_piece, feed = insert_relief(reliefs, piece_of, xyz, e_piece, feed,
+                                                     start, end, limits)
+        report.relief_travels += len(reliefs)
+        report.relief_mm += sum(r for _a, _b, r, _back in reliefs) * e_unit_mm
     report.pieces = int(piece_of.size)
     return draft.split(piece_of, xyz, e_piece, feed), report
 
 
-def _relief_amounts(interims: list[tuple[int, int]], model: LagModel | None, pieces: Pieces,
-                    e_run: FloatArray, *, e_unit_mm: float, keep_zero: bool = False
-                    ) -> list[tuple[int, int, int, int]]:
-    """Retraction and push-back of every relieved interim, grid units.
+def _held_precharge(model: LagModel, ratios: FloatArray, first_vars: IntArray,
+                    spans: list[tuple[int, int]], relieved: list[tuple[int, int, int, int]],
+                    n_rows: int) -> FloatArray:
+    """Pre-charge the draft as it is leaves after every relieved hold, grid units.
 
-    The lag model gives the compression ``x`` at the end of the run before the interim;
-    the retraction takes twice that (so the melt stops at once), the push-back returns all
-    but ``x`` (the next run starts relaxed, as the model assumed, and builds its pressure
-    from its own E).
-
-    With ``keep_zero`` every interim gets an entry (``(a, b, 0, 0)`` where nothing is
-    known or the compression is below the threshold), in order.
-
-    Returns
-    -------
-    list of tuple
-        ``(first row, last row, retraction, push-back)`` per relieved interim.
+    An earlier pass shortened the hold's push-back by ``short``; the column then starts
+    the next run with what the run before ended with less that: ``max(x_end − short, 0)``.
+    The state at a run's end depends on its own start, so two rounds.
     """
-    if model is None or not interims:
-        return [(a, b, 0, 0) for a, b in interims] if keep_zero else []
-    ratios = e_run / pieces.length_mm[model.free_pieces]
-    states = model.states(ratios)
-    owners = model.seg_owner
-    last_seg: dict[int, int] = {}
-    change = np.flatnonzero(np.concatenate((owners[1:] != owners[:-1], [True])))
-    for s in change.tolist():
-        last_seg[int(owners[s])] = s
-    out: list[tuple[int, int, int, int]] = []
-    for a, b in interims:
-        seg = last_seg.get(a - 1)
-        x_end = 0.0 if seg is None else max(float(states[seg]), 0.0)
-        retract = int(math.ceil(_RELIEF_MARGIN * x_end)) + 1
-        if seg is None or retract * e_unit_mm < _MIN_RELIEF_MM:
-            if keep_zero:
-                out.append((a, b, 0, 0))
-            continue
-        out.append((a, b, retract, retract - int(round(x_end))))
-    return out
+    k0 = len(spans) - len(relieved)
+    y = np.zeros(len(spans))
+    if not relieved:
+        return y
+    hold = np.array([h for h, _b, _j, _s in relieved], dtype=np.int64)
+    short = np.array([s for _h, _b, _j, s in relieved], dtype=np.float64)
+    for _ in range(2):
+        ends = row_start_states(model, model.states(ratios, (first_vars, y)), n_rows)[hold]
+        y[k0:] = np.maximum(np.nan_to_num(ends) - short, 0.0)
+    return y
 
 
 def round_total(e: FloatArray, total: int) -> IntArray:
@@ -388,41 +347,3 @@ def round_total(e: FloatArray, total: int) -> IntArray:
         heapq.heapreplace(heap, (-int(out[k]), k))
         heapq.heappush(heap, (-int(out[j]), j))
     return out
-
-
-def _insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
-                   xyz: FloatArray, e_piece: IntArray, feed: FloatArray, start: FloatArray,
-                   end: FloatArray, limits: ExtruderLimits, report: PassReport, *,
-                   e_unit_mm: float) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """Insert an E-only retraction before each relieved interim's first travel and the
-    push-back after its last one."""
-    speed = min(_RELIEF_SPEED_MM_S, 0.9 * limits.e_only_speed_mm_s)
-    feed_mm_min = 60.0 * speed
-    before = {a: -retract for a, _b, retract, _back in reliefs}
-    after = {b: back for _a, b, _retract, back in reliefs}
-    report.relief_travels += len(reliefs)
-    report.relief_mm += sum(r for _a, _b, r, _back in reliefs) * e_unit_mm
-    rows: list[int] = []
-    pts: list[FloatArray] = []
-    es: list[int] = []
-    fs: list[float] = []
-    for k in range(piece_of.size):
-        r = int(piece_of[k])
-        first_of_row = k == 0 or piece_of[k - 1] != r
-        last_of_row = k == piece_of.size - 1 or piece_of[k + 1] != r
-        if first_of_row and r in before:
-            rows.append(r)
-            pts.append(start[r])
-            es.append(before[r])
-            fs.append(feed_mm_min)
-        rows.append(r)
-        pts.append(xyz[k])
-        es.append(int(e_piece[k]))
-        fs.append(float(feed[k]))
-        if last_of_row and after.get(r, 0) > 0:
-            rows.append(r)
-            pts.append(end[r])
-            es.append(after[r])
-            fs.append(feed_mm_min)
-    return (np.asarray(rows, dtype=np.int64), np.vstack(pts) if pts else xyz,
-            np.asarray(es, dtype=np.int64), np.asarray(fs, dtype=np.float64))

@@ -527,7 +527,8 @@ def _pass_dict(rep: PassReport) -> dict[str, object]:
     return {"pieces": rep.pieces, "runs": rep.runs, "law_clipping": dict(rep.law_counts),
             "refinement": dict(rep.refinement), "relief_travels": rep.relief_travels,
             "relief_mm": rep.relief_mm, "relief_retractions": rep.relief_retractions,
-            "relief_retraction_mm": rep.relief_retraction_mm}
+            "relief_retraction_mm": rep.relief_retraction_mm,
+            "relief_precharge_mm": rep.relief_precharge_mm}
 
 
 def _guard_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,

@@ -94,6 +94,8 @@ class LagModel:
         Row each segment belongs to (a gap: the row after it), shape ``(s,)``.
     seg_t_s
         Duration of each segment, s.
+    seg_gap
+        Segment is the rest before its owner row (not part of the row's motion).
     """
 
     seg_piece: IntArray
@@ -110,15 +112,44 @@ class LagModel:
     holds: int
     seg_owner: IntArray
     seg_t_s: FloatArray
+    seg_gap: BoolArray
 
-    def states(self, ratios: FloatArray) -> FloatArray:
-        """Model state (compression, grid units) at the end of every segment."""
+    def states(self, ratios: FloatArray,
+               precharge: tuple[IntArray, FloatArray] | None = None) -> FloatArray:
+        """Model state (compression, grid units) at the end of every segment.
+
+        Parameters
+        ----------
+        ratios
+            Ratio of every free piece, shape ``(p,)``.
+        precharge
+            Free pieces that start from a pre-charge and its size (grid units), as
+            returned by :func:`refine_qp` (see there): the state just before such a piece
+            is the pre-charge instead of zero.
+        """
         out = np.empty(self.seg_piece.shape[0])
         segment_states(np.ascontiguousarray(ratios, dtype=np.float64), self.seg_piece,
-                       self.seg_fixed, self.seg_a, self.seg_b, self.seg_c, out)
+                       self.seg_fixed, self.seg_a, self.seg_b, self._seg_c(precharge), out)
         return out
 
-    def evaluate(self, ratios: FloatArray, intent: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def _seg_c(self, precharge: tuple[IntArray, FloatArray] | None) -> FloatArray:
+        """``seg_c`` with every pre-charge put on the reset segment before its piece."""
+        if precharge is None or not np.any(np.asarray(precharge[1]) != 0.0):
+            return self.seg_c
+        seg_c = self.seg_c.copy()
+        var, first = np.unique(self.seg_piece, return_index=True)
+        first_seg = np.full(int(self.free_pieces.size), -1, dtype=np.int64)
+        first_seg[var[var >= 0]] = first[var >= 0]
+        for p, y in zip(np.asarray(precharge[0]).tolist(), np.asarray(precharge[1]).tolist(),
+                        strict=True):
+            s = int(first_seg[p]) if 0 <= p < first_seg.size else -1
+            if y != 0.0 and s > 0 and self.seg_a[s - 1] == 0.0:
+                seg_c[s - 1] += y
+        return seg_c
+
+    def evaluate(self, ratios: FloatArray, intent: FloatArray,
+                 precharge: tuple[IntArray, FloatArray] | None = None
+                 ) -> tuple[FloatArray, FloatArray]:
         """Model output per objective row and the gradient of ``Σ (O − I)²`` (unit weights).
 
         Parameters
@@ -127,6 +158,8 @@ class LagModel:
             Ratio of every free piece, shape ``(p,)``.
         intent
             Intended E of every objective row, shape ``(m,)``.
+        precharge
+            Pre-charges (see :meth:`states`).
 
         Returns
         -------
@@ -136,7 +169,8 @@ class LagModel:
         out = np.zeros(intent.shape[0])
         grad = np.zeros(ratios.shape[0])
         model_pass(np.ascontiguousarray(ratios, dtype=np.float64), self.seg_piece,
-                   self.seg_fixed, self.seg_len, self.seg_a, self.seg_b, self.seg_c,
+                   self.seg_fixed, self.seg_len, self.seg_a, self.seg_b,
+                   self._seg_c(precharge),
                    self.seg_row, self.seg_first, self.seg_last,
                    np.ascontiguousarray(intent, dtype=np.float64), np.ones(intent.shape[0]),
                    out, grad)
@@ -267,14 +301,17 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
         last[idx[ends]] = True
     return LagModel(seg_var.astype(np.int64), ratio, seg_len, seg_a, seg_b, seg_c,
                     seg_row.astype(np.int64), first, last, free_idx.astype(np.int64),
-                    obj_rows.astype(np.int64), int(holds), owner_row.astype(np.int64), seg_t)
+                    obj_rows.astype(np.int64), int(holds), owner_row.astype(np.int64), seg_t,
+                    is_gap)
 
 
 def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: FloatArray,
               piece_group: IntArray, c_min: FloatArray, c_max: FloatArray,
               options: RefineOptions, *, state_max: FloatArray | None = None,
               target: FloatArray | None = None,
-              jump: FloatArray | None = None) -> tuple[FloatArray, dict[str, float]]:
+              jump: FloatArray | None = None,
+              precharge: tuple[IntArray, FloatArray] | None = None
+              ) -> tuple[FloatArray, dict[str, float], FloatArray]:
     """Optimise the free pieces' E as a sparse quadratic program in the states.
 
     With the state ``x_p`` after every free piece as the unknowns, each piece's ratio is
@@ -289,6 +326,19 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     planner slow the junction down: Marlin's E jerk, Klipper's extruder corner velocity,
     :mod:`flowtwin.compensation.limits`) is a banded convex QP
     (:func:`flowtwin.compensation._qp.solve_box_qp`).
+
+    A relieved travel (a retraction whose push-back leaves the column relaxed, see
+    :func:`flowtwin.compensation.bake.advance_pass`) starts the next run from ``x = 0``;
+    its push-back may instead leave a *pre-charge* ``y``, a variable of the program with
+    ``0 ≤ y ≤ y_max`` (at most the compression the run before ended with at the starting
+    point, which the hold would have kept; a constant, so that over-feeding a run's end
+    cannot buy a larger pre-charge): the next run's first piece then starts from
+    ``x_pre = y``. A short
+    first move after a travel (a 0.06 mm arc) cannot build its pressure from rest within
+    the firmware's ratio limits; the push-back can, E-only and before the head moves.
+    ``y`` carries the track weight ``λ·y²/I`` of that run's first move (the law's
+    pre-charge is zero). The ``y`` are ordered just before the piece they feed, so the
+    band stays narrow.
 
     Parameters
     ----------
@@ -317,11 +367,18 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         Largest ratio step ``|c_p − c_(p−1)|`` from the previous free piece, per free
         piece (grid units per mm; ``inf``: none, e.g. at a run's first piece), shape
         ``(p,)`` (:attr:`flowtwin.compensation.advance.LawResult.jump`). Default: none.
+    precharge
+        Relieved travels that may pre-charge the next run: the free piece (index into
+        ``model.free_pieces``) each one's run starts with, and the largest pre-charge
+        (grid units), shape ``(k,)`` each. Entries whose first piece does not start
+        relaxed in the model (``x_pre`` not zero) or whose bound is not positive get no
+        pre-charge.
 
     Returns
     -------
     tuple
-        E of every free piece (grid units, floats) and figures.
+        E of every free piece (grid units, floats), figures, and the pre-charge of every
+        ``precharge`` entry (grid units, ``0`` for entries without one), shape ``(k,)``.
     """
     import scipy.sparse as sp
 
@@ -354,35 +411,57 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     last = np.concatenate((grp[1:] != grp[:-1], [True]))
     s_last = sp.csr_matrix((np.ones(int(last.sum())), (grp[last], idx[last])), shape=(m, n))
     s_first = sp.csr_matrix((np.ones(int(first.sum())), (grp[first], idx[first])), shape=(m, n))
+    # pre-charges y: x_pre(p_k) += y_k, so c_p gains −E_p/B_p·y_k (variables [x; y])
+    after_v, y_max, use = _precharge_entries(precharge, alpha, kappa, n)
+    k_y = int(after_v.size)
+    y_idx = np.arange(k_y)
+    y_x = sp.csr_matrix((np.ones(k_y), (after_v, y_idx)), shape=(n, k_y))
+    c_y = sp.csr_matrix((-e_p[after_v] / b_p[after_v], (after_v, y_idx)), shape=(n, k_y))
+    c_mat = sp.hstack([c_mat, c_y], format="csr")
+    p_mat = sp.hstack([p_mat, y_x], format="csr")
+    s_last = sp.hstack([s_last, sp.csr_matrix((m, k_y))], format="csr")
     r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
     r0 = g_mat @ (l_p * c0) + s_first @ kappa - (intent if target is None else target)
     inv = 1.0 / np.maximum(intent, 1e-9)
     w = inv + options.peak_weight * float(np.mean(intent)) * inv * inv
     v = options.track_weight * l_p ** 2 * inv[grp]
+    v_y = options.track_weight * inv[grp[after_v]]
     c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
     h = r_mat.T @ sp.diags(w) @ r_mat + c_mat.T @ sp.diags(v) @ c_mat
+    if k_y:
+        h = h + sp.csr_matrix((v_y, (n + y_idx, n + y_idx)), shape=(n + k_y, n + k_y))
     g = r_mat.T @ (w * r0) + c_mat.T @ (v * (c0 - c_hat))
     scale = float(np.mean(np.abs(h.diagonal()))) or 1.0
     hi = np.where(np.isfinite(c_max), np.maximum(c_max, c_min * (1 + 1e-6) + 1e-9), np.inf)
 
-    def objective(x: FloatArray) -> float:
+    def objective(x: FloatArray) -> float:  # x: [states; pre-charges]
         r = r_mat @ x + r0
         c = c_mat @ x + c0
-        return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2))
+        return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2)
+                     + 0.5 * np.sum(v_y * x[n:] ** 2))
 
-    # states of the law's E (clipped into the box): the objective before, and the start
+    # states of the law's E (clipped into the box), no pre-charge: the objective before,
+    # and the start
     c_start = np.clip(c_hat, c_min, hi)
-    x_start = _chain_states(alpha, kappa, e_p, b_p, k_p, c_start)
+    x_start = np.concatenate((_chain_states(alpha, kappa, e_p, b_p, k_p, c_start),
+                              np.zeros(k_y)))
     before = objective(x_start)
     con, d_con, lo_con, hi_con = c_mat, c0, c_min, hi
+    if k_y:  # 0 ≤ y_k ≤ y_max
+        rows_y = sp.csr_matrix((np.ones(k_y), (y_idx, n + y_idx)), shape=(k_y, n + k_y))
+        con = sp.vstack([con, rows_y], format="csr")
+        d_con = np.concatenate((d_con, np.zeros(k_y)))
+        lo_con = np.concatenate((lo_con, np.zeros(k_y)))
+        hi_con = np.concatenate((hi_con, y_max))
     if state_max is not None and np.any(np.isfinite(state_max)):
         cap = np.isfinite(state_max)
         rows_x = sp.csr_matrix((np.ones(int(cap.sum())), (np.arange(int(cap.sum())),
-                                                          idx[cap])), shape=(int(cap.sum()), n))
-        con = sp.vstack([c_mat, rows_x], format="csr")
-        d_con = np.concatenate((c0, np.zeros(int(cap.sum()))))
-        lo_con = np.concatenate((c_min, np.full(int(cap.sum()), -np.inf)))
-        hi_con = np.concatenate((hi, state_max[cap]))
+                                                          idx[cap])),
+                               shape=(int(cap.sum()), n + k_y))
+        con = sp.vstack([con, rows_x], format="csr")
+        d_con = np.concatenate((d_con, np.zeros(int(cap.sum()))))
+        lo_con = np.concatenate((lo_con, np.full(int(cap.sum()), -np.inf)))
+        hi_con = np.concatenate((hi_con, state_max[cap]))
     if jump is not None:
         jmp = np.asarray(jump, dtype=np.float64)
         if jmp.shape != (n,):
@@ -401,14 +480,49 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
             d_con = np.concatenate((d_con, c0[step] - c0[step - 1]))
             lo_con = np.concatenate((lo_con, -j))
             hi_con = np.concatenate((hi_con, j))
-    x, iterations, _mu = solve_box_qp(h / scale, g / scale, con, d_con, lo_con, hi_con,
-                                     max_iterations=options.max_iterations, x0=x_start)
+    # each pre-charge just before the piece it feeds: the band stays narrow
+    order = np.argsort(np.concatenate((idx, after_v)) - np.concatenate((np.zeros(n),
+                                                                         np.full(k_y, 0.5))),
+                       kind="stable")
+    pick = sp.csr_matrix((np.ones(n + k_y), (order, np.arange(n + k_y))),
+                         shape=(n + k_y, n + k_y))
+    z, iterations, _mu = solve_box_qp(pick.T @ h @ pick / scale, (pick.T @ g) / scale,
+                                      con @ pick, d_con, lo_con, hi_con,
+                                      max_iterations=options.max_iterations,
+                                      x0=x_start[order])
+    x = pick @ z
     c = np.clip(c_mat @ x + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
     total = float(np.sum(intent))
+    y_out = np.zeros(use.size)
+    y_out[use] = np.maximum(x[n:], 0.0)
     return e_new, {"flow_before": 2.0 * before / total, "flow_after": 2.0 * after / total,
-                   "iterations": float(iterations)}
+                   "iterations": float(iterations),
+                   "precharges": float(np.count_nonzero(y_out > 0.5))}, y_out
+
+
+def _precharge_entries(precharge: tuple[IntArray, FloatArray] | None, alpha: FloatArray,
+                       kappa: FloatArray, n: int) -> tuple[IntArray, FloatArray,
+                                                          npt.NDArray[np.bool_]]:
+    """The usable pre-charge entries of :func:`refine_qp`: a run's first free piece that
+    starts relaxed in the model, with a positive bound; the mask of the usable ones among
+    all given."""
+    if precharge is None:
+        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=bool)
+    after_v = np.asarray(precharge[0], dtype=np.int64)
+    y_max = np.asarray(precharge[1], dtype=np.float64)
+    if after_v.shape != y_max.shape:
+        raise ProfileError("pre-charge entries do not pair up", field="precharge",
+                           value=(after_v.shape, y_max.shape), allowed="equal shapes")
+    use = (after_v >= 0) & (after_v < n) & (y_max > 0.5)
+    ok = np.flatnonzero(use)
+    use[ok] = (alpha[after_v[ok]] == 0.0) & (kappa[after_v[ok]] == 0.0)
+    # one pre-charge per piece (the first entry)
+    _, first = np.unique(after_v[use], return_index=True)
+    keep = np.zeros(after_v.size, dtype=bool)
+    keep[np.flatnonzero(use)[first]] = True
+    return after_v[keep], y_max[keep], keep
 
 
 def _chain_states(alpha: FloatArray, kappa: FloatArray, e_p: FloatArray, b_p: FloatArray,

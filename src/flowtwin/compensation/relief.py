@@ -1,0 +1,318 @@
+"""Pressure relief over travels between printing runs.
+
+The advance law [001 Eq. 11] commands ``−K·v⁰_E`` where the flow stops, which a G-code
+can only do as a retraction. A travel between two printing runs (long enough for the melt
+to ooze, :func:`travel_interims`) gets an E-only retraction of twice the compression the
+lag model predicts at the run's end and a push-back that leaves the column relaxed
+(:func:`relief_amounts`, :func:`insert_relief`); a travel the slicer already retracts
+for holds that compression through the travel, and its push-back is shortened by it
+(:func:`retraction_interims`). The refinement may leave a *pre-charge* in the push-back
+for the next run's first moves (:func:`first_free_pieces`,
+:func:`flowtwin.compensation.refine.refine_qp`). A later pass finds the reliefs an earlier
+one made (:func:`relieved_gaps`) and models them the same way.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation.limits import ExtruderLimits
+from flowtwin.compensation.pieces import Pieces
+from flowtwin.compensation.refine import LagModel
+from flowtwin.gcode.moves import MoveKind
+from flowtwin.planner.timeline import Timeline
+
+__all__ = [
+    "MIN_RELIEF_MM",
+    "RELIEF_MARGIN",
+    "RELIEF_SPEED_MM_S",
+    "first_free_pieces",
+    "gaps",
+    "insert_relief",
+    "relief_amounts",
+    "relieved_gaps",
+    "retraction_interims",
+    "row_start_states",
+    "travel_interims",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: Relief is added only when the compression at a run's end is at least this many mm.
+MIN_RELIEF_MM = 0.002
+#: Retract this many times the predicted compression, so the melt stops early in the move.
+RELIEF_MARGIN = 2.0
+#: Speed of the relief retraction and push-back, mm/s (capped by the firmware's limit).
+RELIEF_SPEED_MM_S = 35.0
+
+
+def gaps(elig: npt.NDArray[np.bool_], timeline: Timeline,
+          min_time_s: FloatArray) -> list[tuple[int, int]]:
+    """Stretches ``i .. j-1`` of non-printing rows between two runs (rows ``i-1`` and ``j``
+    print) lasting at least ``min_time_s[i-1]``, as ``(i, j)``."""
+    n = elig.shape[0]
+    if n < 3:
+        return []
+    e = elig.astype(np.int8)
+    first = np.flatnonzero(np.diff(e) == -1) + 1  # a printing row, then not
+    last = np.flatnonzero(np.diff(e) == 1) + 1    # not, then a printing row
+    if not first.size or not last.size:
+        return []
+    # pair each gap start with the next printing row after it
+    k = np.searchsorted(last, first, side="left")
+    ok = k < last.size
+    i, j = first[ok], last[k[ok]]
+    start = np.asarray(timeline.phases["t_start"], dtype=np.float64)
+    end = timeline.end_time_s
+    keep = start[j] - end[i - 1] >= min_time_s[i - 1]
+    return list(zip(i[keep].tolist(), j[keep].tolist(), strict=True))
+
+
+def travel_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
+              timeline: Timeline, min_time_s: FloatArray) -> list[tuple[int, int]]:
+    """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
+
+    An interim qualifies when it lies between two printing rows, moves no E itself, has at
+    least one XY travel and lasts at least ``min_time_s`` of the row before it (a shorter
+    one lets little melt ooze, and a relief would only add two stops);
+    ``first``/``last`` are its first and last XY travels.
+    """
+    out: list[tuple[int, int]] = []
+    for i, j in gaps(elig, timeline, min_time_s):
+        if np.all(row_e[i:j] == 0):
+            xy = [k for k in range(i, j)
+                  if (kind[k] & MoveKind.XY) and (kind[k] & MoveKind.TRAVEL)]
+            if xy:
+                out.append((xy[0], xy[-1]))
+    return out
+
+
+def retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8],
+                         row_e: IntArray, tool: npt.NDArray[np.integer], timeline: Timeline,
+                         min_time_s: FloatArray) -> list[tuple[int, int]]:
+    """Retracting interims between two runs whose push-back can relieve the pressure.
+
+    The slicer's own retraction holds the compression of the run's end through the travel
+    (no backflow), and its push-back restores it: the next run starts with the pressure
+    of a full-speed end, which it cannot absorb from rest (a short first move gets it
+    all). Shortening the push-back by that compression starts the next run relaxed, as
+    the advance law wants [001 Eq. 11] (the ``−K·v⁰_E`` where the flow stops). An interim
+    qualifies when it lasts at least ``min_time_s`` of the row before it, retracts (a row
+    with negative E) and pushes back at least as much in a later E-only row written in
+    the G-code, all with one tool (a tool change loads another filament: its push-back is
+    not this column's). The hold starts at the first retracting row: travels before it
+    (a slicer that travels first, PrusaSlicer's move off its purge line) let the melt
+    ooze like any gap.
+
+    Returns
+    -------
+    list of tuple
+        ``(first retracting row, push-back row)``.
+    """
+    out: list[tuple[int, int]] = []
+    for i, j in gaps(elig, timeline, min_time_s):
+        if np.all(tool[i - 1:j + 1] == tool[i - 1]):
+            e = row_e[i:j]
+            neg = np.flatnonzero(e < 0)
+            pos = np.flatnonzero(e > 0)
+            if neg.size and pos.size and pos[-1] > neg[0] and int(np.sum(e)) >= 0:
+                r = i + int(pos[-1])
+                if (kind[r] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0:
+                    out.append((i + int(neg[0]), r))
+    return out
+
+
+def relieved_gaps(elig: npt.NDArray[np.bool_], row_e: IntArray, group: IntArray,
+                   orig_e: IntArray, timeline: Timeline) -> list[tuple[int, int, int, int]]:
+    """Holds between runs that an earlier pass sized to leave the next run relaxed.
+
+    The first pass relieves the pressure between runs: a relief retraction pushes back
+    less than it retracts, a slicer's push-back is shortened, both by the compression its
+    lag model predicts at the run's end (:func:`_relief_amounts`), so that the next run
+    starts from rest, as that model assumed. A later pass sees only the shortfall: a hold
+    whose push-back is short by a fixed amount carries the run's end compression *minus*
+    that amount into the next run, so raising a run's end (over-extruding it) would feed
+    the next run's start through the travel, a lever the first pass ruled out (it cost the
+    PrusaSlicer 2.8.1 minicube +13 % on the last move of a run, to lift a −97 % 0.06 mm arc
+    after the travel). The gap between two runs is such a relief where its E adds up to
+    less than the whole original rows it holds (the first pass took the difference off).
+
+    Parameters
+    ----------
+    elig
+        Printing rows, shape ``(n,)``.
+    row_e
+        E of every row, grid units, shape ``(n,)``.
+    group
+        Original row of every row (non-decreasing), shape ``(n,)``.
+    orig_e
+        E of every original row, grid units.
+    timeline
+        The rows' phases.
+
+    Returns
+    -------
+    list of tuple
+        ``(hold row, push-back row, next run's first row, shortfall)``: the gap's first
+        retracting row, its last pushing-back row (``-1``: none), the printing row after
+        the gap, and the grid units the earlier pass took off.
+    """
+    out: list[tuple[int, int, int, int]] = []
+    for i, j in gaps(elig, timeline, np.zeros(elig.shape[0])):
+        e = row_e[i:j]
+        neg = np.flatnonzero(e < 0)
+        if not neg.size:
+            continue
+        originals = np.unique(group[i:j])
+        # an original row split between a run and the gap would mix its printing E in
+        if np.any(originals == group[i - 1]) or np.any(originals == group[j]):
+            continue
+        short = int(np.sum(np.asarray(orig_e)[originals])) - int(np.sum(e))
+        if short > 0:
+            pos = np.flatnonzero(e > 0)
+            back = i + int(pos[-1]) if pos.size and pos[-1] > neg[0] else -1
+            out.append((i + int(neg[0]), back, j, short))
+    return out
+
+
+def row_start_states(model: LagModel, states: FloatArray, n_rows: int) -> FloatArray:
+    """Model state when every row's own motion starts (after the rest before it: a
+    heat-up wait or a dwell lets the melt ooze), ``nan`` for rows without segments.
+
+    Parameters
+    ----------
+    model
+        The lag model.
+    states
+        State at the end of every segment (:meth:`LagModel.states`), grid units.
+    n_rows
+        Rows of the rendered draft.
+
+    Returns
+    -------
+    ndarray
+        Shape ``(n_rows,)``, grid units (``0`` before the file's first segment).
+    """
+    out = np.full(n_rows, np.nan)
+    own = np.flatnonzero(~model.seg_gap)
+    if own.size == 0:
+        return out
+    owners = model.seg_owner[own]
+    first = own[np.concatenate(([True], owners[1:] != owners[:-1]))]
+    out[model.seg_owner[first]] = np.where(first > 0, states[np.maximum(first - 1, 0)], 0.0)
+    return out
+
+
+def relief_amounts(travels: list[tuple[int, int]], start_state: FloatArray | None,
+                   precharge: FloatArray | None = None, *, e_unit_mm: float,
+                   keep_zero: bool = False) -> list[tuple[int, int, int, int]]:
+    """Retraction and push-back of every relieved interim, grid units.
+
+    The lag model gives the compression ``x`` when the interim starts (the end of the run
+    before, less what oozed during a rest between);
+    the retraction takes twice that (so the melt stops at once), the push-back returns all
+    but ``x − y``: the next run starts with the pre-charge ``y`` the refinement chose
+    (``0 ≤ y ≤ x``; relaxed without one) and builds the rest of its pressure from its
+    own E.
+
+    Parameters
+    ----------
+    travels
+        ``(first row, last row)`` of every interim.
+    start_state
+        Model state when every row starts (:func:`row_start_states`), grid units;
+        ``None``: no model (nothing is relieved).
+    precharge
+        Pre-charge of every interim, grid units (default none).
+    e_unit_mm
+        Size of one grid unit, mm.
+    keep_zero
+        Every interim gets an entry (``(a, b, 0, 0)`` where nothing is known or the
+        compression is below the threshold), in order.
+
+    Returns
+    -------
+    list of tuple
+        ``(first row, last row, retraction, push-back)`` per relieved interim.
+    """
+    if start_state is None or not travels:
+        return [(a, b, 0, 0) for a, b in travels] if keep_zero else []
+    out: list[tuple[int, int, int, int]] = []
+    for k, (a, b) in enumerate(travels):
+        x = float(start_state[a])
+        x_end = max(x, 0.0) if math.isfinite(x) else 0.0
+        retract = int(math.ceil(RELIEF_MARGIN * x_end)) + 1
+        if not math.isfinite(x) or retract * e_unit_mm < MIN_RELIEF_MM:
+            if keep_zero:
+                out.append((a, b, 0, 0))
+            continue
+        y = 0.0 if precharge is None else min(max(float(precharge[k]), 0.0), x_end)
+        out.append((a, b, retract, retract - int(round(x_end)) + int(round(y))))
+    return out
+
+
+def first_free_pieces(next_rows: IntArray, pieces: Pieces,
+                      free_pieces: IntArray) -> IntArray:
+    """Free variable of the first piece of every run after a relieved travel, the piece
+    its pre-charge feeds (see :func:`flowtwin.compensation.refine.refine_qp`).
+
+    Parameters
+    ----------
+    next_rows
+        First printing row after every relieved travel, shape ``(k,)``.
+    pieces
+        All rows' pieces.
+    free_pieces
+        Piece of every free variable, ascending (``LagModel.free_pieces``).
+
+    Returns
+    -------
+    ndarray
+        Variable index, ``-1`` where that piece is not free, shape ``(k,)``.
+    """
+    first = pieces.offsets[np.asarray(next_rows, dtype=np.int64)]
+    if free_pieces.size == 0:
+        return np.full(first.size, -1, dtype=np.int64)
+    k = np.searchsorted(free_pieces, first)
+    ok = (k < free_pieces.size) & (free_pieces[np.minimum(k, free_pieces.size - 1)] == first)
+    return np.where(ok, k, -1).astype(np.int64)
+
+
+def insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
+                   xyz: FloatArray, e_piece: IntArray, feed: FloatArray, start: FloatArray,
+                  end: FloatArray, limits: ExtruderLimits
+                  ) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
+    """Insert an E-only retraction before each relieved interim's first travel and the
+    push-back after its last one."""
+    speed = min(RELIEF_SPEED_MM_S, 0.9 * limits.e_only_speed_mm_s)
+    feed_mm_min = 60.0 * speed
+    before = {a: -retract for a, _b, retract, _back in reliefs}
+    after = {b: back for _a, b, _retract, back in reliefs}
+    rows: list[int] = []
+    pts: list[FloatArray] = []
+    es: list[int] = []
+    fs: list[float] = []
+    for k in range(piece_of.size):
+        r = int(piece_of[k])
+        first_of_row = k == 0 or piece_of[k - 1] != r
+        last_of_row = k == piece_of.size - 1 or piece_of[k + 1] != r
+        if first_of_row and r in before:
+            rows.append(r)
+            pts.append(start[r])
+            es.append(before[r])
+            fs.append(feed_mm_min)
+        rows.append(r)
+        pts.append(xyz[k])
+        es.append(int(e_piece[k]))
+        fs.append(float(feed[k]))
+        if last_of_row and after.get(r, 0) > 0:
+            rows.append(r)
+            pts.append(end[r])
+            es.append(after[r])
+            fs.append(feed_mm_min)
+    return (np.asarray(rows, dtype=np.int64), np.vstack(pts) if pts else xyz,
+            np.asarray(es, dtype=np.int64), np.asarray(fs, dtype=np.float64))
