@@ -33,7 +33,9 @@ fast). Here the limit comes from the twin:
   :mod:`flowtwin.compensation.limits`; ``A_f`` the filament area), so the outflow can rise
   at ``Q̇ ≤ V/K``: a path acceleration of at most ``A = m·V/(K·a)`` after a run start or a
   rising cross-section step, ``v(s)² ≤ v₀² + 2·A·s`` (:func:`rise_envelope`), from the
-  flow the gap before leaves (none before a file's first run: a prime's state is unknown).
+  outflow the column carries into the run (:func:`~flowtwin.compensation.column.
+  run_start_flow`: the gap's E and retractions; a start that carries at least
+  ``1/min_drop`` of its flow is not paced; nor is a file's first run: a prime's state).
 
 A move whose planned speed exceeds the envelope is cut (the existing
 :meth:`~flowtwin.compensation.draft.Draft.split`): the paced part becomes a staircase of
@@ -52,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.compensation.column import carried_flows, feed_after
 from flowtwin.compensation.draft import Draft
 from flowtwin.errors import ProfileError
 
@@ -380,9 +383,9 @@ def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: fl
 
 
 def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArray,
-               lag_k_s: FloatArray, start_v_mm_s: FloatArray, cruise_v_mm_s: FloatArray,
-               end_v_mm_s: FloatArray, t_start_s: FloatArray, t_end_s: FloatArray,
-               speed_factor: FloatArray, push_mm3_s: float,
+               lag_k_s: FloatArray, volume_mm3: FloatArray, start_v_mm_s: FloatArray,
+               cruise_v_mm_s: FloatArray, end_v_mm_s: FloatArray, t_start_s: FloatArray,
+               t_end_s: FloatArray, speed_factor: FloatArray, push_mm3_s: float,
                options: PaceOptions) -> tuple[Draft, PaceReport]:
     """Cut the pieces that run faster than the pacing envelopes into slower staircases.
 
@@ -396,6 +399,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         Intended cross-section ``a = V/L`` of every piece, mm².
     lag_k_s
         The twin's lag factor ``K`` of every piece, s.
+    volume_mm3
+        Commanded volume of every piece, mm³ (retractions negative): the E written between
+        two runs charges the column the next run starts with.
     start_v_mm_s, cruise_v_mm_s, end_v_mm_s
         The planner's speeds of every piece, mm/s.
     t_start_s, t_end_s
@@ -445,8 +451,14 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     anchor = np.where(drop, v_j, np.inf)
     run_end = pr & ~np.concatenate((pr[1:], [False])) if n else pr
     if options.run_ends:
-        anchor = np.where(run_end, ev, anchor)
-        drop = drop | (run_end & (ev < cv))
+        # the flow falls to that of the row after the run: none (a stop), or the feed of
+        # a row that extrudes without printing (a purge blob on a Z move, a prime)
+        q_after = feed_after(volume_mm3, t_start_s, t_end_s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            end_v = np.maximum(ev, np.where(a > 0, q_after / np.where(a > 0, a, 1.0), 0.0))
+        run_end &= (end_v < cv) & (a * cv > options.min_drop * q_after)
+        anchor = np.where(run_end, end_v, anchor)
+        drop = drop | run_end
     report = PaceReport(paced_rows=np.zeros(0, dtype=np.int64),
                         drop_junctions=int(np.count_nonzero(drop)),
                         step_junctions=int(np.count_nonzero(drop & np.isfinite(step_cap)
@@ -500,23 +512,17 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         rising = pr & prev_pr & (a > options.min_drop * a_prev)
         cap_rise = np.where(rising, step_speed_mm_s(a_prev, a, k, adjust_mm=options.adjust_mm),
                             np.inf)
-        # a run start builds from the outflow the gap leaves: relaxed after a gap long
-        # enough for the advance's relief, exp(-gap/K) of the last run's end flow after a
-        # shorter one; before the first run (a prime, a purge) the state is not known to
-        # the pacing: not paced
-        idx = np.flatnonzero(pr)
-        pos = np.searchsorted(idx, np.arange(n), side="left") - 1
-        has_prev = pos >= 0
-        p_end = idx[np.maximum(pos, 0)] if idx.size else np.zeros(n, dtype=np.int64)
-        t_end = np.asarray(t_end_s, dtype=np.float64)
-        gap_in = np.where(has_prev, np.asarray(t_start_s, dtype=np.float64) - t_end[p_end],
-                          np.inf)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            q_carry = np.where(has_prev & (gap_in < options.gap_lags * k),
-                               a[p_end] * np.minimum(ev[p_end], end_bound[p_end])
-                               * np.exp(-gap_in / k), 0.0)
+        # a run start builds from the outflow the column carries into it (the gap's E and
+        # retractions, column.carried_flows); the first run of a file (after a prime, a
+        # purge) is not paced: that state is not the pacing's to know
+        starts, q = carried_flows(pr, a * np.minimum(ev, end_bound), volume_mm3=volume_mm3,
+                                  t_start_s=t_start_s, t_end_s=t_end_s, lag_k_s=k,
+                                  relief_lags=options.gap_lags)
+        q_carry = np.full(n, np.inf)  # inf: no run before (not paced)
+        q_carry[starts] = q
+        with np.errstate(divide="ignore", invalid="ignore"):
             v_carry = np.where(a > 0, q_carry / np.where(a > 0, a, 1.0), 0.0)
-        start_ok = run_start & has_prev & (a * cv > options.min_drop * q_carry)
+        start_ok = run_start & (a * cv > options.min_drop * q_carry)
         v0 = np.where(start_ok, np.maximum(sv, v_carry),
                       np.where(rising, np.minimum(sv, cap_rise), np.inf))
         report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))

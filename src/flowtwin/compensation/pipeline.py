@@ -572,7 +572,7 @@ def _pace_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
     push = filament_area_mm2 * min(limits.jump_mm_s, limits.max_e_speed_mm_s)
     return pace_feeds(draft, printing=_printing(sim, draft), cross_section_mm2=area,
                       lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
-                      start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
+                      volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
                       cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
                       end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
                       t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
