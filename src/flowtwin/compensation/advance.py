@@ -100,6 +100,13 @@ class AdvanceOptions:
         predicted compression (needs ``refine``; see :mod:`flowtwin.compensation.bake`).
     relief_min_lags
         Relieve only travels lasting at least this many lag factors ``K``.
+    twin_gain
+        Learning gain of a later pass's twin correction: it aims the model at
+        ``intent + g·(model − twin)`` (see :func:`flowtwin.compensation.bake.advance_pass`).
+        A step of iterative learning control converges where the twin's response is less
+        than ``2/g`` times the model's; at a run start after a relieved travel the twin's
+        column is not linear (a column left short must refill before anything flows), and
+        a full step (``g = 1``) overshot there (Cura 5.9.1: a 0.2 mm run −98 % → +39 %).
     """
 
     law: AdvanceLaw = AdvanceLaw.SMOOTHED
@@ -115,6 +122,7 @@ class AdvanceOptions:
     refine: RefineOptions | None = field(default_factory=RefineOptions)
     relief: bool = True
     relief_min_lags: float = 0.5
+    twin_gain: float = 0.5
 
     @property
     def is_identity(self) -> bool:
@@ -136,6 +144,7 @@ class AdvanceOptions:
             "min_flow_fraction": (self.min_flow_fraction,
                                   0.0 < self.min_flow_fraction <= 1.0, "0 < f <= 1"),
             "limit_margin": (self.limit_margin, 0.0 <= self.limit_margin < 1.0, "0 <= m < 1"),
+            "twin_gain": (self.twin_gain, 0.0 < self.twin_gain <= 1.0, "0 < g <= 1"),
         }
         if self.k_s is not None:
             checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")

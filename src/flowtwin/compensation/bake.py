@@ -135,9 +135,10 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         ``(n_original_rows,)``; only with ``split=False``. The lag model is linear and
         leaves out what the twin adds (the melt's nonlinear flow, temperatures, holds
         it models differently); the refinement then aims the model at
-        ``intent + (model(draft) − delivered)`` — one step of iterative learning control
-        with the model as the plant's Jacobian, so the twin's own figure converges where
-        the model alone stops.
+        ``intent + g·(model(draft) − delivered)`` — one step of iterative learning control
+        with the model as the plant's Jacobian and the gain ``g`` of
+        ``options.twin_gain``, so the twin's own figure converges where the model alone
+        stops.
 
     Returns
     -------
@@ -227,7 +228,8 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
             predicted, _grad = model.evaluate(ratios, intent, (pc_first, now))
             seen = np.asarray(delivered, dtype=np.float64)[elig_orig_rows]
             # never aim below a twentieth of the intent (a model that far off is no guide)
-            target = np.maximum(intent + (predicted - seen), 0.05 * intent)
+            target = np.maximum(intent + options.twin_gain * (predicted - seen),
+                                0.05 * intent)
         e_run, report.refinement, precharge = refine_qp(
             model, pieces, start_e, intent, row_group[pieces.row[law.sel]], law.c_min,
             law.c_max, options.refine, state_max=cap, target=target, jump=law.jump,
