@@ -230,10 +230,15 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
             # never aim below a twentieth of the intent (a model that far off is no guide)
             target = np.maximum(intent + options.twin_gain * (predicted - seen),
                                 0.05 * intent)
+        # the firmware's ratio steps bind a later pass only: the first pass's pieces are
+        # planned afresh before the second refines them, and the second must not make the
+        # planner re-time its own result (a 0.08 mm piece at a fifth of its neighbours'
+        # ratio slowed CrealityPrint's 200 mm/s arc to 92 mm/s); bound in the first pass
+        # too, the law could not be followed as closely (PrusaSlicer 2.7.4 vase 5.4x -> 3.8x)
         e_run, report.refinement, precharge = refine_qp(
             model, pieces, start_e, intent, row_group[pieces.row[law.sel]], law.c_min,
-            law.c_max, options.refine, state_max=cap, target=target, jump=law.jump,
-            precharge=(pc_first, y_max))
+            law.c_max, options.refine, state_max=cap, target=target,
+            jump=None if split else law.jump, precharge=(pc_first, y_max))
         states = model.states(e_run / np.maximum(pieces.length_mm[law.sel], 1e-12),
                               (pc_first, precharge))
         start_state = row_start_states(model, states, n)
