@@ -82,8 +82,11 @@ def render_report(report: CompensationReport) -> None:
         notes.append(f"guard slowed {len(report.slowed_moves)} moves "
                      f"(+{report.guard_time_cost_s:.1f} s)")
     for p in report.advance:
+        kept = "" if p.get("kept", True) else " (not kept)"
         notes.append(f"advance pass: {p['pieces']:,} pieces in {p['runs']:,} runs, "
-                     f"{p['relief_travels']} relief retractions")
+                     f"{p['relief_travels']} relief retractions added, "
+                     f"{float(p.get('relief_precharge_mm', 0.0)):.3f} mm pre-charge"  # type: ignore[arg-type]
+                     f"{kept}")
     if report.trajectory:
         t = report.trajectory
         notes.append(f"trajectory: L = {t['lag_mm']:.3f} mm, {t['pivots']} pivots, laid road "
