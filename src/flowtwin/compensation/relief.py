@@ -128,12 +128,13 @@ def retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8]
 
 def relieved_gaps(elig: npt.NDArray[np.bool_], row_e: IntArray, group: IntArray,
                    orig_e: IntArray, timeline: Timeline) -> list[tuple[int, int, int, int]]:
-    """Holds between runs that an earlier pass sized to leave the next run relaxed.
+    """Holds between runs that an earlier pass sized to leave the next run relaxed (or
+    pre-charged).
 
     The first pass relieves the pressure between runs: a relief retraction pushes back
     less than it retracts, a slicer's push-back is shortened, both by the compression its
-    lag model predicts at the run's end (:func:`_relief_amounts`), so that the next run
-    starts from rest, as that model assumed. A later pass sees only the shortfall: a hold
+    lag model predicts when the hold starts less the pre-charge (:func:`relief_amounts`),
+    so that the next run starts as that model assumed. A later pass sees only the shortfall: a hold
     whose push-back is short by a fixed amount carries the run's end compression *minus*
     that amount into the next run, so raising a run's end (over-extruding it) would feed
     the next run's start through the travel, a lever the first pass ruled out (it cost the
