@@ -13,8 +13,8 @@ from scipy.optimize import lsq_linear
 from flowtwin.compensation._qp import solve_box_qp
 from flowtwin.compensation._refine_kernel import lag_gain, model_pass
 from flowtwin.compensation.advance import eligible_rows
-from flowtwin.compensation.pieces import split_rows
-from flowtwin.compensation.refine import RefineOptions, build_lag_model, refine_qp
+from flowtwin.compensation.pieces import Pieces, split_rows
+from flowtwin.compensation.refine import LagModel, RefineOptions, build_lag_model, refine_qp
 from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.dynamics import ExtrusionParams, predict
 from flowtwin.simulation import simulate
@@ -131,6 +131,31 @@ def test_box_qp_with_a_bidiagonal_map() -> None:
             assert 0.5 * np.sum((y - target) ** 2) >= f - 1e-9
 
 
+def _refine_problem(path: Path, lines: list[str], *, relieve: bool = False
+                    ) -> tuple[LagModel, Pieces, np.ndarray, np.ndarray, np.ndarray,
+                               np.ndarray]:
+    """Write ``lines``, simulate them and build the refinement's problem: the lag model,
+    the pieces (acceleration phases in 3), the free pieces, their ratios, the intent per
+    printing move and the move of every free piece; ``relieve`` marks retractions as
+    relieved holds (the next run starts relaxed)."""
+    path.write_text("\n".join(lines) + "\n")
+    res = simulate(path, pressure_advance=False)
+    table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
+    rows_e = row_e_grid(scan_source(read_source(path), table), table)
+    elig = eligible_rows(table, rows_e)
+    pieces = split_rows(tl, elig, accel_pieces=3)
+    free = elig[pieces.row]
+    length = pieces.row_length_mm
+    ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
+    group = np.where(elig, np.cumsum(elig) - 1, -1)
+    model = build_lag_model(pieces, tl, p.lag_k_s, free, ratio[pieces.row],
+                            rows_e.astype(float), group, int(elig.sum()),
+                            travel_holds=rows_e < 0 if relieve else None)
+    sel = np.flatnonzero(free)
+    return model, pieces, sel, ratio[pieces.row[sel]], rows_e[elig].astype(float), \
+        group[pieces.row[sel]]
+
+
 def test_refinement_keeps_the_ratio_steps_within_the_firmware_jump(tmp_path: Path) -> None:
     """Without the step limit the optimum steps the ratio between pieces of a run (it
     wants less E in every deceleration); with it, no step between neighbouring pieces
@@ -139,24 +164,8 @@ def test_refinement_keeps_the_ratio_steps_within_the_firmware_jump(tmp_path: Pat
     lines = ["G21", "G90", "M83", "M104 S215", "G1 X10 Y10 F9000"]
     for k in range(4):
         lines += [f"G1 X{40 + 5 * k} Y{10 + 2 * k} E{1.2 + 0.2 * k:.4f} F{3000 + 900 * k}"]
-    path.write_text("\n".join(lines) + "\n")
-    res = simulate(path, pressure_advance=False)
-    table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
-    scanned = scan_source(read_source(path), table)
-    rows_e = row_e_grid(scanned, table).astype(float)
-    elig = eligible_rows(table, row_e_grid(scanned, table))
-    pieces = split_rows(tl, elig, accel_pieces=3)
-    free = elig[pieces.row]
-    length = pieces.row_length_mm
-    ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
-    group = np.where(elig, np.cumsum(elig) - 1, -1)
-    model = build_lag_model(pieces, tl, p.lag_k_s, free, ratio[pieces.row], rows_e, group,
-                            int(elig.sum()))
-    sel = np.flatnonzero(free)
-    c0 = ratio[pieces.row[sel]]
+    model, pieces, sel, c0, intent, pg = _refine_problem(path, lines)
     start = c0 * pieces.length_mm[sel]
-    intent = rows_e[elig]
-    pg = group[pieces.row[sel]]
     opts = RefineOptions()
     e_free, _, _ = refine_qp(model, pieces, start, intent, pg, 0.05 * c0, 10.0 * c0, opts)
     step = np.abs(np.diff(e_free / pieces.length_mm[sel]))
@@ -184,25 +193,9 @@ def test_precharge_feeds_a_short_first_move_after_a_relieved_travel(tmp_path: Pa
     lines = ["G21", "G90", "M83", "M104 S215", "G1 X10 Y10 F9000",
              "G1 X50 Y10 E1.6 F3600", "G1 E-0.8 F2100", "G1 X50 Y30 F9000",
              "G1 E0.8 F2100", "G1 X50.06 Y30 E0.0024 F3600", "G1 X90 Y30 E1.6"]
-    path.write_text("\n".join(lines) + "\n")
-    res = simulate(path, pressure_advance=False)
-    table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
-    scanned = scan_source(read_source(path), table)
-    rows_e = row_e_grid(scanned, table).astype(float)
-    elig = eligible_rows(table, row_e_grid(scanned, table))
-    pieces = split_rows(tl, elig, accel_pieces=3)
-    free = elig[pieces.row]
-    length = pieces.row_length_mm
-    ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
-    group = np.where(elig, np.cumsum(elig) - 1, -1)
-    holds = rows_e < 0  # the retraction: its push-back leaves the column relaxed
-    model = build_lag_model(pieces, tl, p.lag_k_s, free, ratio[pieces.row], rows_e, group,
-                            int(elig.sum()), travel_holds=holds)
-    sel = np.flatnonzero(free)
-    c0 = ratio[pieces.row[sel]]
+    # the retraction's push-back leaves the column relaxed
+    model, pieces, sel, c0, intent, pg = _refine_problem(path, lines, relieve=True)
     start = c0 * pieces.length_mm[sel]
-    intent = rows_e[elig]
-    pg = group[pieces.row[sel]]
     opts = RefineOptions()
     lo, hi = 0.05 * c0, 3.0 * c0
     short_move = 1  # group of the 0.06 mm move (second printing move)
