@@ -481,16 +481,15 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
             lo_con = np.concatenate((lo_con, -j))
             hi_con = np.concatenate((hi_con, j))
     # each pre-charge just before the piece it feeds: the band stays narrow
-    order = np.argsort(np.concatenate((idx, after_v)) - np.concatenate((np.zeros(n),
-                                                                         np.full(k_y, 0.5))),
-                       kind="stable")
-    pick = sp.csr_matrix((np.ones(n + k_y), (order, np.arange(n + k_y))),
-                         shape=(n + k_y, n + k_y))
-    z, iterations, _mu = solve_box_qp(pick.T @ h @ pick / scale, (pick.T @ g) / scale,
-                                      con @ pick, d_con, lo_con, hi_con,
+    order = np.argsort(np.concatenate((idx, after_v - 0.5)), kind="stable")
+    h = sp.csr_matrix(h)[order][:, order] if k_y else h
+    z, iterations, _mu = solve_box_qp(h / scale, g[order] / scale,
+                                      sp.csr_matrix(con)[:, order] if k_y else con,
+                                      d_con, lo_con, hi_con,
                                       max_iterations=options.max_iterations,
                                       x0=x_start[order])
-    x = pick @ z
+    x = np.empty(n + k_y)
+    x[order] = z
     c = np.clip(c_mat @ x + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
