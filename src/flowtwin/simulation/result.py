@@ -114,6 +114,8 @@ class SimulationResult:
             "grinding_moves": int(t[sk.T_GRIND_MOVES]),
             "ooze_volume_mm3": float(t[sk.T_OOZE]),
             "narrow_beads": int(t[sk.T_NARROW]),
+            "moves_over_flow_limit": (0 if self.parameters.over_flow_limit is None else
+                                      int(np.count_nonzero(self.parameters.over_flow_limit))),
             "net_filament_mm": plan["net_filament_mm"],
             "warnings": list(self.warnings),
         }

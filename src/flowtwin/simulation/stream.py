@@ -133,6 +133,7 @@ class _State:
     grinding: bool = False
     e_mm: float = 0.0
     temp_c: float = 0.0
+    melt_c: float | None = None
     set_c: float = 0.0
     first: bool = True
     layer_z: list[float] = field(default_factory=list)
@@ -379,7 +380,8 @@ class _Simulator:
                       dwell_s=[(d[0] - base, d[1], d[2]) for d in dwells
                                if base <= d[0] < hi or (last and d[0] >= hi)],
                       total_time_s=t_next, firmware=self.agg.firmware)
-        params = move_parameters(self.m, table, tl, temperature_c=st.temp_c)
+        params = move_parameters(self.m, table, tl, temperature_c=st.temp_c,
+                                 melt_start_c=st.melt_c)
         p_end = sec_phases[-1]
         t_last_end = float(p_end["t_start"]) + float(p_end["accel_t"] + p_end["cruise_t"]
                                                       + p_end["decel_t"])
@@ -402,6 +404,7 @@ class _Simulator:
         # ---- carry the state
         st.first = False
         st.x_mm = dyn.final_compression_mm
+        st.melt_c = params.melt_end_c
         st.grinding = dyn.final_grinding
         st.e_mm = feed.e_end_mm()
         sched = temperature_schedule(table, tl, initial_c=st.temp_c,
