@@ -16,9 +16,6 @@ from flowtwin.physics.melt import (
     J0_ZEROS,
     bulk_temperature_fraction,
     melt_fourier_number,
-    melt_relaxation,
-    melt_temperature_per_move,
-    melt_time_constant_s,
     steady_melt_temperature_c,
     thermal_diffusivity_mm2_s,
 )
@@ -26,6 +23,11 @@ from flowtwin.physics.melt_capacity import (
     fit_melt_length_factor,
     melt_capacity_mm3_s,
     melt_fourier_at_fraction,
+)
+from flowtwin.physics.melt_history import (
+    MeltState,
+    fill_time_for_temperature_s,
+    melt_temperature_history,
 )
 from flowtwin.physics.viscosity import viscosity_exponential_pa_s
 
@@ -107,45 +109,86 @@ def test_melt_temperature_falls_with_flow_and_recovers_at_rest() -> None:
     assert 25.0 < t[-1] < 215.0
 
 
-def test_time_constant_limits() -> None:
-    alpha, length, r = 0.0578, 24.3, 0.875
-    rest = float(melt_time_constant_s(0.0, diffusivity_mm2_s=alpha, heated_length_mm=length,
-                                      filament_radius_mm=r))
-    assert rest == pytest.approx(r * r / (J0_ZEROS[0] ** 2 * alpha), rel=1e-12)
-    q = 1e6
-    fast = float(melt_time_constant_s(q, diffusivity_mm2_s=alpha, heated_length_mm=length,
-                                      filament_radius_mm=r))
-    assert fast == pytest.approx(math.pi * r * r * length / q, rel=1e-4)
+KW = {"inlet_c": 25.0, "diffusivity_mm2_s": 0.0578, "heated_length_mm": 24.3,
+      "filament_radius_mm": 0.875}
 
 
-def test_relaxation_mean_is_the_integral() -> None:
-    end, mean = melt_relaxation(200.0, 180.0, 0.7, 0.3)
-    ts = np.linspace(0.0, 0.7, 200001)
-    curve = 180.0 + 20.0 * np.exp(-ts / 0.3)
-    assert float(end) == pytest.approx(curve[-1], rel=1e-14)
-    assert float(mean) == pytest.approx(np.trapezoid(curve, ts) / 0.7, rel=1e-9)
+def _steady(q: float) -> float:
+    return float(steady_melt_temperature_c(q, wall_c=215.0, inlet_c=25.0,
+                                           diffusivity_mm2_s=0.0578, heated_length_mm=24.3))
 
 
-def test_per_move_history_reaches_the_steady_state_and_is_exact_per_step() -> None:
-    kw = {"inlet_c": 25.0, "diffusivity_mm2_s": 0.0578, "heated_length_mm": 24.3,
-          "filament_radius_mm": 0.875}
-    n = 50
-    q = np.full(n, 12.0)
-    dur = np.full(n, 1.0)
-    gap = np.zeros(n)
-    wall = np.full(n, 215.0)
-    mean, end = melt_temperature_per_move(q, dur, gap, wall, **kw)
-    steady = float(steady_melt_temperature_c(12.0, wall_c=215.0, inlet_c=25.0,
-                                             diffusivity_mm2_s=0.0578, heated_length_mm=24.3))
-    assert end == pytest.approx(steady, abs=1e-9)
-    tau = float(melt_time_constant_s(12.0, diffusivity_mm2_s=0.0578, heated_length_mm=24.3,
-                                     filament_radius_mm=0.875))
-    e1, m1 = melt_relaxation(215.0, steady, 1.0, tau)
-    assert mean[0] == pytest.approx(float(m1), rel=1e-14)
-    # a rest after the moves brings the melt back towards the wall
-    _, end2 = melt_temperature_per_move(q[:1], dur[:1], np.array([100.0]), wall[:1], **kw)
-    assert end2 == pytest.approx(215.0, abs=1e-6)
-    assert float(e1) < 215.0
+def _run(q: np.ndarray, dur: np.ndarray, gap: np.ndarray | None = None,
+         state: MeltState | None = None, t0: float = 0.0) -> tuple[np.ndarray, MeltState]:
+    gap = np.zeros(q.size) if gap is None else gap
+    start = t0 + np.concatenate(([0.0], np.cumsum(dur + gap)[:-1]))
+    return melt_temperature_history(q, start, dur, np.full(q.size, 215.0), state=state, **KW)
+
+
+def test_steady_flow_is_the_steady_model_exactly() -> None:
+    """After one zone volume at constant flow the slice leaving has had t_res = V/Q."""
+    zone = math.pi * 0.875 ** 2 * 24.3
+    q = np.full(40, 12.0)
+    mean, state = _run(q, np.full(40, 1.0))
+    filled = np.arange(40) * 1.0 >= zone / 12.0 + 1e-9
+    assert np.all(np.abs(mean[filled] - _steady(12.0)) < 1e-9)
+    assert state.end_c == pytest.approx(_steady(12.0), abs=1e-9)
+    # before that the fill (fully heated at the start) is still leaving: hotter
+    assert np.all(mean[~filled] > _steady(12.0))
+
+
+def test_a_rest_lets_the_slice_in_the_zone_keep_heating() -> None:
+    """At rest the leaving slice's residence grows by the rest: T -> T_w."""
+    q = np.array([12.0] * 20 + [0.0])
+    dur = np.array([1.0] * 20 + [30.0])
+    mean, state = _run(q, dur)
+    zone = math.pi * 0.875 ** 2 * 24.3
+    residence_end = zone / 12.0 + 30.0
+    want = 215.0 - 190.0 * float(bulk_temperature_fraction(0.0578 * residence_end / 0.875 ** 2))
+    assert state.end_c == pytest.approx(want, abs=1e-9)
+    assert _steady(12.0) < mean[-1] < state.end_c < 215.0
+
+
+def test_millisecond_bursts_are_averaged_over_the_zone_volume() -> None:
+    """Pressure-advance pieces (alternating 3x and 0.5x the flow, same volume) leave the melt
+    where the steady flow leaves it: the zone averages over its volume, not per piece."""
+    n = 4000
+    dur = np.full(n, 0.005)
+    even = np.full(n, 8.0)
+    bursts = np.where(np.arange(n) % 2 == 0, 13.0, 3.0)   # mean 8.0 mm³/s
+    a, _ = _run(even, dur)
+    b, _ = _run(bursts, dur)
+    tail = slice(n // 2, None)
+    assert np.max(np.abs(b[tail] - a[tail])) < 0.02
+
+
+def test_the_memory_carries_a_split_sequence_exactly() -> None:
+    rng = np.random.default_rng(3)
+    q = rng.uniform(0.0, 15.0, 300) * (rng.random(300) < 0.8)
+    dur = rng.uniform(0.01, 0.5, 300)
+    gap = rng.uniform(0.0, 0.2, 300)
+    whole, end = _run(q, dur, gap)
+    start = np.concatenate(([0.0], np.cumsum(dur + gap)[:-1]))
+    first, mid = melt_temperature_history(q[:170], start[:170], dur[:170],
+                                          np.full(170, 215.0), **KW)
+    second, end2 = melt_temperature_history(q[170:], start[170:], dur[170:],
+                                            np.full(130, 215.0), state=mid, **KW)
+    np.testing.assert_allclose(np.concatenate((first, second)), whole, rtol=0, atol=1e-9)
+    assert end2.end_c == pytest.approx(end.end_c, abs=1e-9)
+    # the memory covers the last zone volume (from one breakpoint before it), not the past
+    zone = math.pi * 0.875 ** 2 * 24.3
+    v = mid.volumes_mm3
+    assert v[0] <= v[-1] - zone < v[1] and v.size < 2 * 170
+
+
+def test_a_fill_at_a_given_temperature() -> None:
+    fill = fill_time_for_temperature_s(190.0, wall_c=215.0, inlet_c=25.0,
+                                       diffusivity_mm2_s=0.0578, filament_radius_mm=0.875,
+                                       at_s=10.0)
+    state = MeltState(np.zeros(0), np.zeros(0), fill, 190.0)
+    mean, _ = melt_temperature_history(np.array([0.0]), np.array([10.0]), np.array([0.0]),
+                                       np.array([215.0]), state=state, **KW)
+    assert mean[0] == pytest.approx(190.0, abs=1e-6)
 
 
 def test_inverse_of_the_series() -> None:

@@ -25,14 +25,8 @@ an *effective* length: the hot end's heated filament path times one factor fitte
 published maximum flows (``flowtwin.physics.defaults.MELT_LENGTH_FACTOR``; fit and check
 sets in docs/physics.md §9).
 
-Transient (flow steps): the melt zone holds a volume ``V = πR²L`` of filament. A lumped
-balance of that volume relaxes towards the steady bulk temperature with
-
-    τ = V/(Q + G),   G = λ_1²·α·π·L,
-
-i.e. the residence time ``V/Q`` at high flow and the slowest conduction mode
-``R²/(λ_1²·α)`` at rest — both limits exact for the plug-flow solution's leading mode.
-Over a move at constant mean flow, ``T(t) = T_ss + (T_0 − T_ss)·exp(−t/τ)``. The heater
+Transients (flow steps, rests, pressure-advance bursts): the same plug picture with the
+residence time each slice really had, :mod:`flowtwin.physics.melt_history`. The heater
 block itself is held at its set point by the firmware's controller (its own lag on set
 point changes is :mod:`flowtwin.dynamics.thermal`); its sag under the melt's heat demand
 is not modelled.
@@ -52,10 +46,7 @@ __all__ = [
     "J0_ZEROS",
     "bulk_temperature_fraction",
     "melt_fourier_number",
-    "melt_relaxation",
     "melt_temperature_c",
-    "melt_temperature_per_move",
-    "melt_time_constant_s",
     "steady_melt_temperature_c",
     "thermal_diffusivity_mm2_s",
 ]
@@ -236,149 +227,3 @@ def steady_melt_temperature_c(q_mm3_s: npt.ArrayLike, *, wall_c: npt.ArrayLike,
     fo = melt_fourier_number(q_mm3_s, diffusivity_mm2_s=diffusivity_mm2_s,
                              heated_length_mm=heated_length_mm)
     return melt_temperature_c(wall_c, inlet_c, fo)
-
-
-def melt_time_constant_s(q_mm3_s: npt.ArrayLike, *, diffusivity_mm2_s: float,
-                         heated_length_mm: float, filament_radius_mm: float) -> FloatArray:
-    """Relaxation time of the melt temperature ``τ = V/(Q + G)``, s (module docstring).
-
-    ``V = πR²L`` (filament held in the melt zone), ``G = λ_1²·α·π·L``: ``τ → V/Q`` (the
-    residence time) at high flow, ``τ → R²/(λ_1²·α)`` (slowest conduction mode of the
-    cylinder, Carslaw & Jaeger §7.4) at rest.
-
-    Parameters
-    ----------
-    q_mm3_s
-        Volume flow, mm³/s (negative is taken as 0), any shape.
-    diffusivity_mm2_s, heated_length_mm
-        As :func:`melt_fourier_number`.
-    filament_radius_mm
-        Filament radius ``R``, mm (> 0).
-
-    Returns
-    -------
-    ndarray
-        ``τ``, s, shape of ``q_mm3_s``.
-    """
-    a = float(require_positive("diffusivity_mm2_s", diffusivity_mm2_s))
-    length = float(require_positive("heated_length_mm", heated_length_mm))
-    r = float(require_positive("filament_radius_mm", filament_radius_mm))
-    volume = math.pi * r * r * length
-    g = J0_ZEROS[0] ** 2 * a * math.pi * length
-    return volume / (np.maximum(as_float_array(q_mm3_s), 0.0) + g)
-
-
-def melt_relaxation(start_c: npt.ArrayLike, steady_c: npt.ArrayLike, duration_s: npt.ArrayLike,
-                    tau_s: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """First-order relaxation over an interval: end value and time mean, °C.
-
-    ``T(t) = T_ss + (T_0 − T_ss)·exp(−t/τ)``; end ``T(Δt)`` and mean
-    ``T_ss + (T_0 − T_ss)·(τ/Δt)·(1 − exp(−Δt/τ))`` (``T_0`` at ``Δt = 0``).
-
-    Parameters
-    ----------
-    start_c, steady_c
-        Temperature at the start and the value it relaxes to, °C.
-    duration_s
-        Interval ``Δt ≥ 0``, s.
-    tau_s
-        Time constant ``τ > 0``, s.
-
-    Returns
-    -------
-    (end, mean)
-        °C, broadcast shape.
-    """
-    t0 = as_float_array(start_c)
-    tss = as_float_array(steady_c)
-    dt = np.maximum(as_float_array(duration_s), 0.0)
-    tau = require_positive("tau_s", tau_s)
-    x = dt / tau
-    decay = np.exp(-x)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(x > 1e-12, -np.expm1(-x) / np.where(x > 1e-12, x, 1.0), 1.0 - 0.5 * x)
-    return tss + (t0 - tss) * decay, tss + (t0 - tss) * frac
-
-
-def melt_temperature_per_move(q_mm3_s: npt.NDArray[np.float64],
-                              duration_s: npt.NDArray[np.float64],
-                              gap_s: npt.NDArray[np.float64],
-                              wall_c: npt.NDArray[np.float64], *, inlet_c: float,
-                              diffusivity_mm2_s: float, heated_length_mm: float,
-                              filament_radius_mm: float, start_c: float | None = None
-                              ) -> tuple[FloatArray, float]:
-    """Melt temperature at the nozzle through a sequence of moves, °C (module docstring).
-
-    Move ``k`` runs at the mean flow ``q_mm3_s[k]`` for ``duration_s[k]``, then rests for
-    ``gap_s[k]``; over each interval the melt relaxes (:func:`melt_relaxation`) towards the
-    steady value (:func:`steady_melt_temperature_c`) with :func:`melt_time_constant_s`.
-
-    Parameters
-    ----------
-    q_mm3_s
-        Mean flow through the melt zone during each move, mm³/s, shape ``(n,)``
-        (``≤ 0``: at rest).
-    duration_s, gap_s
-        Duration of each move and the rest after it, s, shape ``(n,)``.
-    wall_c
-        Hot-end (wall) temperature during each move and its rest, °C, shape ``(n,)``.
-    inlet_c
-        Filament temperature entering the melt zone, °C.
-    diffusivity_mm2_s, heated_length_mm, filament_radius_mm
-        As :func:`melt_time_constant_s`.
-    start_c
-        Melt temperature before the first move (default: ``wall_c[0]``, fully heated).
-
-    Returns
-    -------
-    (mean, end)
-        Time-mean melt temperature of every move, °C, shape ``(n,)``, and the melt
-        temperature after the last rest.
-    """
-    n = q_mm3_s.shape[0]
-    a = float(require_positive("diffusivity_mm2_s", diffusivity_mm2_s))
-    length = float(require_positive("heated_length_mm", heated_length_mm))
-    r = float(require_positive("filament_radius_mm", filament_radius_mm))
-    out = np.empty(n)
-    if n == 0:
-        return out, float(start_c) if start_c is not None else math.nan
-    t0 = float(wall_c[0]) if start_c is None else float(start_c)
-    end = _history_kernel(np.ascontiguousarray(q_mm3_s, dtype=np.float64),
-                          np.ascontiguousarray(duration_s, dtype=np.float64),
-                          np.ascontiguousarray(gap_s, dtype=np.float64),
-                          np.ascontiguousarray(wall_c, dtype=np.float64), float(inlet_c),
-                          a, length, r, t0, out)
-    return out, end
-
-
-@njit(cache=True)
-def _relax(t0: float, tss: float, dt: float, tau: float) -> tuple[float, float]:
-    """End and time mean of ``tss + (t0 − tss)·exp(−t/τ)`` over ``[0, dt]``."""
-    if dt <= 0.0:
-        return t0, t0
-    x = dt / tau
-    frac = -math.expm1(-x) / x if x > 1e-12 else 1.0 - 0.5 * x
-    return tss + (t0 - tss) * math.exp(-x), tss + (t0 - tss) * frac
-
-
-@njit(cache=True)
-def _history_kernel(q: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
-                    gap: npt.NDArray[np.float64], wall: npt.NDArray[np.float64],
-                    inlet: float, alpha: float, length: float, radius: float, t0: float,
-                    out: npt.NDArray[np.float64]) -> float:
-    volume = math.pi * radius * radius * length
-    g = _LAMBDA[0] * _LAMBDA[0] * alpha * math.pi * length
-    tau_rest = volume / g
-    temp = t0
-    for k in range(q.shape[0]):
-        tw = wall[k]
-        qk = q[k]
-        if qk > 0.0:
-            tss = tw - (tw - inlet) * _theta_scalar(math.pi * alpha * length / qk)
-            tau = volume / (qk + g)
-        else:
-            tss = tw
-            tau = tau_rest
-        temp, out[k] = _relax(temp, tss, dur[k], tau)
-        temp = _relax(temp, tw, gap[k], tau_rest)[0]
-    return temp

@@ -53,6 +53,7 @@ from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.reader import iter_move_chunks
+from flowtwin.physics.melt_history import MeltState
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
@@ -133,7 +134,7 @@ class _State:
     grinding: bool = False
     e_mm: float = 0.0
     temp_c: float = 0.0
-    melt_c: float | None = None
+    melt: MeltState | None = None
     set_c: float = 0.0
     first: bool = True
     layer_z: list[float] = field(default_factory=list)
@@ -381,7 +382,7 @@ class _Simulator:
                                if base <= d[0] < hi or (last and d[0] >= hi)],
                       total_time_s=t_next, firmware=self.agg.firmware)
         params = move_parameters(self.m, table, tl, temperature_c=st.temp_c,
-                                 melt_start_c=st.melt_c)
+                                 melt_start=st.melt)
         p_end = sec_phases[-1]
         t_last_end = float(p_end["t_start"]) + float(p_end["accel_t"] + p_end["cruise_t"]
                                                       + p_end["decel_t"])
@@ -404,7 +405,7 @@ class _Simulator:
         # ---- carry the state
         st.first = False
         st.x_mm = dyn.final_compression_mm
-        st.melt_c = params.melt_end_c
+        st.melt = params.melt_state
         st.grinding = dyn.final_grinding
         st.e_mm = feed.e_end_mm()
         sched = temperature_schedule(table, tl, initial_c=st.temp_c,
