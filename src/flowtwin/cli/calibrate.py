@@ -20,7 +20,6 @@ from flowtwin.calibration.adaptive_pa import (
     write_orca_model,
 )
 from flowtwin.calibration.csvdata import read_table
-from flowtwin.calibration.firmware import parse_firmware
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.guide import (
     ADAPTIVE_HELP,
@@ -43,6 +42,7 @@ from flowtwin.calibration.viscosity_fit import (
 )
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
 
@@ -180,7 +180,7 @@ def _pattern_cmd(
         "multiplier-step": multiplier_step, "flow-start": flow_start, "flow-end": flow_end,
         "flow-step": flow_step, "flow": flow, "cycles": cycles, "mark-every": mark_every})
     settings = PrintSettings(
-        firmware=parse_firmware(firmware),
+        firmware=Firmware.parse(firmware),
         nozzle_diameter_mm=nozzle_diameter, filament_diameter_mm=filament_diameter,
         layer_height_mm=layer_height, line_width_mm=line_width, nozzle_temp_c=nozzle_temp,
         bed_temp_c=bed_temp, fan_percent=fan, accel_mm_s2=accel,
