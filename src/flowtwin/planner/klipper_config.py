@@ -31,6 +31,9 @@ __all__ = [
     "load_printer_cfg",
 ]
 
+#: Largest nozzle or filament diameter the twin accepts from a printer.cfg, mm.
+MAX_DIAMETER_MM = 10.0
+
 #: Kinematics whose speed limits are Klipper's cartesian ones (XY free, Z by z_ratio).
 KINEMATICS = ("cartesian", "corexy", "corexz")
 
@@ -438,10 +441,12 @@ class _Section:
             return default
         try:
             value = float(opt.value)
+            if not math.isfinite(value):
+                raise ValueError(opt.value)
         except ValueError:
             raise ProfileError(f"unable to parse option '{option}'", source=opt.source,
                                line=opt.line, field=f"[{self.name}] {option}",
-                               value=opt.value, allowed="a decimal number") from None
+                               value=opt.value, allowed="a finite decimal number") from None
         return _check(opt.source, option, value, minval=minval, maxval=maxval, above=above,
                       below=below, line=opt.line, section=self.name)
 
@@ -518,8 +523,9 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
         if name not in cfg.sections:
             break
         ex = _Section(cfg, name, source)
-        nozzle = ex.getfloat("nozzle_diameter", above=0.0)
-        filament = ex.getfloat("filament_diameter", minval=nozzle)
+        # no firmware bound; the twin needs diameters a hot end can have (mm)
+        nozzle = ex.getfloat("nozzle_diameter", above=0.0, maxval=MAX_DIAMETER_MM)
+        filament = ex.getfloat("filament_diameter", minval=nozzle, maxval=MAX_DIAMETER_MM)
         def_cross = 4.0 * nozzle ** 2
         def_ratio = def_cross / (math.pi * (filament * 0.5) ** 2)
         extruders.append(KlipperExtruder(
