@@ -107,6 +107,15 @@ _OWN_OPTIONS = {
 _ALL_OPTIONS = {o for opts, _ in _OWN_OPTIONS.values() for o in opts}
 
 
+def test_every_pattern_kind_has_its_command_options_and_help() -> None:
+    from flowtwin.calibration.guide import PATTERN_KIND_HELP
+    from flowtwin.calibration.patterns import PATTERN_KINDS
+    from flowtwin.cli.calibrate_pattern import _KIND_OPTIONS
+
+    assert set(PATTERN_KINDS) == set(_KIND_OPTIONS) == set(PATTERN_KIND_HELP) == set(
+        _OWN_OPTIONS)
+
+
 @pytest.mark.parametrize("kind", list(_OWN_OPTIONS))
 def test_each_pattern_kind_has_only_its_options(kind: str) -> None:
     result = runner.invoke(APP, ["calibrate", "pattern", kind, "--help"],

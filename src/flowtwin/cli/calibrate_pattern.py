@@ -220,9 +220,17 @@ def _write(kind: str, params: dict[str, Any], *, output: Path, firmware: str,
             err_console.print(f"[yellow]warning:[/] {count}× {name} unknown to flowtwin")
 
 
+def _no_options() -> None: ...
+
+
 def _command(kind: str) -> Callable[..., None]:
-    """The command of pattern ``kind``: ``-o``, the kind's options, the shared options."""
-    own = list(inspect.signature(_KIND_OPTIONS[kind], eval_str=True).parameters.values())
+    """The command of pattern ``kind``: ``-o``, the kind's options, the shared options.
+
+    A kind without an entry in :data:`_KIND_OPTIONS` gets the shared options only (its
+    parameters keep their defaults); ``tests/calibration/test_cli.py`` asks for an entry.
+    """
+    options = _KIND_OPTIONS.get(kind, _no_options)
+    own = list(inspect.signature(options, eval_str=True).parameters.values())
     shared = list(inspect.signature(_shared, eval_str=True).parameters.values())
     fields = {f.name for f in dataclasses.fields(PATTERN_KINDS[kind].params_type)}
     names = [p.name for p in own]
@@ -245,6 +253,7 @@ def register_patterns(calibrate: typer.Typer) -> None:
     """Add ``flowtwin calibrate pattern`` and its one command per pattern kind."""
     group = typer.Typer(name="pattern", no_args_is_help=True, add_completion=False,
                         help=PATTERN_HELP)
-    for kind in PATTERN_KINDS:
-        group.command(kind, help=PATTERN_KIND_HELP[kind])(_command(kind))
+    for kind, entry in PATTERN_KINDS.items():
+        group.command(kind, help=PATTERN_KIND_HELP.get(kind, entry.description))(
+            _command(kind))
     calibrate.add_typer(group, name="pattern")
