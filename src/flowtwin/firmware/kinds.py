@@ -4,15 +4,18 @@ Every difference between firmwares that flowtwin knows is a property of :class:`
 (read from one table, :data:`_TRAITS`) or a function of :mod:`flowtwin.firmware` that
 dispatches on those properties:
 
-================  =========  ===============  ===============================  ============
-firmware          planner    advance          advance command                  M220/M221 S
-================  =========  ===============  ===============================  ============
-``klipper``       Klipper    smoothed         ``SET_PRESSURE_ADVANCE ADVANCE=``  float
-``marlin``        Marlin     linear advance   ``M900 K``                       integer
-``reprapfirmware``  Marlin   within moves     ``M572 D0 S``                    not modelled
-``prusa``         Marlin     smoothed         ``M572 S W``                     not modelled
-``repetier``      Marlin     linear advance   ``M900 K``                       not modelled
-================  =========  ===============  ===============================  ============
+==================  =======  ==============  =====================================  ===========
+firmware            planner  advance         advance command                        M220/M221 S
+==================  =======  ==============  =====================================  ===========
+``klipper``         Klipper  smoothed        ``SET_PRESSURE_ADVANCE ADVANCE=``      float
+``marlin``          Marlin   linear advance  ``M900 K``                             integer
+``reprapfirmware``  Marlin   within moves    ``M572 D0 S``                          not modelled
+``prusa``           Marlin   smoothed        ``M572 S [W]``                         not modelled
+``repetier``        Marlin   linear advance  ``M900 K``                             not modelled
+==================  =======  ==============  =====================================  ===========
+
+Klipper's advance command takes ``SMOOTH_TIME=`` too; Klipper sets the acceleration with
+``SET_VELOCITY_LIMIT ACCEL=``, the others with ``M204 P T``.
 
 * ``prusa`` is Prusa's 32-bit "Buddy" firmware (MK4, MK3.9, XL, MINI, Core One), whose
   ``M572`` takes ``S`` (advance) and ``W`` (smoothing window) and no ``D``. The 8-bit
