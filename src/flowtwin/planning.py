@@ -17,6 +17,7 @@ from typing import BinaryIO
 import numpy as np
 
 from flowtwin.errors import DataError, ProfileError
+from flowtwin.firmware import PlannerFamily
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner._totals_kernel import plan_totals
@@ -176,7 +177,7 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                           ksettings)
     profile = load_printer(printer)
     table = read_gcode(source, options=read_options(profile, strict=strict))
-    if profile.firmware == "klipper":
+    if profile.firmware.planner is PlannerFamily.KLIPPER:
         ks = klipper_settings(profile)
         return PlanResult(table, plan_klipper(table, ks), profile.name, ks)
     ms = marlin_settings(profile)

@@ -9,38 +9,56 @@ says the same at more length.
 from __future__ import annotations
 
 __all__ = ["ADAPTIVE_HELP", "FIT_K_HELP", "FIT_SLIP_HELP", "FROM_IMAGE_HELP", "PATTERN_HELP",
-           "STRAND_HELP", "VISCOSITY_HELP"]
+           "PATTERN_KIND_HELP", "STRAND_HELP", "VISCOSITY_HELP"]
 
 PATTERN_HELP = """Write a calibration test pattern as G-code for your firmware.
 
-KIND is one of:
-
-kline: K-factor lines (Marlin style). Each line is 20 mm slow, 40 mm
-fast, 20 mm slow, one advance factor K per line, front to back. Where
-the speed steps up and down, pick the K whose line keeps an even width.
-
-chevron: Ellis-style chevrons, nested 90-degree corners, one K per
-whole chevron, left to right. Pick the chevron with a sharp apex and
-no gap before it.
-
-tower: a square tower with K = k_start + k_step_per_mm * z. Measure
-with calipers the height z of the best corners; K follows from it.
-
-flow: extrusion-multiplier blocks, front left first. Pick the block
-with a closed, flat top; multiply your flow setting by its value.
-
-maxflow: lines of rising volumetric flow (mm3/s), front to back. The
-last line that is still full and even is your maximum volumetric speed.
-
-flowline: one line alternating v/4 and v for a target flow (one line
-per K if --k-start/--k-end/--k-step are given). Measure its width along
-the line (microscope, scanner, camera) every ~0.5 mm for a lag fit.
+One command per pattern kind (flowtwin calibrate pattern KIND --help for
+its options): kline, chevron and tower test the advance factor K; flow
+the extrusion multiplier; maxflow the maximum volumetric speed; flowline
+writes a line for a measured lag fit.
 
 Every extrusion uses the slicer bead A = w*h - (1 - pi/4)*h^2. Unless
 --no-check, the file is read back and planned with flowtwin's reader
 and planner for --printer, and the test speeds are checked to be
 reached (a warning names every move that falls short).
 """
+
+#: What each pattern kind prints and how to read it (the help of its command).
+PATTERN_KIND_HELP = {
+    "kline": """K-factor lines (Marlin style).
+
+Each line is 20 mm slow, 40 mm fast, 20 mm slow, one advance factor K
+per line, front to back. Where the speed steps up and down, pick the K
+whose line keeps an even width.
+""",
+    "chevron": """Ellis-style chevrons.
+
+Nested 90-degree corners, one K per whole chevron, left to right. Pick
+the chevron with a sharp apex and no gap before it.
+""",
+    "tower": """A pressure-advance tower.
+
+A square tower with K = k_start + k_step_per_mm * z. Measure with
+calipers the height z of the best corners; K follows from it.
+""",
+    "flow": """Extrusion-multiplier blocks.
+
+Solid blocks, front left first. Pick the block with a closed, flat
+top; multiply your flow setting by its value.
+""",
+    "maxflow": """Lines of rising volumetric flow (maximum volumetric speed).
+
+Lines of rising flow (mm3/s), front to back. The last line that is
+still full and even is your maximum volumetric speed.
+""",
+    "flowline": """One line alternating v/4 and v for a target flow.
+
+One line per K if --k-start/--k-end/--k-step are given. Measure its
+width along the line (microscope, scanner, camera) every ~0.5 mm for a
+lag fit.
+""",
+}
 
 VISCOSITY_HELP = """Fit a viscosity law to a temperature sweep; write a viscosity fragment.
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from typing import NoReturn
+from typing import NoReturn, Protocol, cast
 
 import typer
 from rich.console import Console
@@ -46,6 +46,27 @@ def build_app() -> typer.Typer:
 app = build_app()
 
 
+class _ClickError(Protocol):
+    """What a click exception offers: its message printer and its exit status."""
+
+    exit_code: int
+
+    def show(self) -> None: ...
+
+
+#: Where click's exceptions live: click itself, or the copy typer >= 0.23 vendors.
+_CLICK_MODULES = ("click.exceptions", "typer._click.exceptions", "typer.exceptions")
+
+
+def _click_kind(exc: BaseException) -> str | None:
+    """``"ClickException"`` (usage errors and the like) or ``"Abort"`` when ``exc`` is one of
+    click's, whichever copy of click raised it; else ``None``."""
+    for cls in type(exc).__mro__:
+        if cls.__module__ in _CLICK_MODULES and cls.__name__ in ("ClickException", "Abort"):
+            return cls.__name__
+    return None
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; user errors exit 2 with a message, internal errors exit 3."""
     err = Console(stderr=True, highlight=False)
@@ -67,12 +88,12 @@ def main(argv: list[str] | None = None) -> None:
     except SystemExit:
         raise
     except Exception as exc:  # last line of defence for the user
-        import click
-
-        if isinstance(exc, click.exceptions.ClickException):
-            exc.show()
-            sys.exit(exc.exit_code)
-        if isinstance(exc, click.exceptions.Abort):
+        kind = _click_kind(exc)
+        if kind == "ClickException":  # a usage error: typer's message, exit 2
+            usage = cast(_ClickError, exc)
+            usage.show()
+            sys.exit(usage.exit_code)
+        if kind == "Abort":
             err.print("aborted")
             sys.exit(1)
         _internal_error(err, exc)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.reader import FirmwareRetraction, ReadOptions
 from flowtwin.planner.klipper_config import KlipperExtruder, KlipperSettings
 from flowtwin.planner.marlin import MarlinSettings
@@ -76,7 +77,7 @@ def _retraction(profile: PrinterProfile) -> FirmwareRetraction | None:
 def read_options(profile: PrinterProfile, **overrides: object) -> ReadOptions:
     """Reader options matching the firmware of ``profile`` (arcs, homing, retraction)."""
     home = profile.home_position_mm
-    if profile.firmware == "klipper":
+    if profile.firmware is Firmware.KLIPPER:
         arc_segment: float | None = profile.arcs.segment_mm
     else:
         arc_segment = profile.arcs.segment_mm if profile.arcs.enabled else None

@@ -19,11 +19,11 @@ Common to all: ``[extruder]`` (nozzle and filament diameters as the firmware kno
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 from pydantic import Field, model_validator
 
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import DEFAULT_SMOOTH_TIME_S, Firmware, PlannerFamily
 from flowtwin.profiles.base import NamedProfile, ProfileModel
 
 __all__ = [
@@ -33,7 +33,6 @@ __all__ = [
     "AxisFeedrates",
     "AxisJerks",
     "FirmwareExtruder",
-    "FirmwareKind",
     "FirmwareRetraction",
     "KlipperLimits",
     "MarlinLimits",
@@ -42,12 +41,8 @@ __all__ = [
     "PrinterProfile",
 ]
 
-#: Firmware families flowtwin knows. ``prusa`` is Prusa-Firmware (a Marlin 1.x fork);
-#: ``repetier`` is Repetier-Firmware (the RF1000 of [003] runs Conrad's fork of it).
-FirmwareKind = Literal["klipper", "marlin", "reprapfirmware", "prusa", "repetier"]
-
 #: Klipper's default ``pressure_advance_smooth_time`` (klippy/kinematics/extruder.py).
-KLIPPER_DEFAULT_SMOOTH_TIME_S = 0.040
+KLIPPER_DEFAULT_SMOOTH_TIME_S = DEFAULT_SMOOTH_TIME_S
 
 _MAX_SPEED = 10000.0   # mm/s, far above any FFF printer
 _MAX_ACCEL = 1e6       # mm/s²
@@ -252,7 +247,8 @@ class ArcSettings(ProfileModel):
 class PrinterProfile(NamedProfile):
     """A printer as its firmware sees it: limits, advance, retraction, arcs, homing."""
 
-    firmware: FirmwareKind = Field(description="Firmware family.")
+    firmware: Firmware = Field(strict=False, description="Firmware family "
+                                                         "(flowtwin.firmware).")
     limits: KlipperLimits | None = Field(None, description="Klipper limits (firmware = "
                                                            "'klipper').")
     marlin: MarlinLimits | None = Field(None, description="Per-axis limits (every other "
@@ -269,7 +265,7 @@ class PrinterProfile(NamedProfile):
 
     @model_validator(mode="after")
     def _limits_match_firmware(self) -> PrinterProfile:
-        if self.firmware == "klipper":
+        if self.firmware.planner is PlannerFamily.KLIPPER:
             if self.limits is None:
                 raise ValueError("firmware 'klipper' needs a [limits] table")
             if self.marlin is not None:
@@ -289,7 +285,7 @@ class PrinterProfile(NamedProfile):
     @property
     def pa_smooth_time_s(self) -> float:
         """Pressure-advance smoothing window in force, s (0 where the firmware has none)."""
-        if self.firmware != "klipper":
+        if self.firmware is not Firmware.KLIPPER:
             return 0.0
         value = self.pressure_advance.smooth_time_s
         return KLIPPER_DEFAULT_SMOOTH_TIME_S if value is None else value
@@ -309,7 +305,7 @@ class PrinterProfile(NamedProfile):
         """
         if self.limits is None:
             raise ProfileError(f"printer {self.name!r} has no Klipper limits", field="firmware",
-                               value=self.firmware, allowed="'klipper'")
+                               value=self.firmware.value, allowed="'klipper'")
         lim = self.limits
         def_cross_mm2 = 4.0 * self.extruder.nozzle_diameter_mm ** 2
         def_ratio = def_cross_mm2 / self.extruder.filament_area_mm2

@@ -41,16 +41,16 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.dynamics import (
-    DEFAULT_SMOOTH_TIME_S,
     AdvanceSettings,
     CommandedFeed,
-    Firmware,
     integrate,
     nominal_feed,
+    printer_advance,
     temperature_schedule,
 )
 from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
+from flowtwin.firmware import Firmware, PlannerFamily
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.reader import iter_move_chunks
 from flowtwin.physics.melt_history import MeltState
@@ -64,7 +64,7 @@ from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.aggregate import Aggregates
 from flowtwin.simulation.parameters import move_parameters
-from flowtwin.simulation.pipeline import _FIRMWARE, DEFAULT_MACHINE
+from flowtwin.simulation.pipeline import DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
 from flowtwin.simulation.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
 
@@ -194,7 +194,7 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         profile = m.printer
         options = read_options(profile)
         printer = profile.name
-        if profile.firmware == "klipper":
+        if profile.firmware.planner is PlannerFamily.KLIPPER:
             kps = klipper_settings(profile)
             settings = kps
             plan_fn = lambda t: plan_klipper(t, kps)  # noqa: E731
@@ -202,21 +202,18 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
             mps = marlin_settings(profile)
             settings = mps
             plan_fn = lambda t: plan_marlin(t, mps)  # noqa: E731
-        smooth = (profile.pa_smooth_time_s or profile.pressure_advance.smooth_time_s
-                  or DEFAULT_SMOOTH_TIME_S)
-        adv = AdvanceSettings(_FIRMWARE[profile.firmware], k_s=profile.pressure_advance.k_s,
-                              smooth_time_s=smooth)
+        adv = printer_advance(profile)
     advance = adv if pressure_advance else None
     label = "off" if advance is None else (
         f"{advance.firmware.value} K={advance.k_s:g} s (+ G-code commands)")
-    smoothing = advance is not None and advance.firmware in (Firmware.KLIPPER, Firmware.PRUSA)
+    smoothing = advance is not None and advance.firmware.smooths_advance
     start = np.array([*options.start_xyz, 0.0])
     name = _source_name(source)
     wp = WindowPlanner(plan_fn, name, start, window_moves=section_moves,
                        lead_moves=min(LEAD_MOVES, section_moves // 4))
     agg = Aggregates(file=name, machine=m.name, printer=printer, advance=label,
-                     firmware="klipper" if klipper_config is not None
-                     or m.printer.firmware == "klipper" else "marlin")
+                     firmware=PlannerFamily.KLIPPER.value if klipper_config is not None
+                     else m.printer.firmware.planner.value)
     state = _State(temp_c=m.temperature_c if temperature_c is None else temperature_c)
     state.set_c = state.temp_c
     sim = _Simulator(m, advance, settings, printer, start, agg, state, smoothing,
