@@ -9,9 +9,9 @@ import itertools
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.flow import MaxFlowParams, maxflow_pattern
 from flowtwin.calibration.pattern_base import PrintSettings
+from flowtwin.firmware import Firmware
 from flowtwin.profiles import load_builtin, load_machine
 from flowtwin.profiles.hotend import HotendProfile
 from flowtwin.simulation import simulate
