@@ -13,10 +13,11 @@ used for comment lines), 247 "no spaces" on, 246 off, 249 reset.
 In ``.bgcode`` (libbgcode's specification) every G-code block starts packing afresh, with
 "no spaces": the spaces of ``G`` lines are left out and a reader puts one back before
 every parameter letter (``X Y Z E F I J R S G P W H C A``) of a line that starts with
-``G``; empty lines disappear. :func:`unpack` gives the text a reader of the format gets;
-:func:`pack` writes lines so that this text is the original line wherever the packing can
-say it (a ``G`` line whose spacing is not one space per parameter, or with a comment
-after the command, is written as its command with single spaces; see ``docs/gcode.md``).
+``G``; empty lines disappear. :func:`unpack` gives the text a reader of the format gets.
+:func:`pack` keeps comment lines byte for byte (or drops them), and of a command line the
+command without the comment after it and the blanks around it (as PrusaSlicer's writer
+does); the command comes back exactly unless it is a ``G`` line whose spacing the reader
+cannot restore (then with one space before each parameter; see ``docs/gcode.md``).
 """
 
 from __future__ import annotations
@@ -273,31 +274,33 @@ def _pack(src, keep_comments, out, tmp):  # type: ignore[no-untyped-def]
             out[o + 2] = _ENABLE_PACKING
             o += 3
             packing = True
+        # the command: a comment after it and the blanks around it are not kept
+        c = s
+        while c < t and src[c] != 59:
+            c += 1
+        while c > s and (src[c - 1] == 32 or src[c - 1] == 9):
+            c -= 1
         m = 0
-        g_line = src[i] == 71 and i + 1 < e and 48 <= src[i + 1] <= 57
-        if g_line:
-            # without spaces, if the reader puts exactly these spaces back
-            for k in range(i, e):
+        if src[s] == 71 and s + 1 < c and 48 <= src[s + 1] <= 57:
+            # without spaces, if the reader puts exactly these spaces back; else as written
+            for k in range(s, c):
                 if src[k] != 32:
                     tmp[m] = src[k]
                     m += 1
-            if not _spaced_equals(tmp, 0, m, src, i, e):
-                # as written, if the reader adds nothing to it
+            if not _spaced_equals(tmp, 0, m, src, s, c):
                 m = 0
-                for k in range(i, e):
+                for k in range(s, c):
                     tmp[m] = src[k]
                     m += 1
-                if not _spaced_equals(tmp, 0, m, src, i, e):
-                    # the command alone, without spaces (the reader spaces it)
+                if not _spaced_equals(tmp, 0, m, src, s, c):
+                    # neither: without spaces (the reader gives one space per parameter)
                     m = 0
-                    k = i
-                    while k < e and src[k] != 59:
+                    for k in range(s, c):
                         if src[k] != 32 and src[k] != 9:
                             tmp[m] = src[k]
                             m += 1
-                        k += 1
         else:
-            for k in range(i, e):
+            for k in range(s, c):
                 tmp[m] = src[k]
                 m += 1
         tmp[m] = 10
@@ -329,4 +332,15 @@ def pack(text: bytes, *, keep_comments: bool) -> bytes:
     out = np.empty(2 * n + 3 * (n // 2) + 64, dtype=np.uint8)
     tmp = np.empty(n + 2, dtype=np.uint8)
     size = _pack(src, keep_comments, out, tmp)
+    # libbgcode's decoder (PrusaSlicer, the bgcode tool) sizes its output buffer at twice
+    # the encoded block and loses a character when it must grow it right after putting a
+    # space back; pad the block with newline pairs (which decode to nothing after the
+    # last newline) so that the text never outgrows twice its encoding
+    decoded = _unpack(out[:size], np.empty(4 * size + 16, dtype=np.uint8))
+    need = decoded // 2 + 2 - size
+    if need > 0:
+        tail = np.empty(need + 3, dtype=np.uint8)
+        tail[:3] = (_SIGNAL, _SIGNAL, _ENABLE_PACKING)
+        tail[3:] = 0xCC
+        return out[:size].tobytes() + tail.tobytes()
     return out[:size].tobytes()
