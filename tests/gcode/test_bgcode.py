@@ -12,7 +12,7 @@ import base64
 import gzip
 import io
 import itertools
-import os
+import json
 from pathlib import Path
 
 import numpy as np
@@ -292,4 +292,20 @@ def test_cli_plan_reads_bgcode(original, tmp_path):
     b = CliRunner().invoke(app, ["plan", str(original), "--json"])
     assert a.exit_code == 0, a.output
     assert b.exit_code == 0, b.output
-    assert os.environ.get("NO_SUCH") is None
+    ja, jb = json.loads(a.output), json.loads(b.output)
+    for key in ("total_time_s", "net_filament_mm", "moves", "layers", "time_by_feature_s"):
+        assert ja[key] == jb[key], key
+
+
+def test_corrupt_bgcode_cli_message(valid, tmp_path, capsys):
+    bad = bytearray(valid)
+    bad[len(bad) // 2] ^= 0xFF
+    path = tmp_path / "bad.bgcode"
+    path.write_bytes(bytes(bad))
+    from flowtwin.cli.main import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["plan", str(path)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "bad.bgcode [block" in err and "CRC32 mismatch" in err and "Traceback" not in err
