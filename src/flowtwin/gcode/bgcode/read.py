@@ -42,7 +42,7 @@ from flowtwin.gcode.bgcode.format import (
 )
 from flowtwin.gcode.bgcode.meatpack import drop_empty_lines, unpack
 
-__all__ = ["Block", "BgcodeInfo", "BgcodeText", "iter_blocks", "parse_ini", "read_bgcode_info"]
+__all__ = ["BgcodeInfo", "BgcodeText", "Block", "iter_blocks", "parse_ini", "read_bgcode_info"]
 
 #: Order in which the specification puts the blocks (G-code blocks last).
 _RANK = {BlockType.FILE_METADATA: 0, BlockType.PRINTER_METADATA: 1, BlockType.THUMBNAIL: 2,
@@ -178,7 +178,7 @@ def _read_file_header(cursor: _Cursor) -> ChecksumType:
     if version != VERSION:
         raise GcodeError("unsupported binary G-code version", source=name, field="version",
                          value=version, allowed=f"{VERSION}")
-    if checksum not in iter(ChecksumType):
+    if checksum not in set(ChecksumType):
         raise GcodeError("unknown checksum type in the file header", source=name,
                          field="checksum type", value=checksum, allowed="0 (none), 1 (CRC32)")
     return ChecksumType(checksum)
@@ -219,7 +219,7 @@ def iter_blocks(stream: BinaryIO, name: str, *, decode_gcode: bool = True,
         btype, comp, usize = BLOCK_HEADER.unpack(head)
         if btype not in _RANK:
             raise _corrupt(name, index, offset, f"unknown block type {btype} (allowed 0-5)")
-        if comp not in iter(Compression):
+        if comp not in set(Compression):
             raise _corrupt(name, index, offset, f"unknown compression {comp} (allowed 0-3)")
         block_type, compression = BlockType(btype), Compression(comp)
         stored = usize
@@ -247,7 +247,7 @@ def iter_blocks(stream: BinaryIO, name: str, *, decode_gcode: bool = True,
                            "thumbnails, print metadata, slicer metadata, G-code)")
         rank = new_rank
         if block_type == BlockType.GCODE:
-            if params[0] not in iter(GcodeEncoding):
+            if params[0] not in set(GcodeEncoding):
                 raise _corrupt(name, index, offset,
                                f"unknown G-code encoding {params[0]} (allowed 0-2)")
             if decode_gcode:
@@ -258,7 +258,7 @@ def iter_blocks(stream: BinaryIO, name: str, *, decode_gcode: bool = True,
             else:
                 data = b""
         elif block_type == BlockType.THUMBNAIL:
-            if params[0] not in iter(ThumbnailFormat):
+            if params[0] not in set(ThumbnailFormat):
                 raise _corrupt(name, index, offset,
                                f"unknown thumbnail format {params[0]} (allowed 0-2)")
             data = _decompress(name, index, offset, compression, data, usize)
@@ -409,7 +409,7 @@ def _blocks_after_header(stream: BinaryIO, name: str, checksum: ChecksumType,
                          ) -> Iterator[Block]:
     """:func:`iter_blocks` on a stream whose file header was already consumed."""
     header = FILE_HEADER.pack(MAGIC, VERSION, int(checksum))
-    yield from iter_blocks(_Prefixed(header, stream), name)
+    yield from iter_blocks(_Prefixed(header, stream), name)  # type: ignore[arg-type]
 
 
 class _Prefixed(io.RawIOBase):

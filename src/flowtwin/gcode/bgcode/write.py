@@ -17,7 +17,7 @@ import re
 import zlib
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import BinaryIO
+from typing import IO
 
 import heatshrink2
 
@@ -83,7 +83,7 @@ def _compress(data: bytes, compression: Compression) -> bytes:
 
 
 class _BlockWriter:
-    def __init__(self, out: BinaryIO, options: BgcodeOptions) -> None:
+    def __init__(self, out: IO[bytes], options: BgcodeOptions) -> None:
         self.out = out
         self.options = options
         out.write(FILE_HEADER.pack(MAGIC, VERSION, int(options.checksum)))
@@ -290,7 +290,7 @@ def _scan(lines: Iterable[bytes], name: str) -> _Layout:
     return _Layout(skip, file_meta, printer, print_meta, slicer, thumbs)
 
 
-def _lines(stream: BinaryIO) -> Iterator[bytes]:
+def _lines(stream: IO[bytes]) -> Iterator[bytes]:
     rest = b""
     while True:
         block = stream.read(1 << 20)
