@@ -50,7 +50,7 @@ def shadowed_parameters(source: str | os.PathLike[str], paths: Iterable[str]) ->
     Parameters
     ----------
     source
-        The G-code file (plain or gzip).
+        The G-code file (plain, gzip or Prusa binary .bgcode).
     paths
         Canonical parameter paths of the sweep.
 

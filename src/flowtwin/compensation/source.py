@@ -139,7 +139,7 @@ class ScannedSource:
 
 
 def read_source(source: str | os.PathLike[str]) -> SourceText:
-    """Read a G-code file (plain or gzip) into lines.
+    """Read a G-code file (plain, gzip or ``.bgcode``) into lines.
 
     Raises
     ------
@@ -151,6 +151,12 @@ def read_source(source: str | os.PathLike[str]) -> SourceText:
         raw = path.read_bytes()
     except OSError as exc:
         raise GcodeError(f"cannot open G-code file: {exc.strerror}", source=path) from exc
+    if raw[:4] == b"GCDE":  # Prusa binary G-code: its text (the reader's line numbers)
+        from flowtwin.gcode.source import open_source
+
+        stream, _ = open_source(path)
+        with stream:
+            raw = stream.read()
     compressed = raw[:2] == b"\x1f\x8b"
     if compressed:
         try:
