@@ -288,8 +288,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     read = [_read(g32, r, model, pitch_mm=pitch_mm, step_mm=step_mm, method=method,
                   mm_per_px=mm_per_px) for r in readings]
     choice = 0
-    how = "the pattern's marks" if readings[0].mark_signal == readings[0].mark_signal else \
-        "the only reading"
+    how = "the pattern's marks" if geo.marks else "the only reading"
     if len(readings) > 1:
         trends = [_trend(r[0]) for r in read]
         good = [i for i, t in enumerate(trends) if t > 0.5]

@@ -96,6 +96,8 @@ class LineSet:
         Line pitch, px.
     coherence
         Dominance of the line direction (structure tensor).
+    mark_signal
+        Bead signal in every direction (disc top-hat), for the marks.
     """
 
     lines: tuple[FoundLine, ...]
@@ -105,6 +107,7 @@ class LineSet:
     signal: F32
     pitch_px: float
     coherence: float
+    mark_signal: F32
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
@@ -346,4 +349,5 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
         raise VisionError("no printed lines found in the image", source=source,
                           value=f"{len(lines)} line(s), beads {'light' if light else 'dark'}",
                           allowed="the pattern's long parallel lines, in focus")
-    return LineSet(tuple(lines), light, evidence, desk, sig, pitch, coherence)
+    marks = bead_signal(desk.image, desk.valid, pitch, light=light, isotropic=True)
+    return LineSet(tuple(lines), light, evidence, desk, sig, pitch, coherence, marks)

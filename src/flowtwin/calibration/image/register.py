@@ -18,6 +18,7 @@ refuses.
 from __future__ import annotations
 
 import itertools
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -28,12 +29,14 @@ import numpy.typing as npt
 from flowtwin.calibration.image.detect import FoundLine, LineSet
 from flowtwin.errors import VisionError
 
-__all__ = ["MARK_MARGIN", "LayoutGeometry", "Reading", "register_layout"]
+__all__ = ["MARK_MARGIN", "MARK_MARGIN_MM", "LayoutGeometry", "Reading", "register_layout"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Lead in relative mark signal that decides the reading (1 = a mark as strong as a line).
-MARK_MARGIN = 0.2
+#: Lead in length of marks seen that decides the reading: this fraction of all the marks'
+#: length, and at least :data:`MARK_MARGIN_MM`.
+MARK_MARGIN = 0.05
+MARK_MARGIN_MM = 5.0
 
 
 @dataclass(frozen=True)
@@ -71,8 +74,9 @@ class Reading:
         Bed (mm) → image (px), 3 × 3.
     mirrored
         The map reverses orientation (a print scanned face down).
-    mark_signal
-        Mean bead signal along the marks relative to the test lines (NaN: no marks).
+    marks_seen_mm
+        Length of the layout's marks seen where this reading puts them (a mark is seen
+        when its mean bead signal is at least half the test lines').
     reprojection_rms_mm
         RMS distance of the inlier line ends from the layout's, mm.
     inliers
@@ -85,7 +89,7 @@ class Reading:
     lines: tuple[FoundLine, ...]
     homography: FloatArray
     mirrored: bool
-    mark_signal: float
+    marks_seen_mm: float
     reprojection_rms_mm: float
     inliers: int
     px_per_mm: float
@@ -111,24 +115,42 @@ def _to_turned(ls: LineSet, pts: FloatArray) -> FloatArray:
     return np.asarray(pts @ f[:, :2].T + f[:, 2], dtype=np.float64)
 
 
-def _path_signal(ls: LineSet, hom: FloatArray, paths: list[FloatArray], step_mm: float
-                 ) -> float:
-    pts: list[FloatArray] = []
-    for path in paths:
-        for a, b in itertools.pairwise(path):
-            n = max(2, int(np.hypot(*(b - a)) / step_mm) + 1)
-            t = np.linspace(0.0, 1.0, n)[:, None]
-            pts.append(a[None, :] * (1 - t) + b[None, :] * t)
-    if not pts:
-        return math.nan
+def _path_samples(ls: LineSet, hom: FloatArray, path: FloatArray, step_mm: float
+                  ) -> FloatArray:
+    """Mark signal every ``step_mm`` along ``path`` (bed mm) mapped by ``hom``."""
+    pts = []
+    for a, b in itertools.pairwise(path):
+        n = max(2, int(np.hypot(*(b - a)) / step_mm) + 1)
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        pts.append(a[None, :] * (1 - t) + b[None, :] * t)
     bed = np.vstack(pts)
     img = cv2.perspectiveTransform(bed.reshape(-1, 1, 2), hom).reshape(-1, 2)
     tp = _to_turned(ls, np.asarray(img, dtype=np.float64)).astype(np.float32)
-    # a mark within a bead's width of its nominal path counts: best of a small neighbourhood
-    sig = cv2.dilate(ls.signal, np.ones((3, 3), np.uint8))
+    # a mark within 0.15 pitch of its nominal path counts (the homography is extrapolated
+    # beyond the test lines to reach some marks): best of that neighbourhood
+    r = max(1, int(round(0.15 * ls.pitch_px)))
+    sig = cv2.dilate(ls.mark_signal, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
+                                                               (2 * r + 1, 2 * r + 1)))
     vals = cv2.remap(sig, tp[:, 0].reshape(1, -1), tp[:, 1].reshape(1, -1),
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    return float(np.mean(vals))
+    return np.asarray(vals, dtype=np.float64).ravel()
+
+
+def _seen(ls: LineSet, hom: FloatArray, geo: LayoutGeometry) -> tuple[float, float]:
+    """Length of the marks seen (mean signal along the mark at least half the test lines'),
+    and their total length, mm."""
+    line = np.concatenate([_path_samples(ls, hom, np.vstack([a, b]), 0.5)
+                           for a, b in zip(geo.starts, geo.ends, strict=True)])
+    level = 0.5 * float(np.median(line))
+    seen = total = 0.0
+    for mark in geo.marks:
+        length = float(np.sum(np.hypot(*np.diff(mark, axis=0).T)))
+        if length <= 0:
+            continue
+        total += length
+        if level > 0 and float(np.mean(_path_samples(ls, hom, mark, 0.2))) >= level:
+            seen += length
+    return seen, total
 
 
 def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
@@ -179,6 +201,7 @@ def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
     length_px = float(np.median([f.length_px for f in found]))
     thr = max(2.0, 0.6 * length_px / length_mm)
     readings: list[Reading] = []
+    total = 0.0
     for rev_order in (False, True):
         for rev_along in (False, True):
             order = found[::-1] if rev_order else found
@@ -210,21 +233,16 @@ def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
             proj = cv2.perspectiveTransform(src_a[keep].reshape(-1, 1, 2), hom).reshape(-1, 2)
             scale = local_scale(hom, centre)
             rms = float(np.sqrt(np.mean(np.sum((proj - dst_a[keep]) ** 2, axis=1)))) / scale
-            line_sig = _path_signal(ls, hom, [np.vstack([a, b]) for a, b in
-                                              zip(geo.starts, geo.ends, strict=True)], 0.5)
-            mark_sig = _path_signal(ls, hom, list(geo.marks), 0.25)
-            rel = mark_sig / line_sig if line_sig > 0 else math.nan
+            seen, total = _seen(ls, hom, geo)
             name = (f"lines {'back to front' if rev_order else 'front to back'} across, "
                     f"printed {'leftwards' if rev_along else 'rightwards'} in the turned image")
             readings.append(Reading(name, tuple(test_lines[i] for i in range(n)),
-                                    np.asarray(hom, dtype=np.float64), mirrored, rel, rms,
+                                    np.asarray(hom, dtype=np.float64), mirrored, seen, rms,
                                     int(keep.sum()), scale))
     if not readings:
         raise VisionError("the line ends do not fit the pattern's geometry", source=source,
                           allowed="a flat print, seen whole, lines not cut by the image edge")
-    readings.sort(key=lambda r: -(r.mark_signal if math.isfinite(r.mark_signal) else 0.0))
-    best = readings[0].mark_signal
-    if not math.isfinite(best):
-        return readings
-    return [r for r in readings if math.isfinite(r.mark_signal)
-            and r.mark_signal >= best - MARK_MARGIN]
+    readings.sort(key=lambda r: -r.marks_seen_mm)
+    best = readings[0].marks_seen_mm
+    margin = max(MARK_MARGIN_MM, MARK_MARGIN * total)
+    return [r for r in readings if r.marks_seen_mm > best - margin]

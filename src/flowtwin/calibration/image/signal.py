@@ -146,7 +146,7 @@ def pitch_px(turned: F32, valid: npt.NDArray[np.uint8]) -> float:
 
 
 def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
-                light: bool) -> F32:
+                light: bool, isotropic: bool = False) -> F32:
     """Top-hat across the lines (module docstring), divided by the local brightness.
 
     Parameters
@@ -157,6 +157,9 @@ def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
         Line pitch, px.
     light
         Beads lighter than the sheet (``False``: darker).
+    isotropic
+        A disc instead of the vertical element: keeps thin beads in every direction (the
+        pattern's marks: prime lines, reference marks, digits).
 
     Returns
     -------
@@ -165,7 +168,8 @@ def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
         the beads, 0 on the sheet.
     """
     length = max(3, int(round(0.6 * pitch)) | 1)
-    se = cv2.getStructuringElement(cv2.MORPH_RECT, (1, length))
+    se = (cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (length, length)) if isotropic
+          else cv2.getStructuringElement(cv2.MORPH_RECT, (1, length)))
     if light:
         th = turned - cv2.morphologyEx(turned, cv2.MORPH_OPEN, se)
     else:
