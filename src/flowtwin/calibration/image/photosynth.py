@@ -25,6 +25,7 @@ twin, so the analysis is tested on images it did not make.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -229,7 +230,7 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
         return slice(r0, r1), slice(c0, c1)
 
     for path in runs:
-        for a, b in zip(path[:-1], path[1:], strict=True):
+        for a, b in itertools.pairwise(path):
             if float(np.hypot(*(b - a))) < 1e-6:
                 continue
             rows, cols = window(np.vstack([a, b]), lw)
@@ -250,7 +251,7 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
         tw = int((x1 - x0 + 4 * c.margin_mm) * tex_res)
         th = int((y1 - y0 + 4 * c.margin_mm) * tex_res)
         noise = rng.standard_normal((th, tw)).astype(np.float32)
-        noise = cv2.GaussianBlur(noise, (0, 0), 0.7)
+        noise = np.asarray(cv2.GaussianBlur(noise, (0, 0), 0.7), dtype=np.float32)
         noise /= float(noise.std()) + 1e-9
         mx = ((bx - gx0) * tex_res).astype(np.float32)
         my = ((by - gy0) * tex_res).astype(np.float32)
@@ -274,17 +275,17 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
         ink = np.zeros((hpx, wpx), np.uint8)
         cv2.putText(ink, "PLA 215C  PA test", org, cv2.FONT_HERSHEY_SCRIPT_SIMPLEX,
                     max(0.5, wpx / 900), 255, max(1, wpx // 600), cv2.LINE_AA)
-        m = (ink.astype(np.float64) / 255.0)[..., None]
-        img = img * (1 - m) + (bead * 0.9)[None, None, :] * m
+        inkf = (ink.astype(np.float64) / 255.0)[..., None]
+        img = img * (1 - inkf) + (bead * 0.9)[None, None, :] * inkf
     if c.blur_px > 0:
-        img = cv2.GaussianBlur(img, (0, 0), c.blur_px)
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), c.blur_px), dtype=np.float64)
     sd = np.sqrt(c.read_noise ** 2 + c.shot_noise * np.clip(img, 0, None))
     img = img + sd * rng.standard_normal(img.shape)
     out = np.clip(np.round(img), 0, 255).astype(np.uint8)
     if c.jpeg_quality < 100:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(c.jpeg_quality)])
         assert ok
-        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        out = np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR), dtype=np.uint8)
     return SynthPhoto(np.asarray(out, dtype=np.uint8), hom)
 
 

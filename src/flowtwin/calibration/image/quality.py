@@ -27,7 +27,7 @@ FloatArray = npt.NDArray[np.float64]
 #: Fewest lines for an answer.
 MIN_LINES = 3
 #: Largest 10–90 % flank width / half-maximum width of the bead profile.
-MAX_EDGE_RATIO = 0.6
+MAX_EDGE_RATIO = 0.65
 #: Narrowest resolvable bead, px.
 MIN_BEAD_PX = 2.0
 

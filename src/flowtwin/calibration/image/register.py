@@ -18,7 +18,6 @@ refuses.
 from __future__ import annotations
 
 import itertools
-import itertools
 import math
 from dataclasses import dataclass
 
