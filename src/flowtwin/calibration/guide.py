@@ -128,7 +128,7 @@ Give the K range and any setting you changed from the tool's defaults
 (--k-start, --k-end, --k-step, speeds, lengths, --pitch) and the
 --machine it printed on.
 
-What to photograph: the whole pattern with a margin, roughly square on,
+What to measure: photograph the whole pattern with a margin, roughly square on,
 in focus, without a flash reflection on the lines. Beads may be lighter
 or darker than the sheet (found from the image; --polarity to force);
 textured and glossy sheets, labels and numbers beside the lines are fine.
