@@ -137,25 +137,33 @@ writes a pressure_advance printer-profile fragment (k_s = K);
 adaptive-pa (one run per flow and acceleration).
 """
 
-FROM_IMAGE_HELP = """Read the advance factor from an image of a printed K-line pattern.
+FROM_IMAGE_HELP = """Read the advance factor from a photo or scan of a printed line pattern.
 
-What to measure: print pattern kline (keep its tick marks), let it
-cool, then scan it on a flatbed scanner (600 dpi or more; give --dpi) or
-photograph it square on, evenly lit, the whole pattern and its prime
-line in view, beads darker than the background. A print scanned face
-down is mirrored; that is found from the prime line and the ticks.
+--pattern names what you printed: kline (flowtwin's), marlin (Marlin's
+K-factor generator), prusa (Prusa's linear-advance lines), orca
+(OrcaSlicer's PA line) or orca-legacy (OrcaSlicer 1.x / Bambu Studio).
+Give the K range and any setting you changed from the tool's defaults
+(--k-start, --k-end, --k-step, speeds, lengths, --pitch) and the
+--machine it printed on.
 
-Give the pattern options you printed with (--k-start, --k-end,
---k-step, speeds, lengths, --layer-height, --line-width, --accel) and
-the --machine it printed on.
+What to measure: photograph the whole pattern with a margin, roughly square on,
+in focus, without a flash reflection on the lines. Beads may be lighter
+or darker than the sheet (found from the image; --polarity to force);
+textured and glossy sheets, labels and numbers beside the lines are fine.
+No tick marks are needed: the lines' ends and spacing give the frame and
+the scale, the pattern's marks (prime lines, numbers, reference marks)
+or the widths give its direction. A print scanned face down: --view
+mirrored. A scan's resolution (--dpi) fixes the width scale.
 
-The lines are found (OpenCV), registered to the bed by a homography
-from their ends (the pattern is its own scale bar; --dpi/--mm-per-px
-fixes the width scale), the width measured every --step mm along each
-line, each line scored by how even it stays after its speed changes
-(best line; K for acceleration and deceleration where the errors cross
-zero, as Tronvoll et al. 2019 Table II), and the twin's lag fitted to all lines
-without gaps (K +- 1 sigma). -o writes a pressure_advance fragment.
+Each line is scored by how even it stays after its speed changes (the
+most even line; K where the errors cross zero, Tronvoll et al. 2019
+Table II) and the twin's lag is fitted to all lines (K +- 1 sigma);
+-o writes the [pressure_advance] fragment, --annotate an annotated copy
+of the photo, --json everything (k_s, k_err_s, k_best_line_s, scores).
+
+A photo that cannot support an answer is refused with the reason: blur,
+too few lines, lines cut by the frame, a line count that is not the
+pattern's, a direction neither the marks nor the widths decide.
 """
 
 FIT_SLIP_HELP = """Fit a drive's slip law from test-stand records; write a drive fragment.

@@ -37,6 +37,7 @@ from flowtwin.calibration.viscosity_fit import (
     sweep_from_table,
 )
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
+from flowtwin.cli.calibrate_image import from_image_cmd
 from flowtwin.cli.calibrate_pattern import register_patterns
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.drive import DriveProfile
@@ -324,84 +325,6 @@ def _fit_k_cmd(
     _report_lag(fit, f"Lag from {profile}", output, text, appended, append_to)
 
 
-def _from_image_cmd(
-    image: Annotated[Path, typer.Argument(help="Scan or photo of the K-line pattern.")],
-    machine: _Machine = "tronvoll2019",
-    k_start: Annotated[float, typer.Option(help="First K of the pattern, s.")] = 0.0,
-    k_end: Annotated[float, typer.Option(help="Last K of the pattern, s.")] = 0.2,
-    k_step: Annotated[float, typer.Option(help="K step of the pattern, s.")] = 0.01,
-    slow_speed: _SlowSpeed = 20.0, fast_speed: _FastSpeed = 70.0,
-    slow_length: _SlowLength = 20.0, fast_length: _FastLength = 40.0,
-    layer_height: Annotated[float, typer.Option(help="Layer height, mm.")] = 0.2,
-    line_width: _LineWidth = 0.48, nozzle_diameter: _Nozzle = 0.4,
-    filament_diameter: _Filament = 1.75, accel: _Accel = None,
-    mark_every: Annotated[int, typer.Option(help="Tick every N lines, as printed.")] = 5,
-    dpi: Annotated[float | None, typer.Option(help="Scan resolution (sets the width "
-                                                   "scale: 25.4/dpi mm/px).")] = None,
-    mm_per_px: Annotated[float | None, typer.Option(help="Image resolution, mm/px.")
-                         ] = None,
-    view: Annotated[str, typer.Option(help="auto, top, or mirrored (scanned face down).")
-                    ] = "auto",
-    method: Annotated[str, typer.Option(help="Width from the bead's integrated darkness "
-                                             "(area) or its edges.")] = "area",
-    step: Annotated[float, typer.Option(help="Width sample spacing along a line, mm.")
-                    ] = 0.25,
-    fit_dead_time: Annotated[bool, typer.Option(help="Also fit a dead time.")] = False,
-    output: _Output = None,
-    json_out: _Json = False,
-) -> None:
-    from flowtwin.calibration.kfit import kline_for_machine
-    from flowtwin.calibration.kimage import analyse_kline_image
-    from flowtwin.profiles.machine import load_machine
-
-    if dpi is not None and mm_per_px is not None:
-        raise CalibrationError("give --dpi or --mm-per-px, not both", field="--dpi",
-                               value=dpi, allowed="one of them")
-    if dpi is not None:
-        if not dpi > 0:
-            raise CalibrationError("scan resolution must be positive", field="--dpi",
-                                   value=dpi, allowed="> 0 dots per inch")
-        mm_per_px = 25.4 / dpi
-    m = load_machine(machine)
-    settings, params = _kline_parts(k_start, k_end, k_step, slow_speed, fast_speed,
-                                    slow_length, fast_length, layer_height, line_width,
-                                    nozzle_diameter, filament_diameter, accel, mark_every)
-    pattern = kline_for_machine(m, settings, params)
-    res = analyse_kline_image(image, pattern, machine=m, mm_per_px=mm_per_px, view=view,
-                              step_mm=step, method=method, fit_dead_time=fit_dead_time)
-    text = None
-    if res.lag is not None:
-        text = res.lag.fragment(header=[
-            f"flowtwin calibrate from-image: lag fitted to {image.name} "
-            f"({len(res.lag.lines)} K-lines, RMS {res.lag.rms_mm * 1000:.1f} µm)",
-            f"most even line K = {res.k_best_line_s:g} s; ± are 1-sigma errors"])
-        if output is not None:
-            write_fragment(output, text)
-    elif output is not None:
-        raise CalibrationError(f"no lag fit to write: {res.lag_problem}", field="--output")
-    if json_out:
-        print_json({**res.summary(), "output": None if output is None else str(output)})
-        return
-    console.print(table_from_rows(
-        f"K-lines in {image}", ["K (s)", "score", "accel err", "decel err", "width (mm)",
-                                "measured"],
-        [(f"{r.k_la_s:g}" + (" ◀" if i == res.best_index else ""), _fmt(r.score),
-          _fmt(r.accel_error), _fmt(r.decel_error), _fmt(r.steady_width_mm),
-          f"{r.measured_fraction:.0%}") for i, r in enumerate(res.lines)]))
-    console.print(f"most even line: K = {res.k_best_line_s:g} s; zero crossings: "
-                  f"acceleration {_fmt(res.k_accel_s)} s, deceleration "
-                  f"{_fmt(res.k_decel_s)} s [001 Table II]")
-    console.print(f"view {res.view}, {res.px_per_mm:.2f} px/mm, line ends fit the pattern "
-                  f"within {res.reprojection_rms_mm:.2f} mm RMS")
-    for note in res.notes:
-        console.print(f"  • {note}")
-    if res.lag is None:
-        err_console.print(f"[yellow]warning:[/] no lag fit: {res.lag_problem}")
-        return
-    assert text is not None
-    _report_lag(res.lag, "Lag fitted to all lines", output, text, None, None)
-
-
 def _fmt(x: float | None) -> str:  # NaN and None: "-"
     return "-" if x is None or x != x else f"{x:.4g}"
 
@@ -441,7 +364,7 @@ def register(app: typer.Typer) -> None:
                            "fragments, adaptive pressure-advance tables.")
     register_patterns(sub)
     sub.command("fit-k", help=FIT_K_HELP)(_fit_k_cmd)
-    sub.command("from-image", help=FROM_IMAGE_HELP)(_from_image_cmd)
+    sub.command("from-image", help=FROM_IMAGE_HELP)(from_image_cmd)
     sub.command("fit-viscosity", help=VISCOSITY_HELP)(_fit_viscosity_cmd)
     sub.command("fit-strand", help=STRAND_HELP)(_fit_strand_cmd)
     sub.command("fit-slip", help=FIT_SLIP_HELP)(_fit_slip_cmd)
