@@ -290,6 +290,18 @@ def _limit_error(err: npt.NDArray[np.float64], lines: npt.NDArray[np.int32],
 _NO_CAPS = np.zeros(0)
 
 
+def _cap_arrays(caps: MoveLimits, n: int) -> tuple[npt.NDArray[np.float64],
+                                                   npt.NDArray[np.float64]]:
+    """Speed and acceleration caps for the kernel: both length ``n``, or both empty."""
+    if caps.speed is None and caps.accel is None:
+        return _NO_CAPS, _NO_CAPS
+    inf = np.full(n, np.inf)
+    return (np.ascontiguousarray(caps.speed if caps.speed is not None else inf,
+                                 dtype=np.float64),
+            np.ascontiguousarray(caps.accel if caps.accel is not None else inf,
+                                 dtype=np.float64))
+
+
 def _kinematics_limits(kin: Kinematics, x: npt.NDArray[np.float64], y: npt.NDArray[np.float64],
                        z: npt.NDArray[np.float64], start_xyz: npt.NDArray[np.float64],
                        home_mask: npt.NDArray[np.uint8], home: npt.NDArray[np.float64],
@@ -399,8 +411,7 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
         x, y, z, de, feed, start, w.home_mask, home, seg, seg_tab, ex_tab,
         kin.max_z_velocity, kin.max_z_accel, np.asarray(kin.box_min, dtype=np.float64),
         np.asarray(kin.box_max, dtype=np.float64),
-        caps.speed if caps.speed is not None else _NO_CAPS,
-        caps.accel if caps.accel is not None else _NO_CAPS,
+        *_cap_arrays(caps, n),
         move_d, ux, uy, uz, er, is_kin, valid, max_cruise_v2, accel, smooth_delta_v2, jdev,
         icv, min_move_t, err)
     refused = caps.refused

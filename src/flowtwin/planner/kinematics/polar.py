@@ -93,7 +93,7 @@ class Polar(Kinematics):
         if not self.max_angular_velocity:
             return MoveLimits(refused=refused)
         v2 = geom.speed ** 2
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             z_lim = self.max_z_velocity * geom.length / np.abs(d[:, 2])
         v2 = np.where(d[:, 2] != 0.0, np.minimum(v2, z_lim * z_lim), v2)
         r = distance_to_centre(geom.start[:, :2], end[:, :2])
