@@ -231,6 +231,8 @@ DELTA_BASE = (DATA / "mini_delta.cfg").read_text()
      "homing_speed: 50\nfull_steps_per_rotation: 202\nposition_endstop: 125.0",
      "[stepper_a] full_steps_per_rotation", "invalid"),
     ("kinematics: delta", "kinematics: deltaa", "[printer] kinematics", "not supported"),
+    ("rotation_distance: 56.0", "rotation_distance: 56.0\ngear_ratio: 3:x",
+     "[stepper_a] gear_ratio", "parse"),
 ])
 def test_delta_config_errors_name_the_line(tmp_path, old, new, field, match):
     assert old in DELTA_BASE
@@ -243,3 +245,15 @@ def test_delta_config_errors_name_the_line(tmp_path, old, new, field, match):
     if new and info.value.line is not None:
         bad = new.split("\n")[-1] if "full_steps" not in new else "full_steps_per_rotation"
         assert bad.split(":")[0] in text.split("\n")[info.value.line - 1]
+
+
+def test_step_distance_with_gear_ratio(tmp_path):
+    from flowtwin.planner.kinematics.base import step_distance
+    from flowtwin.planner.klipper_cfg import read_cfg
+
+    path = tmp_path / "s.cfg"
+    path.write_text("[stepper_a]\nrotation_distance: 40\nmicrosteps: 16\n"
+                    "gear_ratio: 80:16, 3:1\n")
+    sec = read_cfg(path).section("stepper_a")
+    assert step_distance(sec) == pytest.approx(40.0 / (200 * 16 * 5 * 3))
+    assert step_distance(sec, radians=True) == pytest.approx(2 * math.pi / (200 * 16 * 15))

@@ -4,7 +4,7 @@
 sections and ``option: value`` / ``option = value`` lines, indented continuation lines
 (macro bodies), ``#`` / ``;`` comments, ``[include ...]`` files (relative paths and
 globs) and the ``#*#`` SAVE_CONFIG block, whose values override. :class:`Section` reads
-options with Klipper's ``getfloat`` / ``getint`` / ``getboolean`` / ``getlists`` rules;
+options with Klipper's ``getfloat`` / ``getint`` / ``getlists`` rules;
 every error is a :class:`~flowtwin.errors.ProfileError` naming the file, line,
 ``[section] option``, the value and what is allowed.
 """
@@ -294,20 +294,6 @@ class Section:
         check_value(opt.source, option, value, minval=minval, maxval=maxval,
                     line=opt.line, section=self.name)
         return value
-
-    def getboolean(self, option: str, default: bool) -> bool:
-        """A boolean written as Klipper (configparser) accepts it."""
-        opt = self.opts.get(option)
-        if opt is None:
-            return default
-        text = opt.value.strip().lower()
-        if text in ("1", "yes", "true", "on"):
-            return True
-        if text in ("0", "no", "false", "off"):
-            return False
-        raise ProfileError(f"unable to parse option '{option}'", source=opt.source,
-                           line=opt.line, field=f"[{self.name}] {option}", value=opt.value,
-                           allowed="true/false, yes/no, on/off or 1/0")
 
     def getpairs(self, option: str) -> list[tuple[float, float]]:
         """Klipper ``getlists(seps=(':', ','), count=2)``: ``"80:16, 3:1"`` → pairs."""
