@@ -1,6 +1,6 @@
 """``flowtwin batch`` throughput on dask, against calling the Python API in a loop.
 
-Files: the reference corpus (../shared/corpus, 18 real slicer files); without it, generated
+Files: the reference corpus (tests/data/corpus, 18 real slicer files); without it, generated
 prints (said so in the output). For each engine (``simulate``, the default, and ``plan``):
 
 * loop — :func:`flowtwin.batch.run_job` on every file in this process, one after the
@@ -31,6 +31,7 @@ from pathlib import Path
 
 from distributed import get_task_stream
 
+from benchmarks import corpus_dir
 from flowtwin.batch import (
     DEFAULT_ENGINE,
     ENGINES,
@@ -50,7 +51,6 @@ from flowtwin.batch import (
 from flowtwin.gcode.generator import PrintSpec, write_print
 
 HERE = Path(__file__).resolve().parent
-CORPUS = HERE.parent.parent / "shared" / "corpus"
 SWEEP = "setup.temperature_c=185:240:0.859375"  # 65 values (binary-exact step)
 
 
@@ -64,15 +64,16 @@ def _median_time(fn: Callable[[], object], repeat: int) -> float:
 
 
 def _files(tmp: Path, quick: bool) -> tuple[list[Path], str]:
-    if CORPUS.is_dir():
-        files = sorted(p for p in CORPUS.iterdir() if p.suffix == ".gcode")
-        return (files[:6] if quick else files), f"corpus ({CORPUS})"
+    corpus = corpus_dir()
+    if corpus.is_dir():
+        files = sorted(p for p in corpus.iterdir() if p.suffix == ".gcode")
+        return (files[:6] if quick else files), f"corpus ({corpus})"
     files = []
     for layers in (20, 50, 100, 200, 400, 800):
         path = tmp / f"gen{layers}.gcode"
         write_print(path, PrintSpec(layers=layers))
         files.append(path)
-    return files, "generated prints (../shared/corpus not found)"
+    return files, "generated prints (corpus not found)"
 
 
 def _engines(quick: bool) -> list[Engine]:

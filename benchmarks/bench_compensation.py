@@ -30,11 +30,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks import corpus_dir
 from flowtwin.compensation import compensate
 from flowtwin.gcode.generator import PrintSpec, write_print
 
 HERE = Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared" / "corpus"
 QUICK = ("kisslicer_1.1.0.5_thinbox_small.gcode", "bambustudio_1.07_2colour_cube_small.gcode",
          "prusaslicer_2.8.1_minicube_small.gcode")
 #: The improvement the issue asks for, on the RMS and the peak.
@@ -136,7 +136,7 @@ def bench_file(path: Path, out_dir: Path) -> dict[str, object]:
 
 
 def run(quick: bool = False) -> dict[str, object]:
-    files = sorted(SHARED.glob("*.gcode"), key=lambda p: p.stat().st_size)
+    files = sorted(corpus_dir().glob("*.gcode"), key=lambda p: p.stat().st_size)
     if quick:
         files = [p for p in files if p.name in QUICK]
     only = [x.strip() for x in os.environ.get("FLOWTWIN_BENCH_FILES", "").split(",")

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import corpus_dir
 from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import klipper_settings
@@ -20,7 +21,6 @@ from flowtwin.planner.marlin import MarlinSettings, plan_marlin
 from flowtwin.planning import load_printer
 
 HERE = Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared" / "corpus"
 
 
 def _random_table(n: int) -> MoveTable:
@@ -64,7 +64,7 @@ def run(quick: bool = False) -> dict[str, object]:
         t = _timed(lambda s=s: plan_marlin(table, s), 1 if quick else 3)
         out[f"marlin_{name}_moves_per_s"] = n / t
         print(f"marlin ({name:<7}) look-ahead {n / t / 1e6:6.2f} M moves/s")
-    corpus = sorted(SHARED.glob("*.gcode"), key=lambda p: p.stat().st_size)
+    corpus = sorted(corpus_dir().glob("*.gcode"), key=lambda p: p.stat().st_size)
     if corpus:
         path = corpus[-1]
         lines = sum(1 for _ in path.open("rb"))

@@ -1,6 +1,6 @@
 """Reader (and read + plan) throughput against the Python G-code readers on PyPI.
 
-Files: the largest corpus file (../shared/corpus) and a generated print of >= 2 M lines.
+Files: the largest corpus file (tests/data/corpus) and a generated print of >= 2 M lines.
 Peers, run on the same files in the same process: Printrun's ``printrun.gcoder``,
 ``gcodeparser``, ``gcode-lib``, ``pygcode`` (line by line) and a plain regex loop.
 Peers that are not installed are reported as such (``make bench`` installs them).
@@ -31,11 +31,11 @@ import tracemalloc
 from collections.abc import Callable
 from pathlib import Path
 
+from benchmarks import corpus_dir
 from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.gcode.reader import iter_move_chunks, read_gcode
 
 HERE = Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared" / "corpus"
 OUT = HERE.parent / "bench-out"
 
 #: A generated print of about 2.1 M lines: 0.45 mm lines, dense infill, polygon pillar.
@@ -166,7 +166,7 @@ def _stream_peak(path: Path) -> int:
 def run(quick: bool = False) -> dict[str, object]:
     OUT.mkdir(exist_ok=True)
     files: list[Path] = []
-    corpus = sorted(SHARED.glob("*.gcode"), key=lambda p: p.stat().st_size)
+    corpus = sorted(corpus_dir().glob("*.gcode"), key=lambda p: p.stat().st_size)
     if corpus:
         files.append(corpus[-1])
     # the quick run has its own files: it must not replace the 2 M-line print

@@ -1,6 +1,6 @@
 """Whole-print simulation throughput: read, plan, physics, dynamics and bead metrics.
 
-Files: the largest corpus file (../shared/corpus), a generated print of >= 2 M lines
+Files: the largest corpus file (tests/data/corpus), a generated print of >= 2 M lines
 (``bench_reader.BIG_SPEC``) and a print of >= 20 hours (the two ~11.5 h Benchy files of the
 corpus, one after the other). Machines: the default set-up (``tronvoll2019``: Prusa MK2.5,
 Marlin-style planner, slip and grinding on) and the same set-up planned on Klipper
@@ -31,12 +31,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks import KLIPPER, corpus_dir
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-SHARED = ROOT.parent / "shared"
-CORPUS = SHARED / "corpus"
+CORPUS = corpus_dir()
 OUT = ROOT / "bench-out"
-KLIPPER_B = SHARED / "klipper" / "B.cfg"
+KLIPPER_B = KLIPPER / "B.cfg"
 BENCHY_20H = ("arcwelder_1.2.0_on_slic3r_1.33.3_benchy.gcode",
               "slic3r_1.33.3prusa_benchy.gcode")
 

@@ -18,7 +18,7 @@ SUBSET = ("kisslicer_1.1.0.5_thinbox_small.gcode", "bambustudio_1.07_2colour_cub
           "prusaslicer_2.8.1_minicube_small.gcode")
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 @pytest.mark.parametrize("name", SUBSET)
 def test_corpus_file_five_fold(name: str, corpus_dir: Path, tmp_path: Path,
                                commanded_e: object) -> None:
@@ -36,7 +36,7 @@ def test_corpus_file_five_fold(name: str, corpus_dir: Path, tmp_path: Path,
     assert report.added_volume_mm3 > 0
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_paced_corpus_file_five_fold(corpus_dir: Path, tmp_path: Path) -> None:
     """ArcWelder on Slic3r 1.33.3's benchy misses 5× on the windowed peak with advance and
     slip alone (599 % -> 162 %, 3.7×: a gap-fill move after a short travel gets the pressure
@@ -58,7 +58,7 @@ def test_paced_corpus_file_five_fold(corpus_dir: Path, tmp_path: Path) -> None:
     assert report.commanded_e_after_mm >= report.commanded_e_before_mm
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_fast_arc_keeps_its_speed_and_its_flow(corpus_dir: Path, tmp_path: Path) -> None:
     """CrealityPrint's 200 mm/s arcs of 3.8 mm chords: a deceleration piece of 0.08 mm that
     the refinement left at a fifth of its neighbours' ratio made the (Marlin E-jerk)
@@ -72,7 +72,7 @@ def test_fast_arc_keeps_its_speed_and_its_flow(corpus_dir: Path, tmp_path: Path)
     assert a.peak_overextrusion_window * 5.0 <= b.peak_overextrusion_window
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_short_runs_after_relieved_travels_with_pacing(corpus_dir: Path,
                                                        tmp_path: Path) -> None:
     """Cura 5.9.1's isolated 0.2 mm runs between combing travels: the twin's column after

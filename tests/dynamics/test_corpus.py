@@ -23,13 +23,13 @@ from flowtwin.planner.klipper_config import klipper_read_options, load_printer_c
 FILE = "prusaslicer_2.8.1_minicube_small"
 
 
-@pytest.mark.shared
-def test_minicube_on_klipper_b_with_and_without_pressure_advance(shared_dir, corpus_dir):
-    cfg = load_printer_cfg(shared_dir / "klipper" / "B.cfg")
+@pytest.mark.corpus
+def test_minicube_on_klipper_b_with_and_without_pressure_advance(klipper_dir, corpus_dir):
+    cfg = load_printer_cfg(klipper_dir / "B.cfg")
     table = read_gcode(corpus_dir / f"{FILE}.gcode", options=klipper_read_options(cfg))
     timeline = plan_klipper(table, cfg)
     ext = cfg.extruders[0]
-    with open(shared_dir / "klipper" / "print_times.tsv", newline="") as fh:
+    with open(klipper_dir / "print_times.tsv", newline="") as fh:
         row = next(r for r in csv.DictReader(fh, delimiter="\t")
                    if r["file"] == f"{FILE}.gcode" and r["config"] == "B")
     final_e = json.loads(row["final_e_per_tool"])["0"]

@@ -1,30 +1,24 @@
-"""The reader on the 18 real slicer files of ../shared/corpus (reference net filament)."""
+"""The reader on the 18 real slicer files of the reference corpus (reference net filament)."""
 
 from __future__ import annotations
 
 import csv
 import json
-import os
 from pathlib import Path
 
 import pytest
 
 from flowtwin.gcode.reader import read_gcode
 
-SHARED_CORPUS = Path(os.environ.get("FLOWTWIN_SHARED",
-                                    Path(__file__).resolve().parents[2].parent / "shared")
-                     ) / "corpus"
+ANCHORS = Path(__file__).resolve().parents[1] / "data" / "corpus" / "ANCHORS.tsv"
 
 
 def _anchors() -> list[dict[str, str]]:
-    path = SHARED_CORPUS / "ANCHORS.tsv"
-    if not path.exists():  # collected without ../shared: the fixture below fails loudly
-        return [{"file": "ANCHORS.tsv missing"}]
-    with path.open() as fh:
+    with ANCHORS.open() as fh:
         return list(csv.DictReader(fh, delimiter="\t"))
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 @pytest.mark.parametrize("row", _anchors(), ids=lambda r: r["file"])
 def test_net_filament_per_tool_matches_reference(row: dict[str, str], corpus_dir: Path) -> None:
     table = read_gcode(corpus_dir / row["file"])
@@ -39,7 +33,7 @@ def test_net_filament_per_tool_matches_reference(row: dict[str, str], corpus_dir
     assert table.n_lines > 0 and len(table.moves) > 0
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_slicer_metadata_from_headers(corpus_dir: Path) -> None:
     cases = {
         "prusaslicer_2.8.1_minicube_small.gcode": ("PrusaSlicer", 221.0, 252.22),
@@ -64,7 +58,7 @@ def test_slicer_metadata_from_headers(corpus_dir: Path) -> None:
     assert prusa.moves["layer"].max() + 1 == 240
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_rrf_g10_is_a_temperature_not_a_retraction(corpus_dir: Path) -> None:
     table = read_gcode(corpus_dir / "slic3r_1.2.9_duet.gcode")
     g10 = [e for e in table.events if e.code == "G10"]

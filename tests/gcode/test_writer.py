@@ -49,7 +49,7 @@ def test_bad_edit_leaves_no_output(tmp_path: Path) -> None:
     assert not out.exists()
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_every_corpus_file_round_trips_byte_identical(corpus_dir: Path, tmp_path: Path) -> None:
     for path in sorted(corpus_dir.glob("*.gcode")):
         out = tmp_path / path.name

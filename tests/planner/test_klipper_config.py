@@ -82,15 +82,15 @@ def test_basic_file(tmp_path):
     assert s.extruders[0].max_extrude_ratio == pytest.approx(ratio)
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 @pytest.mark.parametrize(("cfg", "vel", "acc", "kfd", "zv", "za"), [
     ("A.cfg", 79.82, 798.2, 0.001, 300, 3000),
     ("B.cfg", 133.04, 2660.8, 0.020, 500, 10000),
     ("C.cfg", 53.21, 399.1, 0.001, 10, 100),
 ])
-def test_reference_configs(shared_dir, cfg, vel, acc, kfd, zv, za):
+def test_reference_configs(klipper_dir, cfg, vel, acc, kfd, zv, za):
     """The README of the Klipper oracle tabulates the derived limits (truncated)."""
-    s = load_printer_cfg(shared_dir / "klipper" / cfg)
+    s = load_printer_cfg(klipper_dir / cfg)
     assert s.max_extrude_only_velocity == pytest.approx(vel, abs=0.01)
     assert s.max_extrude_only_accel == pytest.approx(acc, abs=0.1)
     assert s.kin_flush_delay == pytest.approx(kfd)
@@ -98,9 +98,9 @@ def test_reference_configs(shared_dir, cfg, vel, acc, kfd, zv, za):
     assert s.arc_resolution == 1.0
 
 
-@pytest.mark.shared
-def test_reference_variant_with_four_extruders(shared_dir):
-    s = load_printer_cfg(shared_dir / "klipper" / "bambustudio_1.08_eline_multitool__B.cfg")
+@pytest.mark.corpus
+def test_reference_variant_with_four_extruders(klipper_dir):
+    s = load_printer_cfg(klipper_dir / "bambustudio_1.08_eline_multitool__B.cfg")
     assert s.extruder_names == ("extruder", "extruder1", "extruder2", "extruder3")
     assert s.kin_flush_delay == pytest.approx(0.020)
 

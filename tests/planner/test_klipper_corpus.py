@@ -1,6 +1,6 @@
 """Acceptance: motion time of the 18 corpus files on printers A/B/C against real Klipper.
 
-The oracle (``../shared/klipper``, its README) ran unmodified Klipper in batch mode with
+The oracle (``tests/data/klipper``, its README) ran unmodified Klipper in batch mode with
 an ``M400`` + ``REPORT_TIME`` marker after line ``marker_start_line`` and before line
 ``marker_end_line``; ``motion_time_artifact_free_s`` is the print time between the two
 markers without klippy's batch-mode 0.25 s restart artifacts. The planner reproduces the
@@ -33,10 +33,10 @@ def _cfg(oracle: Path, file: str, config: str) -> Path:
     return variant if variant.exists() else oracle / f"{config}.cfg"
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 @pytest.mark.slow
-def test_motion_time_matches_klipper(shared_dir, corpus_dir, capsys):
-    oracle = shared_dir / "klipper"
+def test_motion_time_matches_klipper(klipper_dir, corpus_dir, capsys):
+    oracle = klipper_dir
     reference = {(r["file"], r["config"]): float(r["motion_time_artifact_free_s"])
                  for r in _tsv(oracle / "batch_artifacts.tsv")}
     cases = _tsv(oracle / "print_times.tsv")

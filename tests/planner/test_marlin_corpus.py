@@ -38,7 +38,7 @@ def _prusaslicer_files(corpus_dir: Path) -> list[Path]:
     return sorted(corpus_dir.glob("prusaslicer_*.gcode"))
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_marlin_model_matches_prusaslicer_estimates(corpus_dir: Path) -> None:
     files = _prusaslicer_files(corpus_dir)
     assert len(files) == 3, "corpus changed: update this test"
@@ -68,7 +68,7 @@ def test_marlin_model_matches_prusaslicer_estimates(corpus_dir: Path) -> None:
         assert abs(ratio - 1.0) <= TOLERANCE, name
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_settings_from_prusaslicer_header_match_its_m20x_commands(corpus_dir: Path) -> None:
     # The config block and the M201/M203/M205 commands PrusaSlicer emitted from it must
     # give the same limits (the Marlin settings in force after the start G-code).
@@ -85,7 +85,7 @@ def test_settings_from_prusaslicer_header_match_its_m20x_commands(corpus_dir: Pa
     assert from_gcode.jerk_mm_s == from_config.jerk_mm_s == (8, 8, 2, 10)
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_corpus_timelines_are_consistent(corpus_dir: Path) -> None:
     # Every file of the corpus plans with default Marlin settings; the phases add up.
     for path in sorted(corpus_dir.glob("*.gcode")):

@@ -138,9 +138,9 @@ def _pm(cell: str) -> tuple[float, float]:
     return float(m.group(1)), float(m.group(2))
 
 
-def _seed_000(shared_dir: Path) -> str:
-    (path,) = (shared_dir / "seeds").glob("000_*.txt")
-    return path.read_text(encoding="utf-8")
+def _seed_000(data_dir: Path) -> str:
+    """The excerpts of [000] holding Tables 2, 3 and the figure fits (tests/data/seeds)."""
+    return (data_dir / "seeds" / "000_tables.txt").read_text(encoding="utf-8")
 
 
 def _table_rows(text: str, title: str) -> dict[int, list[str]]:
@@ -155,9 +155,9 @@ def _table_rows(text: str, title: str) -> dict[int, list[str]]:
     return rows
 
 
-@pytest.mark.shared
-def test_table2_transcription(shared_dir: Path) -> None:
-    rows = _table_rows(_seed_000(shared_dir), "**Table 2.**")
+@pytest.mark.corpus
+def test_table2_transcription(data_dir: Path) -> None:
+    rows = _table_rows(_seed_000(data_dir), "**Table 2.**")
     assert sorted(rows) == [1, 2, 3, 4, 5, 6, 7]
     for n, cells in rows.items():
         r = ROLLERS[n]
@@ -174,9 +174,9 @@ def test_table2_transcription(shared_dir: Path) -> None:
             assert (r.flank_angle_deg, r.flank_angle_tol_deg) == _pm(angle)
 
 
-@pytest.mark.shared
-def test_table3_transcription(shared_dir: Path) -> None:
-    rows = _table_rows(_seed_000(shared_dir), "**Table 3.**")
+@pytest.mark.corpus
+def test_table3_transcription(data_dir: Path) -> None:
+    rows = _table_rows(_seed_000(data_dir), "**Table 3.**")
     assert sorted(rows) == [1, 2, 3, 4, 5, 6, 7]
     for n, cells in rows.items():
         r = ROLLERS[n]
@@ -192,10 +192,10 @@ def test_table3_transcription(shared_dir: Path) -> None:
             assert (r.c_s_per_mm, r.c_s_per_mm_err) == _pm(cells[6])
 
 
-@pytest.mark.shared
-def test_figure_fit_transcription(shared_dir: Path) -> None:
+@pytest.mark.corpus
+def test_figure_fit_transcription(data_dir: Path) -> None:
     """The 'general 2nd order polynomial fit' of Figs. 4, 5, 6, 7, 8a-c (rollers #1-#7)."""
-    text = _seed_000(shared_dir)
+    text = _seed_000(data_dir)
     fits = re.findall(r"F_\{f,fit\} = (.+?)\$", text)
     assert len(fits) == 7
     for n, expr in zip(range(1, 8), fits, strict=True):

@@ -65,11 +65,11 @@ def test_stream_equals_whole_simulation_on_generated_print(gen_gcode: Path) -> N
     _rows_same(whole.per_feature(), st.per_feature(), total)  # type: ignore[arg-type]
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_stream_equals_whole_with_klipper_smoothed_advance(corpus_dir: Path,
-                                                           shared_dir: Path) -> None:
+                                                           klipper_dir: Path) -> None:
     path = corpus_dir / "cura_5.9.1.gcode"
-    cfg = shared_dir / "klipper" / "B.cfg"   # pressure_advance 0.04 s, smooth time 0.04 s
+    cfg = klipper_dir / "B.cfg"   # pressure_advance 0.04 s, smooth time 0.04 s
     whole = simulate(path, klipper_config=cfg)
     st = simulate_stream(path, klipper_config=cfg, chunk_bytes=128 * 1024,
                          section_moves=5000)
@@ -78,12 +78,12 @@ def test_stream_equals_whole_with_klipper_smoothed_advance(corpus_dir: Path,
     _assert_same(whole.summary(), st.summary())
 
 
-@pytest.mark.shared
-def test_windowed_plan_is_bit_identical(corpus_dir: Path, shared_dir: Path) -> None:
+@pytest.mark.corpus
+def test_windowed_plan_is_bit_identical(corpus_dir: Path, klipper_dir: Path) -> None:
     path = corpus_dir / "orcaslicer_2.3.0b2.gcode"
-    ks = load_printer_cfg(shared_dir / "klipper" / "A.cfg")
+    ks = load_printer_cfg(klipper_dir / "A.cfg")
     opts = klipper_read_options(ks)
-    whole = simulate(path, klipper_config=shared_dir / "klipper" / "A.cfg").plan.timeline
+    whole = simulate(path, klipper_config=klipper_dir / "A.cfg").plan.timeline
     wp = WindowPlanner(lambda t: plan_klipper(t, ks), str(path), np.zeros(4),
                        window_moves=5000)
     spans = []
@@ -108,7 +108,7 @@ def test_stream_refusals(gen_gcode: Path, tmp_path: Path) -> None:
         simulate_stream(empty)
 
 
-@pytest.mark.shared
+@pytest.mark.corpus
 def test_stream_carries_marlin_linear_advance(corpus_dir: Path) -> None:
     # the default set-up plans with Marlin; this file sets M900 K0.2 (Linear Advance 1.5):
     # the tracked advance crosses every section border

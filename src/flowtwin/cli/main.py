@@ -10,12 +10,13 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+from typing import NoReturn
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 
-from flowtwin.errors import FlowtwinError
+from flowtwin.errors import FlowtwinError, file_access_error
 
 __all__ = ["app", "main"]
 
@@ -54,6 +55,12 @@ def main(argv: list[str] | None = None) -> None:
     except FlowtwinError as exc:
         err.print(f"[bold red]error:[/] {escape(str(exc))}", markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
+    except OSError as exc:
+        if exc.filename is None:  # not about a file the user named: a bug, reported below
+            _internal_error(err, exc)
+        err.print(f"[bold red]error:[/] {escape(str(file_access_error(exc, writing=None)))}",
+                  markup=True, soft_wrap=True)
+        sys.exit(EXIT_USER_ERROR)
     except KeyboardInterrupt:
         err.print("interrupted")
         sys.exit(130)
@@ -68,10 +75,15 @@ def main(argv: list[str] | None = None) -> None:
         if isinstance(exc, click.exceptions.Abort):
             err.print("aborted")
             sys.exit(1)
-        if os.environ.get("FLOWTWIN_DEBUG"):
-            raise
-        err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {escape(str(exc))} "
-                  "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
-        sys.exit(EXIT_INTERNAL_ERROR)
+        _internal_error(err, exc)
     else:
         sys.exit(code if isinstance(code, int) else 0)
+
+
+def _internal_error(err: Console, exc: BaseException) -> NoReturn:
+    """A bug: one line naming the exception (the traceback with ``FLOWTWIN_DEBUG=1``)."""
+    if os.environ.get("FLOWTWIN_DEBUG"):
+        raise exc
+    err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {escape(str(exc))} "
+              "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
+    sys.exit(EXIT_INTERNAL_ERROR)

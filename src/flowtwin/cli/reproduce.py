@@ -36,12 +36,14 @@ def _cell(value: object) -> str:
 
 def _print(report: Report, console: Console) -> None:
     table = Table(title=Text(f"flowtwin reproduce {report.which} (seed {report.seed}): "
-                             f"{report.passed}/{len(report.rows)} pass"),
+                             f"{report.passed}/{len(report.rows)} pass; "
+                             f"{report.kinds_line()}"),
                   header_style="bold", show_lines=False)
-    for col in ("claim", "paper value", "flowtwin", "tolerance", "pass"):
+    for col in ("claim", "kind", "paper value", "flowtwin", "tolerance", "pass"):
         table.add_column(col, overflow="fold")
     for r in report.rows:
-        table.add_row(Text(f"{r.paper}/{r.claim_id}"), Text(_cell(r.paper_value)),
+        table.add_row(Text(f"{r.paper}/{r.claim_id}"), Text(str(r.kind)),
+                      Text(_cell(r.paper_value)),
                       Text(_cell(r.flowtwin_value) + (f" {r.unit}" if r.unit else "")),
                       Text(r.tolerance.split(" (")[0]),
                       Text("pass" if r.passed else "FAIL",

@@ -270,10 +270,12 @@ class Section:
             return default
         try:
             value = float(opt.value)
+            if not math.isfinite(value):
+                raise ValueError(opt.value)
         except ValueError:
             raise ProfileError(f"unable to parse option '{option}'", source=opt.source,
                                line=opt.line, field=f"[{self.name}] {option}",
-                               value=opt.value, allowed="a decimal number") from None
+                               value=opt.value, allowed="a finite decimal number") from None
         return check_value(opt.source, option, value, minval=minval, maxval=maxval,
                            above=above, below=below, line=opt.line, section=self.name)
 

@@ -33,6 +33,9 @@ __all__ = [
     "load_printer_cfg",
 ]
 
+#: Largest nozzle or filament diameter the twin accepts from a printer.cfg, mm.
+MAX_DIAMETER_MM = 10.0
+
 #: Every kinematics the planner models (Klipper's names; one module each in
 #: :mod:`flowtwin.planner.kinematics`).
 KINEMATICS = names()
@@ -319,8 +322,9 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
         if not cfg.has_section(name):
             break
         ex = cfg.section(name)
-        nozzle = ex.getfloat("nozzle_diameter", above=0.0)
-        filament = ex.getfloat("filament_diameter", minval=nozzle)
+        # no firmware bound; the twin needs diameters a hot end can have (mm)
+        nozzle = ex.getfloat("nozzle_diameter", above=0.0, maxval=MAX_DIAMETER_MM)
+        filament = ex.getfloat("filament_diameter", minval=nozzle, maxval=MAX_DIAMETER_MM)
         def_cross = 4.0 * nozzle ** 2
         def_ratio = def_cross / (math.pi * (filament * 0.5) ** 2)
         extruders.append(KlipperExtruder(

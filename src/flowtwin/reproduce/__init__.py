@@ -15,11 +15,10 @@ Quick start::
 """
 
 from flowtwin.reproduce.claims import (
-    KIND_DATA_CHECK,
-    KIND_REPRODUCTION,
     Claim,
     Outcome,
     Row,
+    RowKind,
 )
 from flowtwin.reproduce.context import Campaign, ReproContext
 from flowtwin.reproduce.figures import FigureSpec, PaperSection
@@ -34,8 +33,6 @@ from flowtwin.reproduce.report import (
 )
 
 __all__ = [
-    "KIND_DATA_CHECK",
-    "KIND_REPRODUCTION",
     "PAPERS",
     "Campaign",
     "Claim",
@@ -45,6 +42,7 @@ __all__ = [
     "Report",
     "ReproContext",
     "Row",
+    "RowKind",
     "all_claims",
     "render_markdown",
     "run",

@@ -5,10 +5,17 @@ computes flowtwin's value from the library; running it gives a :class:`Row` — 
 paper value, flowtwin value, tolerance, pass — that ``flowtwin reproduce`` prints and
 ``docs/reproduction.md`` shows. Every row is computed when it is run, never pasted.
 
-Two kinds of row:
+Three kinds of row (:class:`RowKind`):
 
-``reproduction``
-    flowtwin computes what the paper states; pass = within the stated tolerance.
+``reproduced``
+    flowtwin computes what the paper states from inputs that were not fitted to it; pass =
+    within a tolerance that follows the paper's printed precision or a stated physical
+    argument.
+``anchor``
+    the value is an input of flowtwin's defaults: a default fitted to it (Table II's lag
+    factor, the slip at 215 °C) or the published number a model was built on (the test
+    stand's laws, recovered by its fits). The row shows the model carries it; it is not
+    evidence that flowtwin predicts it.
 ``data check``
     the paper's own numbers disagree with each other (e.g. Table 3's ``F_p,min`` of roller
     #3 against Eq. 9); the row computes the disagreement and its explanation, and passes
@@ -21,24 +28,31 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from flowtwin.reproduce.context import ReproContext
 
 __all__ = [
-    "KIND_DATA_CHECK",
-    "KIND_REPRODUCTION",
     "Claim",
     "Outcome",
     "Row",
+    "RowKind",
     "rounded",
     "within_abs",
     "within_rel",
 ]
 
-KIND_REPRODUCTION = "reproduction"
-KIND_DATA_CHECK = "data check"
+
+
+class RowKind(StrEnum):
+    """What a row is evidence of (see the module docstring)."""
+
+    REPRODUCED = "reproduced"
+    ANCHOR = "anchor"
+    DATA_CHECK = "data check"
+
 
 Value = float | int | str | bool | list[Any] | None
 
@@ -90,7 +104,7 @@ class Claim:
     figure
         Name of the figure that shows it (``None``: none).
     kind
-        :data:`KIND_REPRODUCTION` or :data:`KIND_DATA_CHECK`.
+        What the row is evidence of: reproduced, anchor or data check.
     engine
         Which part of flowtwin computes the value.
     """
@@ -102,7 +116,7 @@ class Claim:
     compute: Callable[[ReproContext], Outcome]
     unit: str = ""
     figure: str | None = None
-    kind: str = KIND_REPRODUCTION
+    kind: RowKind = RowKind.REPRODUCED
     engine: str = ""
 
     @property
@@ -133,7 +147,7 @@ class Row:
     tolerance: str
     passed: bool
     unit: str = ""
-    kind: str = KIND_REPRODUCTION
+    kind: RowKind = RowKind.REPRODUCED
     figure: str | None = None
     engine: str = ""
     note: str = ""
@@ -144,7 +158,7 @@ class Row:
         return {"paper": self.paper, "id": self.claim_id, "claim": self.claim,
                 "source": self.source, "paper_value": _jsonable(self.paper_value),
                 "flowtwin_value": _jsonable(self.flowtwin_value), "unit": self.unit,
-                "tolerance": self.tolerance, "pass": self.passed, "kind": self.kind,
+                "tolerance": self.tolerance, "pass": self.passed, "kind": str(self.kind),
                 "figure": self.figure, "engine": self.engine, "note": self.note}
 
 

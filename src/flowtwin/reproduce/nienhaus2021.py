@@ -14,9 +14,9 @@ from matplotlib.figure import Figure
 
 from flowtwin.physics.drive import max_feed_force_n, min_pinch_force_n, slip_gradient
 from flowtwin.reproduce.claims import (
-    KIND_DATA_CHECK,
     Claim,
     Outcome,
+    RowKind,
     rounded,
     within_abs,
     within_rel,
@@ -36,6 +36,10 @@ from flowtwin.teststand.figures import (
 __all__ = ["SECTION"]
 
 PAPER = "nienhaus2021"
+#: The virtual test stand is built on the published laws (Table 3's Eqs. 6 and 8, the
+#: max-force fits of Figs. 4-8): rows that recover them from its records check the test-stand
+#: procedure, and carry these values rather than predict them.
+_ANCHOR = RowKind.ANCHOR
 _STAND = "flowtwin.teststand (virtual stand + fits)"
 _TOOTHED = (1, 2, 3, 5, 6, 7)  # the plain roller #4 has no teeth [000 Table 2]
 #: Eq. 9 agreement regarded as consistent: Table 3 rounds F_p,min to whole newtons and
@@ -133,7 +137,7 @@ def _max_force_claim(number: int) -> Claim:
                  f"Fig. {figure}: maximum feed force of roller #{number}, 2nd-order fit "
                  "(c2, c1, c0) recovered by the test-stand procedure",
                  f"[000 Fig. {figure[0]}]", compute, unit="N",
-                 figure="maxforce", engine=_STAND)
+                 figure="maxforce", kind=_ANCHOR, engine=_STAND)
 
 
 def _eq6_claim(number: int) -> Claim:
@@ -152,7 +156,7 @@ def _eq6_claim(number: int) -> Claim:
     return Claim(PAPER, f"table3-eq6-{number}",
                  f"Table 3: k_s, k_inf of roller #{number} recovered from test-stand records",
                  "[000 Table 3, Eq. 6, Fig. 10]", compute, unit="%·N, %/N",
-                 figure="pinch-law" if number == 3 else None, engine=_STAND)
+                 figure="pinch-law" if number == 3 else None, kind=_ANCHOR, engine=_STAND)
 
 
 def _eq8_claim(number: int) -> Claim:
@@ -183,7 +187,8 @@ def _eq8_claim(number: int) -> Claim:
                  f"Table 3: a, b, c of roller #{number} recovered from test-stand records "
                  "at 80-130 N", "[000 Table 3, Eq. 8, Fig. 11]", compute,
                  unit="%/N, %/N, s/mm",
-                 figure="velocity-law" if number in (3, 7) else None, engine=_STAND)
+                 figure="velocity-law" if number in (3, 7) else None, kind=_ANCHOR,
+                 engine=_STAND)
 
 
 def _fig10_shape(ctx: ReproContext) -> Outcome:
@@ -244,11 +249,11 @@ CLAIMS: tuple[Claim, ...] = (
     Claim(PAPER, "table3-fpmin-3-discrepancy",
           "Table 3: roller #3's F_p,min = 77 N does not follow from Eq. 9 with its own k_s, "
           "k_inf (54.8 N)", "[000 Table 3, Eq. 9]", _fp_min_3_discrepancy, unit="N",
-          figure="fpmin", kind=KIND_DATA_CHECK, engine="flowtwin.physics.drive"),
+          figure="fpmin", kind=RowKind.DATA_CHECK, engine="flowtwin.physics.drive"),
     Claim(PAPER, "table3-fpmin-3-explained",
           "Table 3: roller #3's 77 N is Eq. 9 with a factor 2 under the root (5 % criterion)",
           "[000 Table 3, Eq. 9]", _fp_min_3_explained, unit="N", figure="fpmin",
-          kind=KIND_DATA_CHECK, engine="flowtwin.physics.drive"),
+          kind=RowKind.DATA_CHECK, engine="flowtwin.physics.drive"),
     Claim(PAPER, "fig9a-slip-gradient",
           "Fig. 9a: s' = 0.33 %/N for roller #3 at 80 N and 1 mm/s", "[000 Fig. 9a]", _fig9a,
           unit="%/N", figure="fig9", engine=_STAND),

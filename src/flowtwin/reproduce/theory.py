@@ -26,7 +26,7 @@ from flowtwin.physics.operating_point import (
     setup_viscosity_mpa_s,
 )
 from flowtwin.physics.units import circle_area_mm2, mpa_s_to_pa_s
-from flowtwin.reproduce.claims import KIND_DATA_CHECK, Claim, Outcome, rounded
+from flowtwin.reproduce.claims import Claim, Outcome, RowKind, rounded
 from flowtwin.reproduce.context import ReproContext
 from flowtwin.reproduce.figures import FigureSpec, PaperSection
 from flowtwin.teststand.figures import new_figure
@@ -190,7 +190,7 @@ CLAIMS: tuple[Claim, ...] = (
           engine="flowtwin.physics.lag.lag_factor_s"),
     Claim(PAPER, "time-constant-bracket", "[002]'s printed bracket const·μ·A_noz·l_hot/E_hot "
           "is not the time constant (continuity inverted)", "[002 low-pass derivation]",
-          _bracket, unit="s", kind=KIND_DATA_CHECK, engine="flowtwin.physics.lag"),
+          _bracket, unit="s", kind=RowKind.DATA_CHECK, engine="flowtwin.physics.lag"),
 )
 
 

@@ -20,7 +20,7 @@ from flowtwin.physics.nozzle import bernoulli_force_n, friction_force_n
 from flowtwin.physics.operating_point import derive_tronvoll_calibration, setup_lag_factor_s
 from flowtwin.physics.seed_tables import TRONVOLL_TABLE_II
 from flowtwin.physics.units import pa_s_to_mpa_s
-from flowtwin.reproduce.claims import Claim, Outcome, rounded, within_rel
+from flowtwin.reproduce.claims import Claim, Outcome, RowKind, rounded, within_rel
 from flowtwin.reproduce.context import ReproContext
 from flowtwin.reproduce.figures import FigureSpec, PaperSection
 from flowtwin.reproduce.lagline import (
@@ -61,25 +61,44 @@ def _plain(line: KFactorLine, k_s: float) -> LineResponse:
     return respond(line.feed(), k_s)
 
 
+def _printed_disagrees(printed: float, half_unit: float, formula: float,
+                       inputs: str) -> Outcome:
+    """A data check: the printed number is not its own formula with its stated inputs.
+
+    Passes when the formula, evaluated by flowtwin with the inputs the paper states, lies
+    outside the printed value's rounding interval ``printed ± half_unit`` — the paper's
+    number is then not its equation's (a changed function or input would show here).
+    """
+    dev = (printed - formula) / formula
+    return Outcome(printed, _round3(formula),
+                   f"a data check: passes when the formula lies outside the printed "
+                   f"{printed:g} ± {half_unit:g} (the printed digits)",
+                   abs(formula - printed) > half_unit,
+                   f"{inputs}; the printed value is {100 * dev:+.1f} % off the formula, "
+                   f"which no stated input explains")
+
+
+def _round3(value: float) -> float:
+    return float(f"{value:.3g}")
+
+
 def _eq3(ctx: ReproContext) -> Outcome:
     f_a = float(bernoulli_force_n(_RHO_G_CM3, _V_OUT, _D_IN, _D_OUT))
-    return within_rel(1.37e-5, f_a, 0.10, why="an order-of-magnitude estimate; see note",
-                      note="Eq. 3 with rho 1250 kg/m³, v_out 100 mm/s, d_in 1.75 mm, d_out "
-                           "0.4 mm gives 1.50e-5 N; no stated input reproduces the printed "
-                           "1.37e-5 N (9 % lower) — it is 4-5 orders below the friction force "
-                           "either way", digits=3)
+    return _printed_disagrees(1.37e-5, 0.005e-5, f_a, "ρ 1250 kg/m³, v_out 100 mm/s, d_in "
+                              "1.75 mm, d_out 0.4 mm; it stays 4-5 orders below the friction "
+                              "force either way")
 
 
-def _eq4(mu_pa_s: float, printed: float) -> Claim:
+def _eq4(mu_pa_s: float, printed: float, half_unit: float) -> Claim:
     def compute(ctx: ReproContext) -> Outcome:
         f_f = float(friction_force_n(pa_s_to_mpa_s(mu_pa_s), _LAND, _V_OUT))
-        return within_rel(printed, f_f, 0.10, why="printed to two digits; see note",
-                          note=f"8π·μ·L·v_out with μ = {mu_pa_s:g} Pa·s, L = 0.6 mm, v_out = "
-                               "100 mm/s; both printed values are 7 % below the formula "
-                               "(0.30 and 1.51 N)", digits=3)
+        return _printed_disagrees(printed, half_unit, f_f, f"8π·μ·L·v_out with μ = "
+                                  f"{mu_pa_s:g} Pa·s, L = 0.6 mm, v_out = 100 mm/s (both "
+                                  f"printed values are the same 7 % low)")
     return Claim(PAPER, f"eq4-friction-{int(mu_pa_s)}",
-                 f"Eq. 4: friction force on the outlet at {mu_pa_s:g} Pa·s", "[001 Eq. 4]",
-                 compute, unit="N", engine="flowtwin.physics.nozzle.friction_force_n")
+                 f"Eq. 4: friction force on the outlet at {mu_pa_s:g} Pa·s is ~{printed:g} N "
+                 "as printed", "[001 Eq. 4]", compute, unit="N", kind=RowKind.DATA_CHECK,
+                 engine="flowtwin.physics.nozzle.friction_force_n")
 
 
 def _eq34_ratio(ctx: ReproContext) -> Outcome:
@@ -202,11 +221,12 @@ def _table2_claim(row_index: int) -> Claim:
         return within_rel(row.k_average_s, k, 0.15, why="the issue's bound for a "
                           "one-parameter layer-height model; Table II is read by eye to "
                           "<= 0.01 s", note=f"K = k·R_hyd·A² with the tip back-pressure "
-                          f"length λ_bp = {cal.back_pressure_length_mm:.3f} mm fitted to the "
-                          f"shape of Table II and E_hot anchoring 0.2 mm", digits=3)
+                          f"length λ_bp = {cal.back_pressure_length_mm:.3f} mm fitted by least "
+                          f"squares to the 0.1 and 0.3 mm rows and E_hot set by the 0.2 mm "
+                          f"row: the defaults are fitted to this table", digits=3)
     return Claim(PAPER, f"table2-k-{row.layer_height_mm:g}mm",
                  f"Table II: lag factor K at {row.layer_height_mm:g} mm layers",
-                 "[001 Table II]", compute, unit="s", figure="table2",
+                 "[001 Table II]", compute, unit="s", figure="table2", kind=RowKind.ANCHOR,
                  engine="flowtwin.physics.operating_point.derive_tronvoll_calibration")
 
 
@@ -218,10 +238,11 @@ def _table2_ratio(ctx: ReproContext) -> Outcome:
 
 
 CLAIMS: tuple[Claim, ...] = (
-    Claim(PAPER, "eq3-bernoulli", "Eq. 3: the force from accelerating the melt is ~1.37e-5 N",
-          "[001 Eq. 3]", _eq3, unit="N", engine="flowtwin.physics.nozzle.bernoulli_force_n"),
-    _eq4(200.0, 0.28),
-    _eq4(1000.0, 1.4),
+    Claim(PAPER, "eq3-bernoulli", "Eq. 3: the force from accelerating the melt is ~1.37e-5 N "
+          "as printed", "[001 Eq. 3]", _eq3, unit="N", kind=RowKind.DATA_CHECK,
+          engine="flowtwin.physics.nozzle.bernoulli_force_n"),
+    _eq4(200.0, 0.28, 0.005),
+    _eq4(1000.0, 1.4, 0.05),
     Claim(PAPER, "eq3-4-ratio", "Friction exceeds acceleration forces by ~3.5e4",
           "[001 Eqs. 3-4]", _eq34_ratio, engine="flowtwin.physics.nozzle"),
     Claim(PAPER, "fig13-flow-ratio", "Fig. 13: along the K-factor test line the flow ratio R "
@@ -241,7 +262,7 @@ CLAIMS: tuple[Claim, ...] = (
           figure="advance", engine=_DYN),
     *(_table2_claim(i) for i in range(len(TRONVOLL_TABLE_II))),
     Claim(PAPER, "table2-ratio", "Table II: K at 0.1 mm is about twice K at 0.3 mm",
-          "[001 Table II, Results]", _table2_ratio, figure="table2",
+          "[001 Table II, Results]", _table2_ratio, figure="table2", kind=RowKind.ANCHOR,
           engine="flowtwin.physics.operating_point"),
 )
 

@@ -32,6 +32,7 @@ __all__ = [
     "AXIS_X",
     "AXIS_Y",
     "AXIS_Z",
+    "MAX_LENGTH_MM",
     "Kinematics",
     "MoveGeometry",
     "MoveLimits",
@@ -50,6 +51,11 @@ FloatArray = npt.NDArray[np.float64]
 #: Axis bits of a homing mask.
 AXIS_X, AXIS_Y, AXIS_Z = 1, 2, 4
 ALL_AXES = AXIS_X | AXIS_Y | AXIS_Z
+
+#: Largest length the kinematics accept from a printer.cfg, mm. Klipper has no bound; this
+#: keeps the geometry's squares in floating-point range and still takes a belt printer's
+#: endless Z (Klipper's CR-30 config: ``position_max: 20000000``).
+MAX_LENGTH_MM = 1.0e9
 
 _INF3: Vec3 = (math.inf, math.inf, math.inf)
 _NINF3: Vec3 = (-math.inf, -math.inf, -math.inf)
@@ -196,10 +202,11 @@ def read_rail(sec: Section, *, need_minmax: bool = True,
     virtual = "virtual_endstop" in sec.get("endstop_pin", "")
     if virtual and default_endstop is None:
         default_endstop = 0.0
-    endstop = sec.getfloat("position_endstop", default_endstop)
+    big = MAX_LENGTH_MM
+    endstop = sec.getfloat("position_endstop", default_endstop, minval=-big, maxval=big)
     if need_minmax:
-        lo = sec.getfloat("position_min", 0.0)
-        hi = sec.getfloat("position_max", above=lo)
+        lo = sec.getfloat("position_min", 0.0, minval=-big, maxval=big)
+        hi = sec.getfloat("position_max", above=lo, maxval=big)
     else:
         lo, hi = 0.0, endstop
     if not lo <= endstop <= hi:
@@ -215,7 +222,8 @@ def step_distance(sec: Section, *, radians: bool = False) -> float:
     ``rotation_distance / (full_steps_per_rotation · microsteps · gear_ratio)``; an arm
     driven in radians (rotary delta) turns ``2π`` per rotation.
     """
-    rotation = 2.0 * math.pi if radians else sec.getfloat("rotation_distance", above=0.0)
+    rotation = 2.0 * math.pi if radians else sec.getfloat("rotation_distance", above=0.0,
+                                                          maxval=MAX_LENGTH_MM)
     micro = sec.getint("microsteps", minval=1)
     full = sec.getint("full_steps_per_rotation", 200, minval=1)
     if full % 4:

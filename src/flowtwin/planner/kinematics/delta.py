@@ -34,7 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flowtwin.errors import ProfileError
 from flowtwin.planner.kinematics.base import (
+    MAX_LENGTH_MM,
     Kinematics,
     MoveGeometry,
     MoveLimits,
@@ -110,8 +112,12 @@ class Delta(Kinematics):
         half_step = min(step_distances) * 0.5
 
         def ratio_to_xy(ratio: float) -> float:
-            return (ratio * math.sqrt(min_arm * min_arm / (ratio * ratio + 1.0)
-                                      - half_step * half_step) + half_step - radius)
+            inner = min_arm * min_arm / (ratio * ratio + 1.0) - half_step * half_step
+            if not inner >= 0.0:
+                raise ProfileError("a tower's step distance is too large for its arm",
+                                   field="rotation_distance", value=2.0 * half_step,
+                                   allowed=f"a full step well under {min_arm:g} mm")
+            return ratio * math.sqrt(inner) + half_step - radius
 
         max_xy2 = min(print_radius if print_radius is not None else radius,
                       min_arm - radius, ratio_to_xy(4.0 * SLOW_RATIO)) ** 2
@@ -183,13 +189,15 @@ def load(cfg: CfgFile, printer: PrinterLimits) -> Delta:
     steps = [step_distance(s) for s in secs]
     zv, za = read_z_limits(printer)
     pr = printer.section
-    radius = pr.getfloat("delta_radius", above=0.0)
-    print_radius = pr.getfloat("print_radius", radius, above=0.0)
-    arm_a = secs[0].getfloat("arm_length", above=radius)
-    arms = [arm_a] + [s.getfloat("arm_length", arm_a, above=radius) for s in secs[1:]]
+    big = MAX_LENGTH_MM
+    radius = pr.getfloat("delta_radius", above=0.0, maxval=big)
+    print_radius = pr.getfloat("print_radius", radius, above=0.0, maxval=big)
+    arm_a = secs[0].getfloat("arm_length", above=radius, maxval=big)
+    arms = [arm_a] + [s.getfloat("arm_length", arm_a, above=radius, maxval=big)
+                      for s in secs[1:]]
     angles = [s.getfloat("angle", d) for s, d in zip(secs, (210.0, 330.0, 90.0), strict=True)]
     endstops = [r.position_endstop for r in rails]
-    min_z = pr.getfloat("minimum_z_position", 0.0, maxval=min(endstops))
+    min_z = pr.getfloat("minimum_z_position", 0.0, minval=-big, maxval=min(endstops))
     return Delta.build(radius=radius, arm_lengths=(arms[0], arms[1], arms[2]),
                        angles=(angles[0], angles[1], angles[2]),
                        endstops=(endstops[0], endstops[1], endstops[2]),

@@ -32,6 +32,7 @@ import numpy as np
 from flowtwin.planner.kinematics.base import (
     AXIS_X,
     AXIS_Z,
+    MAX_LENGTH_MM,
     Kinematics,
     MoveGeometry,
     MoveLimits,
@@ -137,10 +138,11 @@ def load(cfg: CfgFile, printer: PrinterLimits) -> Deltesian:
     right = read_rail(right_s, need_minmax=False, default_endstop=left.position_endstop)
     rail_y = read_rail(cfg.require("stepper_y", "[stepper_y] with position_endstop and "
                                    "position_max"))
-    ax0 = left_s.getfloat("arm_x_length", above=0.0)
-    ax1 = right_s.getfloat("arm_x_length", ax0, above=0.0)
-    a0 = left_s.getfloat("arm_length", above=ax0)
-    a1 = right_s.getfloat("arm_length", a0, above=ax1)
+    big = MAX_LENGTH_MM
+    ax0 = left_s.getfloat("arm_x_length", above=0.0, maxval=big)
+    ax1 = right_s.getfloat("arm_x_length", ax0, above=0.0, maxval=big)
+    a0 = left_s.getfloat("arm_length", above=ax0, maxval=big)
+    a1 = right_s.getfloat("arm_length", a0, above=ax1, maxval=big)
     arm_x, arm2 = (ax0, ax1), (a0 * a0, a1 * a1)
     pr = printer.section
     cos_angle = math.cos(math.radians(pr.getfloat("min_angle", MIN_ANGLE_DEG, minval=0.0,
@@ -156,8 +158,8 @@ def load(cfg: CfgFile, printer: PrinterLimits) -> Deltesian:
     probe = Deltesian(arm_x=arm_x, arm2=arm2, abs_endstops=abs_end, home_z=home_z,
                       limits=(xlim, (0.0, 0.0), (0.0, 0.0)), slow_x2=None, very_slow_x2=None)
     z_max = float(np.min(probe.pillars_z_max(np.array(xlim))))
-    z_min = pr.getfloat("minimum_z_position", 0.0, maxval=z_max)
-    slow_ratio = pr.getfloat("slow_ratio", SLOW_RATIO, minval=0.0)
+    z_min = pr.getfloat("minimum_z_position", 0.0, minval=-big, maxval=z_max)
+    slow_ratio = pr.getfloat("slow_ratio", SLOW_RATIO, minval=0.0, maxval=1e3)
     slow_x2 = very_slow_x2 = None
     if slow_ratio > 0.0:
         sr2 = slow_ratio ** 2

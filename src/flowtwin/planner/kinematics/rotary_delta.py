@@ -27,6 +27,7 @@ import numpy as np
 
 from flowtwin.errors import ProfileError
 from flowtwin.planner.kinematics.base import (
+    MAX_LENGTH_MM,
     Kinematics,
     MoveGeometry,
     MoveLimits,
@@ -126,12 +127,15 @@ def load(cfg: CfgFile, printer: PrinterLimits) -> RotaryDelta:
                   ).position_endstop for s in secs[1:]]
     zv, _ = read_z_limits(printer, accel=False)
     pr = printer.section
-    sr = pr.getfloat("shoulder_radius", above=0.0)
-    sh = pr.getfloat("shoulder_height", above=0.0)
-    ua0 = secs[0].getfloat("upper_arm_length", above=0.0)
-    ua = [ua0] + [s.getfloat("upper_arm_length", ua0, above=0.0) for s in secs[1:]]
-    la0 = secs[0].getfloat("lower_arm_length", above=0.0)
-    la = [la0] + [s.getfloat("lower_arm_length", la0, above=0.0) for s in secs[1:]]
+    big = MAX_LENGTH_MM
+    sr = pr.getfloat("shoulder_radius", above=0.0, maxval=big)
+    sh = pr.getfloat("shoulder_height", above=0.0, maxval=big)
+    ua0 = secs[0].getfloat("upper_arm_length", above=0.0, maxval=big)
+    ua = [ua0] + [s.getfloat("upper_arm_length", ua0, above=0.0, maxval=big)
+                  for s in secs[1:]]
+    la0 = secs[0].getfloat("lower_arm_length", above=0.0, maxval=big)
+    la = [la0] + [s.getfloat("lower_arm_length", la0, above=0.0, maxval=big)
+                  for s in secs[1:]]
     angles = [s.getfloat("angle", d) for s, d in zip(secs, (30.0, 150.0, 270.0), strict=True)]
     elbows = []
     for i in range(3):
@@ -143,7 +147,7 @@ def load(cfg: CfgFile, printer: PrinterLimits) -> RotaryDelta:
                        sh + ua[i] * math.sin(theta)))
     home = trilaterate(elbows, [v * v for v in la])
     max_z = min(endstops)
-    min_z = pr.getfloat("minimum_z_position", 0.0, maxval=max_z)
+    min_z = pr.getfloat("minimum_z_position", 0.0, minval=-big, maxval=max_z)
     max_xy2 = min(min(sr + u for u in ua), min(v - sr for v in la)) ** 2
     max_xy = math.sqrt(max_xy2)
     return RotaryDelta(home_position=home, axes_min=(-max_xy, -max_xy, min_z),
