@@ -257,3 +257,17 @@ def test_step_distance_with_gear_ratio(tmp_path):
     sec = read_cfg(path).section("stepper_a")
     assert step_distance(sec) == pytest.approx(40.0 / (200 * 16 * 5 * 3))
     assert step_distance(sec, radians=True) == pytest.approx(2 * math.pi / (200 * 16 * 15))
+
+
+def test_a_limit_whose_square_underflows_is_refused(tmp_path):
+    """``max_z_velocity: 1e-308`` is a valid number whose square is 0: Klipper would divide
+    by zero; flowtwin names the first move it cannot run."""
+    path = tmp_path / "printer.cfg"
+    path.write_text((DATA / "cartesian.cfg").read_text().replace("max_z_velocity: 25",
+                                                                 "max_z_velocity: 1e-308"))
+    settings = load_printer_cfg(path)
+    gcode = tmp_path / "z.gcode"
+    gcode.write_text("G28\nG1 X10 F3000\nG1 Z5\n")
+    with pytest.raises(GcodeError, match="too small") as info:
+        plan_klipper(read_gcode(gcode, options=klipper_read_options(settings)), settings)
+    assert info.value.line == 3

@@ -488,5 +488,5 @@ def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,
         smooth_delta_v2[k] = min(sdv2, 2.0 * d * a)
         jdev[k] = seg_tab[s, SEG_JD]
         icv[k] = ex_tab[int(seg_tab[s, SEG_EXT]), EX_ICV] if ex_tab.shape[0] else 0.0
-        min_move_t[k] = d / np.sqrt(v2)
+        min_move_t[k] = d / np.sqrt(v2) if v2 > 0.0 else np.inf   # 0: refused by the caller
     err[0] = ERR_NONE

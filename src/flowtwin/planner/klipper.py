@@ -420,6 +420,13 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
                          field="XYZ", value=refused.value, allowed=refused.allowed)
     if err[0] != K.ERR_NONE:
         raise _limit_error(err, lines, src)
+    stalled = np.flatnonzero(valid & ~((max_cruise_v2 > 0.0) & (accel > 0.0)))
+    if stalled.size:   # a limit so small that its square underflows: Klipper divides by 0
+        k = int(stalled[0])
+        raise GcodeError("speed or acceleration limit too small to move (its square is 0)",
+                         source=src, line=int(lines[k]), field="F",
+                         value=(float(np.sqrt(max_cruise_v2[k])), float(accel[k])),
+                         allowed="limits above 1e-150 mm/s and mm/s²")
     if settings.arc_resolution is None and n:
         arcs = (moves["kind"] & int(MoveKind.ARC)) != 0
         if np.any(arcs):
