@@ -10,7 +10,7 @@ apply from where they appear, as on the printer.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import BinaryIO
 
@@ -29,6 +29,7 @@ from flowtwin.planner.klipper_config import (
     load_printer_cfg,
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
+from flowtwin.planner.marlin_delta import segment_moves
 from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
@@ -182,6 +183,10 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         return PlanResult(table, plan_klipper(table, ks), profile.name, ks)
     ms = marlin_settings(profile)
     if use_slicer_limits:
-        # the slicer describes its machine completely (classic jerk and all): use it as is
-        ms = marlin_settings_from_slicer_config(table.metadata) or ms
+        # the slicer describes its machine's limits completely (classic jerk and all): use
+        # them as they are; the delta geometry is the printer's
+        sl = marlin_settings_from_slicer_config(table.metadata)
+        ms = replace(sl, delta=ms.delta) if sl is not None else ms
+    if ms.delta is not None:
+        table = segment_moves(table, ms.delta)   # Marlin plans a delta's segments
     return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
