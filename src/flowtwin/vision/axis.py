@@ -176,9 +176,9 @@ def _fit_once(p0_all: F64, p1_all: F64, g_all: npt.NDArray[np.intp],
     g = g_all[keep]
     d = p1 - p0
     # translation model: one shift per group
-    counts = np.maximum(np.bincount(g, minlength=n_groups), 1)
-    shift = np.stack([np.bincount(g, d[:, k], minlength=n_groups) for k in (0, 1)], 1)
-    shift /= counts[:, None]
+    counts = np.maximum(np.bincount(g, minlength=n_groups), 1).astype(np.float64)
+    shift: F64 = np.stack([np.bincount(g, d[:, k], minlength=n_groups)
+                           for k in (0, 1)], 1) / counts[:, None]
     rms_t = float(np.sqrt(np.mean(np.sum((d - shift[g]) ** 2, axis=1))))
     chord = float(np.sqrt(np.mean(np.sum(d ** 2, axis=1))))
     if chord < _MIN_CHORD_PX:

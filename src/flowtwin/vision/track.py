@@ -153,6 +153,11 @@ class RoiTracker:
             elif abs(self.axis[1]) < 1e-9:
                 y0, y1 = roi.y, roi.y1
         self.x0, self.y0, self.x1, self.y1 = x0, y0, x1, y1
+        self._origin = np.array([x0, y0], dtype=np.float64)
+        #: Positions (frame px, shape ``(N, 2)``) of the tracks of the last step and which
+        #: of them were kept (passed every check and agreed); for drawing.
+        self.last_points = np.zeros((0, 2))
+        self.last_kept = np.zeros(0, dtype=bool)
         self.center = None if center_px is None else np.array(
             [center_px[0] - self.x0, center_px[1] - self.y0], dtype=np.float64)
         # ROI inside the crop
@@ -394,6 +399,9 @@ class RoiTracker:
                   & (b[:, 1] < self._ry1))
         self._cur_pts[idx] = b
         self._alive[idx] = good & in_roi
+        # for drawing (inspect): where the tracks went, and which passed the checks
+        self.last_points = b + self._origin
+        self.last_kept = good.copy()
         n_cand = int(values.size)
         self._last_valid = False
         if n_cand < p.min_tracks:
@@ -417,5 +425,6 @@ class RoiTracker:
         # outliers of this step do not continue
         keep = np.zeros(len(idx), dtype=bool)
         keep[np.flatnonzero(good)[inl]] = True
+        self.last_kept = keep.copy()
         self._alive[idx] &= keep
         return StepEstimate(mean if valid else math.nan, n_in, n_cand, spread, se, False, valid)
