@@ -65,6 +65,11 @@ _MATCH_RATIO = 0.6
 #: Spread of agreeing-looking tracks (rms, px) above which a failed step is put down to
 #: missing texture rather than to a tracking problem (textured steps scatter ~0.05 px).
 _NOISE_SPREAD_PX = 0.5
+#: A ROI whose last valid step moved less than this is still, px: repeated pixels then
+#: mean "nothing changed" (a compressing codec copies still blocks), not a damaged frame.
+_STILL_PX = 0.1
+#: This many stale frames in a row mean a still region, not damaged frames.
+_STALE_RUN_STILL = 3
 #: Seed of the sub-pixel jitter of new features (results are reproducible).
 _JITTER_SEED = 20170101
 
@@ -195,6 +200,8 @@ class RoiTracker:
         self._low_texture = False
         self._last_value = 0.0
         self._last_valid = False
+        self._last_step_px = math.inf
+        self._stale_run = 0
         self._last_dt: float | None = None
         self._prev_small: F32 | None = None
         self._prev_crop: U8 | None = None
@@ -264,9 +271,16 @@ class RoiTracker:
             ``None`` for the first frame (nothing to compare with).
         """
         crop = self._crop(gray)
-        if self._prev_crop is not None and is_stale(crop, self._prev_crop):
-            # a repeated image region (decoder concealment, driver repeat) holds no
-            # information about this instant: skip it and let the next step span it
+        still = ((self._last_valid and self._last_step_px <= _STILL_PX)
+                 or self._stale_run >= _STALE_RUN_STILL)
+        stale = self._prev_crop is not None and is_stale(crop, self._prev_crop)
+        self._stale_run = self._stale_run + 1 if stale else 0
+        if stale and not still:
+            # a repeated image region (decoder concealment, driver repeat) of a moving
+            # surface holds no information about this instant: skip it and let the next
+            # step span it. On a still surface (last step below _STILL_PX, or repeats in
+            # _STALE_RUN_STILL frames running: concealment is sporadic) it is what a
+            # compressing codec does with still blocks, and it is tracked as usual.
             if dt_s is not None:
                 self._pending_s += dt_s
             self._damaged = True
@@ -416,6 +430,7 @@ class RoiTracker:
         if valid:
             self._last_value = mean
             self._last_valid = True
+            self._last_step_px = abs(mean) * float(np.median(lever[inl]))
             self._total += mean
         if not valid and spread > _NOISE_SPREAD_PX:
             # tracks that passed every check yet scatter by this much follow noise
