@@ -84,6 +84,9 @@ class AxisEstimate:
         Frames looked at.
     reason
         Why the motion was (not) taken for a rotation.
+    moved
+        The tracked points moved measurably (rms chord at least
+        :data:`_MIN_CHORD_PX`): when false there was nothing to decide.
     """
 
     center_px: tuple[float, float] | None
@@ -95,6 +98,7 @@ class AxisEstimate:
     n_points: int
     frames: int
     reason: str
+    moved: bool = True
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (NaN becomes None)."""
@@ -107,9 +111,9 @@ class AxisEstimate:
         return out
 
 
-def _no_axis(reason: str, n: int = 0, frames: int = 0, rms_t: float = math.nan
-             ) -> AxisEstimate:
-    return AxisEstimate(None, False, math.nan, math.nan, rms_t, 0.0, n, frames, reason)
+def _no_axis(reason: str, n: int = 0, frames: int = 0, rms_t: float = math.nan,
+             moved: bool = False) -> AxisEstimate:
+    return AxisEstimate(None, False, math.nan, math.nan, rms_t, 0.0, n, frames, reason, moved)
 
 
 def _angles(a: F64, b: F64, group: npt.NDArray[np.intp], n_groups: int) -> F64:
@@ -190,7 +194,7 @@ def _fit_once(p0_all: F64, p1_all: F64, g_all: npt.NDArray[np.intp],
     eig = np.linalg.eigvalsh(a_mat)
     if eig[0] <= 1e-9 * max(eig[1], 1e-12):
         return _no_axis("all tracks move in parallel: a translation", n, frames,
-                        rms_t), None
+                        rms_t, True), None
     c = np.linalg.solve(a_mat, d.T @ np.sum(d * m, axis=1))
     for _ in range(_ITERATIONS):
         theta = _angles(p0 - c, p1 - c, g, n_groups)

@@ -25,7 +25,7 @@ from flowtwin.vision.axis import estimate_gear_axis
 from flowtwin.vision.config import VisionConfig
 from flowtwin.vision.features import is_stale
 from flowtwin.vision.result import Quality, VisionResult
-from flowtwin.vision.source import Frame, open_source
+from flowtwin.vision.source import INTER_FRAME_CODECS, Frame, open_source
 from flowtwin.vision.summarize import GearSetup, RowLog, SourceInfo, finish
 from flowtwin.vision.track import RoiTracker, StepEstimate
 from flowtwin.vision.width import EdgeMeasurement, expected_width_px, measure_width_px
@@ -120,13 +120,18 @@ class Pipeline:
         self.frame_size = frame_size
         p = config.tracking
         sign = 1.0 if config.direction == "down" else -1.0
+        # an inter-frame codec copies still blocks: repeated rows are not damage there
+        check = self.info.codec not in INTER_FRAME_CODECS
+        self.check_stale = check
         self.filament_tracker = RoiTracker(config.rois.after, frame_size, p,
-                                           axis=(0.0, sign), inset_px=p.win_px // 2)
+                                           axis=(0.0, sign), inset_px=p.win_px // 2,
+                                           check_stale=check)
         if gear.center_px is not None:
             self.gear_tracker = RoiTracker(config.rois.gear, frame_size, p, mode="rotation",
-                                           center_px=gear.center_px)
+                                           center_px=gear.center_px, check_stale=check)
         else:
-            self.gear_tracker = RoiTracker(config.rois.gear, frame_size, p, axis=(0.0, sign))
+            self.gear_tracker = RoiTracker(config.rois.gear, frame_size, p, axis=(0.0, sign),
+                                           check_stale=check)
         self.expected_px = expected_width_px(config.mm_per_px, config.diameter_mm)
         self.rows = RowLog.empty()
         self.last_width: EdgeMeasurement | None = None
@@ -186,7 +191,8 @@ class Pipeline:
             flags |= Quality.WIDTH_INVALID
             if em.status == "ambiguous":
                 flags |= Quality.WIDTH_AMBIGUOUS
-        elif self._prev is not None and is_stale(before_crop, self._prev[before.slices]):
+        elif (self.check_stale and self._prev is not None
+              and is_stale(before_crop, self._prev[before.slices])):
             flags |= Quality.WIDTH_INVALID
             ok = False
         width = (em.width_px, em.left_px + before.x, em.right_px + before.x) if ok \
@@ -284,6 +290,6 @@ def measure(source: str | Path | int, config: VisionConfig, *,
     with open_source(source, timestamps=timestamps, max_frames=max_frames) as src:
         info = SourceInfo(description=src.description, kind=src.kind,
                           timestamp_source=src.timestamp_source,
-                          frames_expected=src.frames_expected)
+                          frames_expected=src.frames_expected, codec=src.codec)
         return measure_frames(src, config, frame_size=(src.width_px, src.height_px),
                               info=info)

@@ -34,9 +34,17 @@ import numpy.typing as npt
 from flowtwin.errors import VisionError
 from flowtwin.vision.loader import IMAGE_SUFFIXES, open_video, read_grey_image, to_grey_u8
 
-__all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_source", "read_timestamps_file"]
+__all__ = ["IMAGE_SUFFIXES", "INTER_FRAME_CODECS", "Frame", "FrameSource", "open_source",
+           "read_timestamps_file"]
 
 TIMESTAMPS_NAME = "timestamps.txt"
+#: FOURCCs of codecs that predict frames from earlier ones (MPEG-4 part 2, H.264/5, VP8/9,
+#: AV1, MPEG-1/2): they copy unchanged blocks, so a still region repeats its pixels
+#: exactly and repeated rows are no sign of a damaged frame.
+INTER_FRAME_CODECS = frozenset({
+    "FMP4", "XVID", "DIVX", "DX50", "MP4V", "MP42", "MP43", "H264", "AVC1", "X264", "DAVC",
+    "HEVC", "H265", "HVC1", "HEV1", "VP80", "VP90", "AV01", "MPG1", "MPG2", "PIM1", "WMV3",
+    "WVC1", "THEO"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,6 +134,8 @@ class FrameSource:
         Frame count the container declares, or ``None``.
     timestamp_source
         Where the capture times come from.
+    codec
+        FOURCC of a video's codec, upper case (``None`` for images and cameras).
     frames_read
         Frames delivered so far.
     """
@@ -141,6 +151,7 @@ class FrameSource:
         self.timestamp_source = timestamp_source
         self.max_frames = max_frames
         self.frames_read = 0
+        self.codec: str | None = None
         self._first: npt.NDArray[np.uint8] | None = first
 
     def _check_size(self, image: npt.NDArray[np.uint8], where: str) -> None:
@@ -195,6 +206,9 @@ class _VideoSource(FrameSource):
                          nominal_fps=fps if math.isfinite(fps) and fps > 0 else None,
                          frames_expected=count if count > 0 else None,
                          timestamp_source=ts_source, max_frames=max_frames)
+        code = int(cap.get(cv2.CAP_PROP_FOURCC)) if kind == "video" else 0
+        if code > 0:
+            self.codec = "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)).upper()
 
     def _time(self, index: int, pos_ms: float) -> float:
         if self._timestamps is not None:

@@ -59,6 +59,7 @@ class SourceInfo:
     kind: str = "frames"
     timestamp_source: str = "given"
     frames_expected: int | None = None
+    codec: str | None = None
 
 
 @dataclass(frozen=True, slots=True)

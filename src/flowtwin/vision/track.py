@@ -137,16 +137,22 @@ class RoiTracker:
     inset_px
         Features are detected at least this far inside the ROI's left and right sides
         (keeps LK windows off the filament edges), px.
+    check_stale
+        Treat rows that repeat the previous frame's pixels as a damaged frame
+        (:func:`~.features.is_stale`). Off for inter-frame codecs, which copy still
+        blocks.
     """
 
     def __init__(self, roi: Roi, frame_size: tuple[int, int], params: TrackingParams, *,
                  mode: TrackMode = "translation", axis: tuple[float, float] = (0.0, 1.0),
-                 center_px: tuple[float, float] | None = None, inset_px: int = 0) -> None:
+                 center_px: tuple[float, float] | None = None, inset_px: int = 0,
+                 check_stale: bool = True) -> None:
         if mode == "rotation" and center_px is None:
             raise ValueError("rotation mode needs center_px")
         self.roi = roi
         self.params = params
         self.mode = mode
+        self.check_stale = check_stale
         self.axis = np.asarray(axis, dtype=np.float64) / math.hypot(*axis)
         w, h = frame_size
         x0, y0, x1, y1 = roi.padded(params.pad_px, w, h)
@@ -273,7 +279,8 @@ class RoiTracker:
         crop = self._crop(gray)
         still = ((self._last_valid and self._last_step_px <= _STILL_PX)
                  or self._stale_run >= _STALE_RUN_STILL)
-        stale = self._prev_crop is not None and is_stale(crop, self._prev_crop)
+        stale = (self.check_stale and self._prev_crop is not None
+                 and is_stale(crop, self._prev_crop))
         self._stale_run = self._stale_run + 1 if stale else 0
         if stale and not still:
             # a repeated image region (decoder concealment, driver repeat) of a moving
