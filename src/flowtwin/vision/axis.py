@@ -24,13 +24,19 @@ recording, so a user does not have to find it by hand:
    :data:`_MAX_CENTER_SIGMA` of its distance from the tracks (standard error from the
    residual), and the gear turned measurably. A filament (a translation), a still gear,
    or too few tracks give no axis — tangential mode then, said in the summary.
+4. **Refinement on derotated frames.** Lucas–Kanade's translation model is biased on a
+   patch that turns by several degrees, and that bias leaks into the axis. So the axis is
+   refined: every frame is turned back about the present axis by its predicted angle, the
+   keyframe's features are matched in it (they now barely move and do not turn), and
+   the small residual motions give the axis correction and each frame's angle
+   correction by linear least squares (``_refine_axis``); two or three rounds.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -57,6 +63,12 @@ _KEY_FRAMES = 30
 _KEY_CHORD_PX = 20.0
 #: Iterations of the alternating angle / centre refinement.
 _ITERATIONS = 30
+#: Refinement (step 4): rounds, and the rotation after which a new keyframe is taken, rad.
+_REFINE_ROUNDS = 3
+_REFINE_KEY_RAD = 0.15
+#: A refinement step larger than this fraction of the distance to the tracks means the
+#: first axis was not near enough for the linear correction: no axis.
+_MAX_REFINE_SHIFT = 0.03
 #: Rounds of outlier rejection, and the smallest rejection threshold, px.
 _ROBUST_ROUNDS = 4
 _MIN_TOL_PX = 0.15
@@ -87,6 +99,8 @@ class AxisEstimate:
     moved
         The tracked points moved measurably (rms chord at least
         :data:`_MIN_CHORD_PX`): when false there was nothing to decide.
+    angle_per_frame_rad
+        Median rotation per frame (when the groups' frame counts are known), rad.
     """
 
     center_px: tuple[float, float] | None
@@ -99,6 +113,7 @@ class AxisEstimate:
     frames: int
     reason: str
     moved: bool = True
+    angle_per_frame_rad: float = math.nan
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (NaN becomes None)."""
@@ -124,7 +139,8 @@ def _angles(a: F64, b: F64, group: npt.NDArray[np.intp], n_groups: int) -> F64:
 
 
 def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: int = 0,
-                      track: npt.NDArray[np.intp] | None = None) -> AxisEstimate:
+                      track: npt.NDArray[np.intp] | None = None,
+                      age: npt.NDArray[np.intp] | None = None) -> AxisEstimate:
     """Fit ``p1 = c + R(θ_g)(p0 − c)`` (one centre, one angle per group) and decide.
 
     The fit is repeated without the correspondences whose residual exceeds three robust
@@ -144,6 +160,9 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
         Which track each correspondence belongs to, shape ``(N,)``. One track seen in
         many frames gives correlated errors: the centre's standard error is computed as
         if there were only as many correspondences as tracks. Default: all independent.
+    age
+        Frames between the two positions of each correspondence, shape ``(N,)``
+        (gives ``angle_per_frame_rad``).
 
     Returns
     -------
@@ -165,6 +184,17 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
             break
         keep = new
         est, res = _fit_once(p0, p1, g, keep, frames, corr)
+    if age is not None and est.center_px is not None and keep.any():
+        c = np.asarray(est.center_px)
+        kg = g[keep]
+        theta = _angles(p0[keep] - c, p1[keep] - c, kg, int(g.max()) + 1)
+        n_age = np.zeros(int(g.max()) + 1)
+        n_age[kg] = np.asarray(age)[keep]
+        used = np.unique(kg)
+        used = used[n_age[used] > 0]
+        if used.size:
+            est = replace(est, angle_per_frame_rad=float(np.median(theta[used]
+                                                                   / n_age[used])))
     return est
 
 
@@ -249,6 +279,8 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
                        ) -> AxisEstimate:
     """Track features in the gear ROI over ``images`` and fit the rotation axis.
 
+    Steps 1–3 of the module docstring give a first axis; step 4 refines it.
+
     Parameters
     ----------
     images
@@ -265,6 +297,170 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
         The axis in frame pixels, and whether the motion is a rotation about it.
     """
     p = params or TrackingParams()
+    est = _coarse_axis(images, roi, p)
+    if not est.is_rotation or est.center_px is None:
+        return est
+    centre = est.center_px
+    dist = math.nan
+    for _ in range(_REFINE_ROUNDS):
+        ref = _refine_axis(images, roi, p, centre, est.angle_per_frame_rad)
+        if ref is None:
+            return replace(est, is_rotation=False,
+                           reason=f"the axis found first ({centre[0]:.1f}, {centre[1]:.1f}) "
+                           "could not be refined (too few tracks)")
+        shift, sigma, rms, n, dist = ref
+        if float(np.hypot(*shift)) > _MAX_REFINE_SHIFT * dist:
+            return replace(est, is_rotation=False,
+                           reason=f"the axis found first ({centre[0]:.1f}, {centre[1]:.1f}) "
+                           f"moves by {float(np.hypot(*shift)):.1f} px when refined: not "
+                           "determined")
+        centre = (centre[0] + float(shift[0]), centre[1] + float(shift[1]))
+        if float(np.hypot(*shift)) < 0.05:
+            break
+    if not (math.isfinite(sigma) and sigma <= _MAX_CENTER_SIGMA * dist):
+        return replace(est, center_px=centre, is_rotation=False, center_sigma_px=sigma,
+                       reason=f"the refined axis is not determined (±{sigma:.1f} px at "
+                       f"{dist:.0f} px from the tracks)")
+    return replace(est, center_px=centre, center_sigma_px=sigma, rms_rotation_px=rms,
+                   n_points=n,
+                   reason=f"rotation about ({centre[0]:.1f}, {centre[1]:.1f}) ± {sigma:.2f} px "
+                   f"(rms {rms:.3f} px after derotation; {est.rms_translation_px:.3f} px "
+                   "for a translation)")
+
+
+def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
+                 centre: tuple[float, float], rate_rad: float
+                 ) -> tuple[F64, float, float, int, float] | None:
+    """Step 4: correction of the axis from tracks on derotated frames.
+
+    Each frame is turned back about the current axis ``c₀`` by its predicted angle ``θ``
+    before Lucas–Kanade matches the keyframe's features in it, so the patches do not
+    turn (no bias of LK's translation model). With the true axis ``c₀ + e`` and the
+    true angle ``θ + δ`` a keyframe point ``p₀`` is found at
+    ``p₀ + (R(−θ) − I)·e + δ·J(p₀ − c₀)`` to first order (``J`` a quarter turn): linear
+    in ``e`` and in one ``δ`` per frame, solved by least squares with outlier rejection.
+
+    Returns ``(e, standard error of the axis, rms residual, points, median distance of
+    the points from the axis)`` or ``None``.
+    """
+    h, w = images[0].shape[:2]
+    x0, y0, x1, y1 = roi.padded(p.pad_px, w, h)
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    mask[roi.y - y0:roi.y1 - y0, roi.x - x0:roi.x1 - x0] = 255
+    c = np.array([centre[0] - x0, centre[1] - y0])
+    win = (p.win_px, p.win_px)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30, 0.01)
+    flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+    half = p.win_px // 2
+    rows_p0: list[F64] = []
+    rows_r: list[F64] = []
+    rows_th: list[float] = []
+    rows_g: list[npt.NDArray[np.intp]] = []
+    key: U8 | None = None
+    pts = np.zeros((0, 2))
+    theta = 0.0
+    inc = rate_rad if math.isfinite(rate_rad) else 0.0
+    age = 0
+    prev: U8 | None = None
+    for image in images:
+        crop = np.ascontiguousarray(image[y0:y1, x0:x1])
+        if prev is not None and np.array_equal(crop, prev):
+            continue
+        prev = crop
+        if key is not None and len(pts) >= p.min_tracks:
+            pred = theta + inc
+            co, si = math.cos(pred), math.sin(pred)
+            m = np.array([[co, -si, c[0] - co * c[0] + si * c[1]],
+                          [si, co, c[1] - si * c[0] - co * c[1]]])
+            der = cv2.warpAffine(crop, m, (crop.shape[1], crop.shape[0]),
+                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                 borderMode=cv2.BORDER_REPLICATE)
+            a = pts.astype(np.float32)[:, None, :]
+            b, st, _ = cv2.calcOpticalFlowPyrLK(key, der, a, a.copy(), winSize=win,
+                                                maxLevel=2, criteria=crit, flags=flags)
+            back, st2, _ = cv2.calcOpticalFlowPyrLK(der, key, b, a.copy(), winSize=win,
+                                                    maxLevel=2, criteria=crit, flags=flags)
+            q = b[:, 0, :].astype(np.float64)
+            # where the point really is: turn q forward again; a point that did not move
+            # (background seen through the teeth) is not on the gear
+            arm_q = q - c
+            raw = c + np.stack([co * arm_q[:, 0] - si * arm_q[:, 1],
+                                si * arm_q[:, 0] + co * arm_q[:, 1]], 1)
+            chord = np.hypot(*(raw - pts).T)
+            expect = abs(pred) * np.hypot(*(pts - c).T)
+            ok = ((st[:, 0] == 1) & (st2[:, 0] == 1) & (chord >= 0.5 * expect)
+                  & (np.hypot(*(back[:, 0, :].astype(np.float64) - pts).T) < p.fb_max_px)
+                  & (q[:, 0] >= half) & (q[:, 0] < x1 - x0 - half)
+                  & (q[:, 1] >= half) & (q[:, 1] < y1 - y0 - half))
+            if ok.sum() >= p.min_tracks:
+                r = q[ok] - pts[ok]
+                arm = pts[ok] - c
+                jr = np.stack([-arm[:, 1], arm[:, 0]], 1)
+                # quick per-frame angle correction: r ≈ t + δ·J(p₀ − c₀)
+                a_mat = np.column_stack([np.tile(np.eye(2), (len(r), 1)),
+                                         jr.reshape(-1, 1)])
+                sol = np.linalg.lstsq(a_mat, r.reshape(-1), rcond=None)[0]
+                new = pred + float(sol[2])
+                inc, theta = new - theta, new
+                rows_p0.append(pts[ok])
+                rows_r.append(r)
+                rows_th.append(pred)
+                rows_g.append(np.full(int(ok.sum()), len(rows_th) - 1, np.intp))
+            else:
+                theta = pred            # lost this frame: carry on at the same rate
+            age += 1
+            if abs(theta) < _REFINE_KEY_RAD and age < _KEY_FRAMES:
+                continue
+        # new keyframe: this frame, its features, angles from here
+        key = crop
+        pts = detect_features(crop, p, mask=mask)
+        theta, age = 0.0, 0
+    if len(rows_th) < 2:
+        return None
+    p0 = np.concatenate(rows_p0)
+    r = np.concatenate(rows_r)
+    g = np.concatenate(rows_g)
+    th = np.asarray(rows_th)[g]
+    n, n_g = len(p0), len(rows_th)
+    arm = p0 - c
+    # unknowns: e (2), δ per group; rows: x and y residual of each point
+    co, si = np.cos(-th), np.sin(-th)
+    a_full = np.zeros((2 * n, 2 + n_g))
+    a_full[0::2, 0], a_full[0::2, 1] = co - 1.0, -si
+    a_full[1::2, 0], a_full[1::2, 1] = si, co - 1.0
+    a_full[0::2, 2:][np.arange(n), g] = -arm[:, 1]
+    a_full[1::2, 2:][np.arange(n), g] = arm[:, 0]
+    y = r.reshape(-1)
+    keep = np.ones(n, dtype=bool)
+    sol = np.zeros(2 + n_g)
+    for _ in range(_ROBUST_ROUNDS):
+        rows = np.repeat(keep, 2)
+        sol = np.linalg.lstsq(a_full[rows], y[rows], rcond=None)[0]
+        res = np.hypot(*(y - a_full @ sol).reshape(-1, 2).T)
+        mad = float(np.median(res[keep]))
+        new_keep = res <= max(3.0 * 1.4826 * mad, _MIN_TOL_PX)
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    rows = np.repeat(keep, 2)
+    res = (y - a_full @ sol)[rows]
+    n_keep = int(keep.sum())
+    dof = max(res.size - a_full.shape[1], 1)
+    sigma2 = float(res @ res) / dof
+    try:
+        cov = sigma2 * np.linalg.inv(a_full[rows].T @ a_full[rows])[:2, :2]
+    except np.linalg.LinAlgError:
+        return None
+    sigma = float(np.sqrt(np.max(np.linalg.eigvalsh(cov))))
+    # one track seen in many frames: correlated errors, count it about once
+    sigma *= math.sqrt(max(n_keep / max(len(np.unique(g[keep])), 1) / 4.0, 1.0))
+    rms = float(np.sqrt(np.mean(res ** 2) * 2.0))
+    dist = float(np.median(np.hypot(*arm[keep].T)))
+    return sol[:2], sigma, rms, n_keep, dist
+
+
+def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstimate:
+    """Step 1–3 of the module docstring: keyframe tracks, rigid fit, decision."""
     if len(images) < 2:
         return _no_axis("fewer than two frames", 0, len(images))
     h, w = images[0].shape[:2]
@@ -281,6 +477,7 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
     p1s: list[F64] = []
     groups: list[npt.NDArray[np.intp]] = []
     tracks: list[npt.NDArray[np.intp]] = []
+    ages: list[npt.NDArray[np.intp]] = []
     n_group = 0
     ids = np.zeros(0, np.intp)
     next_id = 0
@@ -318,6 +515,7 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
                 p1s.append(pts + origin)
                 groups.append(np.full(len(pts), n_group, np.intp))
                 tracks.append(ids)
+                ages.append(np.full(len(pts), age, np.intp))
                 n_group += 1
         if (len(pts) < p.min_tracks or age >= _KEY_FRAMES
                 or (len(pts) and float(np.median(np.hypot(*(pts - key_pts).T))) > _KEY_CHORD_PX)):
@@ -332,4 +530,4 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
         return _no_axis("no feature could be followed on the gear", 0, len(images))
     return fit_rotation_axis(np.concatenate(p0s), np.concatenate(p1s),
                              np.concatenate(groups), frames=len(images),
-                             track=np.concatenate(tracks))
+                             track=np.concatenate(tracks), age=np.concatenate(ages))

@@ -7,9 +7,11 @@ rotation mode, slip [000 Eq. 1] only where both speeds are above their floors, v
 flow, Gaussian smoothing in time, gaps from the timestamps, and a summary built from
 travelled distances (uneven steps weigh by their duration).
 
-**Motion sanity.** A speed below its floor (``min_gear_speed_mm_s``,
+**Motion sanity.** A step whose speed, or whose Gaussian-smoothed speed (the
+``smooth_sigma_s`` window around it), is not above its floor (``min_gear_speed_mm_s``,
 ``min_filament_speed_mm_s``) is a *still* reading: the row is flagged GEAR_STOPPED or
-FILAMENT_STOPPED and has no slip. The run's slip needs at least
+FILAMENT_STOPPED and has no slip (a single noisy step of a still drive can pass the
+floor, its neighbourhood does not). The run's slip needs at least
 :data:`~flowtwin.vision.result.MIN_SLIP_STEPS` steps with both speeds valid and above
 their floors, *and* both mean speeds above their floors; otherwise it is undefined (NaN,
 ``null`` in JSON) and ``slip_note`` says why — a still drive never reads as a slip
@@ -202,13 +204,20 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
                                                               w_ok, where)
     fil_v = speed_mm_s(np.asarray(rows.fil), np.asarray(rows.fil_span), k_cal)
     floors = (p.min_gear_speed_mm_s, p.min_filament_speed_mm_s)
-    flags[np.isfinite(gear_v) & (np.abs(gear_v) <= floors[0])] |= int(Quality.GEAR_STOPPED)
-    flags[np.isfinite(fil_v) & (np.abs(fil_v) < floors[1])] |= int(Quality.FILAMENT_STOPPED)
-    slip = slip_fraction(gear_v, fil_v, min_gear_speed_mm_s=floors[0],
-                         min_filament_speed_mm_s=floors[1])
-    width_mm = width_px * k_cal
     g_s = gaussian_smooth(t, gear_v, p.smooth_sigma_s)
     f_s = gaussian_smooth(t, fil_v, p.smooth_sigma_s)
+    # still: the step, or the speed around it (the Gaussian window), at or below the floor
+    # (one noisy step of a still drive can pass the floor; its neighbourhood does not)
+    g_still = np.isfinite(gear_v) & ((np.abs(gear_v) <= floors[0])
+                                     | (np.abs(np.nan_to_num(g_s, nan=np.inf)) <= floors[0]))
+    f_still = np.isfinite(fil_v) & ((np.abs(fil_v) < floors[1])
+                                    | (np.abs(np.nan_to_num(f_s, nan=np.inf)) < floors[1]))
+    flags[g_still] |= int(Quality.GEAR_STOPPED)
+    flags[f_still] |= int(Quality.FILAMENT_STOPPED)
+    slip = slip_fraction(gear_v, fil_v, min_gear_speed_mm_s=floors[0],
+                         min_filament_speed_mm_s=floors[1])
+    slip[g_still | f_still] = NAN
+    width_mm = width_px * k_cal
     w_s = gaussian_smooth(t, width_mm, p.smooth_sigma_s)
     series = VisionSeries(
         frame=np.asarray(rows.frame, dtype=np.int64), t_s=t, dt_s=np.asarray(rows.dt),

@@ -20,7 +20,9 @@ Here the two edges must form a *plausible filament*:
    level. (c) separates one object from two (filament and bearing, gear and filament).
 3. **Outer edges.** Highlights and teeth marks give pairs *inside* the filament; a pair
    nested in another plausible pair is dropped. One outer pair left: that band's
-   filament. Several (not nested in each other): the band is **ambiguous**.
+   filament. Several (not nested in each other): the band is **ambiguous** — unless no
+   nominal width is known (the scale is being calibrated) and one pair is at least
+   :data:`_DOMINANCE` times wider than all others.
 4. **Consistency along the rows.** Bands must agree on polarity, width (within
    :data:`_BAND_TOL_PX` px or 3 %) and on a straight centre line; every row is then
    refined near its band's edges (parabola through the derivative extremum for sub-pixel
@@ -76,6 +78,9 @@ _INTERIOR_FRACTION = 0.5
 #: The weaker edge of a pair must have at least this fraction of the stronger one's slope
 #: (a shading gradient is no match for a silhouette edge).
 _STRENGTH_RATIO = 0.25
+#: Without a nominal width, a band's widest plausible pair is taken when it is at least
+#: this many times wider than the next one (a glint or a gap beside the filament).
+_DOMINANCE = 2.0
 #: Bands agree when their widths, and their centres about a straight line, differ by at
 #: most this many px or this fraction of the width, whichever is larger.
 _BAND_TOL_PX = 3.0
@@ -316,6 +321,11 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
         outer = _outer(_band_pairs(band_d[b].astype(np.float64),
                                    band_i[b].astype(np.float64), min_edge_dn_px, clear,
                                    expected_px, min_sep))
+        if expected_px is None and len(outer) > 1:
+            # no nominal width: the filament is the one pair far wider than any other
+            outer.sort(key=lambda q: q.right - q.left, reverse=True)
+            if outer[0].right - outer[0].left >= _DOMINANCE * (outer[1].right - outer[1].left):
+                outer = outer[:1]
         if len(outer) == 1:
             chosen.append((b, outer[0]))
         elif len(outer) > 1:
