@@ -104,6 +104,7 @@ class RigSpec:
     drift: float = 0.10                   # lighting drift amplitude (fraction)
     blur_px: float = 1.2
     read_noise_dn: float = 1.5
+    shot_noise: bool = True
     seed: int = 1
 
     @property
@@ -349,8 +350,10 @@ class RigCamera:
             face.astype(np.float32)[:, :, None] * metal.astype(np.float32)[None, None, :]) * gc
         img *= (drift * tilt[None, :, None]).astype(np.float32)
         img = cv2.GaussianBlur(img, (0, 0), s.blur_px)
-        noise = self.rng.standard_normal(img.shape, dtype=np.float32)
-        img = img + noise * np.sqrt(s.read_noise_dn ** 2 + np.maximum(img, 0.0) / 6.0)
+        if s.read_noise_dn > 0 or s.shot_noise:
+            noise = self.rng.standard_normal(img.shape, dtype=np.float32)
+            shot = np.maximum(img, 0.0) / 6.0 if s.shot_noise else 0.0
+            img = img + noise * np.sqrt(s.read_noise_dn ** 2 + shot)
         bgr = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         return RigFrame(index, t, bgr, gear_d, fil_d, gear_v, fil_v)
 

@@ -55,6 +55,10 @@ U8 = npt.NDArray[np.uint8]
 _ROTATION_GAIN = 0.5
 #: Largest standard error of the centre, as a fraction of its distance from the tracks.
 _MAX_CENTER_SIGMA = 0.01
+#: Looser limits for the first fit, which only decides whether to refine (LK's bias on
+#: turning patches inflates its residual).
+_COARSE_GAIN = 0.8
+_COARSE_SIGMA = 0.05
 #: Least chord (rms over the correspondences) for a decision, px: below, the gear is still.
 _MIN_CHORD_PX = 2.0
 #: A new keyframe is taken after this many frames, or once the median track moved this
@@ -140,7 +144,9 @@ def _angles(a: F64, b: F64, group: npt.NDArray[np.intp], n_groups: int) -> F64:
 
 def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: int = 0,
                       track: npt.NDArray[np.intp] | None = None,
-                      age: npt.NDArray[np.intp] | None = None) -> AxisEstimate:
+                      age: npt.NDArray[np.intp] | None = None,
+                      gain: float = _ROTATION_GAIN,
+                      max_sigma: float = _MAX_CENTER_SIGMA) -> AxisEstimate:
     """Fit ``p1 = c + R(θ_g)(p0 − c)`` (one centre, one angle per group) and decide.
 
     The fit is repeated without the correspondences whose residual exceeds three robust
@@ -163,6 +169,10 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
     age
         Frames between the two positions of each correspondence, shape ``(N,)``
         (gives ``angle_per_frame_rad``).
+    gain, max_sigma
+        Decision: the rotation model's rms at most ``gain`` times the translation
+        model's, and the centre's standard error at most ``max_sigma`` times its
+        distance from the points.
 
     Returns
     -------
@@ -174,7 +184,7 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
     p1 = np.asarray(p1, dtype=np.float64)
     _, g = np.unique(np.asarray(group), return_inverse=True)
     keep = np.ones(p0.shape[0], dtype=bool)
-    est, res = _fit_once(p0, p1, g, keep, frames, corr)
+    est, res = _fit_once(p0, p1, g, keep, frames, corr, gain, max_sigma)
     for _ in range(_ROBUST_ROUNDS):
         if res is None:
             break
@@ -183,7 +193,7 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
         if int(new.sum()) == int(keep.sum()):
             break
         keep = new
-        est, res = _fit_once(p0, p1, g, keep, frames, corr)
+        est, res = _fit_once(p0, p1, g, keep, frames, corr, gain, max_sigma)
     if age is not None and est.center_px is not None and keep.any():
         c = np.asarray(est.center_px)
         kg = g[keep]
@@ -199,8 +209,8 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
 
 
 def _fit_once(p0_all: F64, p1_all: F64, g_all: npt.NDArray[np.intp],
-              keep: npt.NDArray[np.bool_], frames: int, corr: float
-              ) -> tuple[AxisEstimate, F64 | None]:
+              keep: npt.NDArray[np.bool_], frames: int, corr: float, gain: float,
+              max_sigma: float) -> tuple[AxisEstimate, F64 | None]:
     """One rotation and translation fit on the kept points; residual norms of all."""
     p0, p1 = p0_all[keep], p1_all[keep]
     n = int(p0.shape[0])
@@ -261,11 +271,11 @@ def _fit_once(p0_all: F64, p1_all: F64, g_all: npt.NDArray[np.intp],
     max_angle = float(np.max(np.abs(theta_g)))
     centre = (float(c[0]), float(c[1]))
     res_all = residual(p0_all, p1_all, g_all)
-    if not rms_r <= _ROTATION_GAIN * rms_t:
+    if not rms_r <= gain * rms_t:
         return AxisEstimate(centre, False, c_sigma, rms_r, rms_t, max_angle, n, frames,
                             f"a rotation fits no better than a translation "
                             f"(rms {rms_r:.3f} px against {rms_t:.3f} px)"), res_all
-    if not c_sigma <= _MAX_CENTER_SIGMA * dist:
+    if not c_sigma <= max_sigma * dist:
         return AxisEstimate(centre, False, c_sigma, rms_r, rms_t, max_angle, n, frames,
                             f"the axis is not determined (±{c_sigma:.1f} px at "
                             f"{dist:.0f} px from the tracks)"), res_all
@@ -317,6 +327,10 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
         centre = (centre[0] + float(shift[0]), centre[1] + float(shift[1]))
         if float(np.hypot(*shift)) < 0.05:
             break
+    if not rms <= _ROTATION_GAIN * est.rms_translation_px:
+        return replace(est, center_px=centre, is_rotation=False, rms_rotation_px=rms,
+                       reason=f"a rotation fits no better than a translation (rms {rms:.3f} "
+                       f"px after derotation against {est.rms_translation_px:.3f} px)")
     if not (math.isfinite(sigma) and sigma <= _MAX_CENTER_SIGMA * dist):
         return replace(est, center_px=centre, is_rotation=False, center_sigma_px=sigma,
                        reason=f"the refined axis is not determined (±{sigma:.1f} px at "
@@ -356,6 +370,11 @@ def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
     rows_r: list[F64] = []
     rows_th: list[float] = []
     rows_g: list[npt.NDArray[np.intp]] = []
+    rows_id: list[npt.NDArray[np.intp]] = []
+    rows_seg: list[int] = []
+    n_keys = 0
+    ids = np.zeros(0, np.intp)
+    next_id = 0
     key: U8 | None = None
     pts = np.zeros((0, 2))
     theta = 0.0
@@ -406,6 +425,8 @@ def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
                 rows_r.append(r)
                 rows_th.append(pred)
                 rows_g.append(np.full(int(ok.sum()), len(rows_th) - 1, np.intp))
+                rows_id.append(ids[ok])
+                rows_seg.append(n_keys)
             else:
                 theta = pred            # lost this frame: carry on at the same rate
             age += 1
@@ -414,6 +435,9 @@ def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
         # new keyframe: this frame, its features, angles from here
         key = crop
         pts = detect_features(crop, p, mask=mask)
+        ids = np.arange(next_id, next_id + len(pts), dtype=np.intp)
+        next_id += len(pts)
+        n_keys += 1
         theta, age = 0.0, 0
     if len(rows_th) < 2:
         return None
@@ -445,15 +469,34 @@ def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
     rows = np.repeat(keep, 2)
     res = (y - a_full @ sol)[rows]
     n_keep = int(keep.sum())
-    dof = max(res.size - a_full.shape[1], 1)
+    cols = np.concatenate([[True, True], np.isin(np.arange(n_g), g[keep])])
+    a_kept = a_full[rows][:, cols]
+    dof = max(res.size - a_kept.shape[1], 1)
     sigma2 = float(res @ res) / dof
     try:
-        cov = sigma2 * np.linalg.inv(a_full[rows].T @ a_full[rows])[:2, :2]
+        cov = sigma2 * np.linalg.inv(a_kept.T @ a_kept)[:2, :2]
     except np.linalg.LinAlgError:
         return None
     sigma = float(np.sqrt(np.max(np.linalg.eigvalsh(cov))))
     # one track seen in many frames: correlated errors, count it about once
-    sigma *= math.sqrt(max(n_keep / max(len(np.unique(g[keep])), 1) / 4.0, 1.0))
+    tracks = np.concatenate(rows_id)[keep]
+    sigma *= math.sqrt(max(n_keep / max(len(np.unique(tracks)), 1), 1.0))
+    # errors shared by the frames of one keyframe (compression blocks, a speck) do not
+    # average out: the spread of the solutions without one keyframe's frames at a time
+    # (jackknife) is the honest error when it is larger
+    seg = np.asarray(rows_seg)[g]
+    segs = np.unique(seg[keep])
+    if segs.size >= 3:
+        est_e = []
+        for k in segs:
+            sub = keep & (seg != k)
+            sub_cols = np.concatenate([[True, True], np.isin(np.arange(n_g), g[sub])])
+            sub_rows = np.repeat(sub, 2)
+            est_e.append(np.linalg.lstsq(a_full[sub_rows][:, sub_cols], y[sub_rows],
+                                         rcond=None)[0][:2])
+        spread = np.asarray(est_e) - np.mean(est_e, axis=0)
+        jack = (segs.size - 1) / segs.size * (spread.T @ spread)
+        sigma = max(sigma, float(np.sqrt(np.max(np.linalg.eigvalsh(jack)))))
     rms = float(np.sqrt(np.mean(res ** 2) * 2.0))
     dist = float(np.median(np.hypot(*arm[keep].T)))
     return sol[:2], sigma, rms, n_keep, dist
@@ -528,6 +571,8 @@ def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstim
         prev = crop
     if not p0s:
         return _no_axis("no feature could be followed on the gear", 0, len(images))
+    # a first, loose decision: the refinement (step 4) decides with the strict one
     return fit_rotation_axis(np.concatenate(p0s), np.concatenate(p1s),
                              np.concatenate(groups), frames=len(images),
-                             track=np.concatenate(tracks), age=np.concatenate(ages))
+                             track=np.concatenate(tracks), age=np.concatenate(ages),
+                             gain=_COARSE_GAIN, max_sigma=_COARSE_SIGMA)
