@@ -63,7 +63,7 @@ class Quality(IntFlag):
 
 
 #: Fewest steps with both speeds valid and above their floors for a run's slip.
-MIN_SLIP_STEPS = 3
+MIN_SLIP_STEPS = 2
 
 #: Flags that make the gear speed invalid.
 GEAR_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK | Quality.GEAR_LOW_TEXTURE
