@@ -321,10 +321,11 @@ def test_few_valid_gear_steps_are_a_loud_warning(tmp_path: Path) -> None:
     assert s.gear_valid_frames < 0.5 * (s.frames - 1)
     assert any(w.startswith("gear speed valid in only") for w in s.warnings)
     assert math.isnan(s.slip) and s.slip_note is not None
-    # the same strip with the axis to be estimated from the motion: under MJPG's blocks
-    # its distance is not determined well enough (jackknife over keyframes), so it is
-    # not used — tangential mode again, and the warnings say so — rather than a rotation
-    # about an axis a few px off (which read 2 % slow here)
+    # the same strip with the axis to be estimated from the motion: at the top of the
+    # rim, under MJPG's blocks and over 30 frames, the axis' height is determined to
+    # about ±1 px (0.5 % of its distance; jackknife over keyframes), which could put
+    # ~1 % into ω·R. So it is not used — tangential mode again, and the warnings say
+    # so — rather than a rotation about an axis that may be off (docs/vision.md)
     auto = dataclasses.replace(cfg, gear_method="auto")
     a = measure(path, auto).summary
     assert a.gear_mode == "tangential" and "not determined" in (a.gear_axis_note or "")

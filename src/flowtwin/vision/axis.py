@@ -8,7 +8,7 @@ recording, so a user does not have to find it by hand:
 1. **Tracks.** Shi–Tomasi features of the gear ROI (with the same noise gate as the
    tracker) are followed frame to frame with pyramidal Lucas–Kanade, forward and
    backward, in the ROI padded by the allowed motion, always from their keyframe (so
-   errors do not chain); a new keyframe is taken every :data:`_KEY_FRAMES` frames or
+   errors do not chain); a new keyframe is taken every :data:`KEY_FRAMES` frames or
    :data:`_KEY_CHORD_PX` px of motion. In every frame each live track contributes a
    correspondence ``(p_key, p_now)``; correspondences of the same ``(keyframe, frame)``
    pair form a *group*, which shares one rotation angle.
@@ -29,7 +29,8 @@ recording, so a user does not have to find it by hand:
    refined: every frame is turned back about the present axis by its predicted angle, the
    keyframe's features are matched in it (they now barely move and do not turn), and
    the small residual motions give the axis correction and each frame's angle
-   correction by linear least squares (``_refine_axis``); two or three rounds.
+   correction by linear least squares (:mod:`flowtwin.vision.axis_refine`); two or
+   three rounds.
 """
 
 from __future__ import annotations
@@ -42,6 +43,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.vision.axis_refine import (
+    KEY_FRAMES,
+    MIN_TOL_PX,
+    ROBUST_ROUNDS,
+    refine_axis,
+)
 from flowtwin.vision.config import TrackingParams
 from flowtwin.vision.features import detect_features
 from flowtwin.vision.roi import Roi
@@ -53,29 +60,27 @@ U8 = npt.NDArray[np.uint8]
 
 #: The rotation model must leave at most this fraction of the translation model's rms.
 _ROTATION_GAIN = 0.5
-#: Largest standard error of the centre, as a fraction of its distance from the tracks.
-_MAX_CENTER_SIGMA = 0.01
+#: Largest standard error of the centre, as a fraction of its distance from the tracks:
+#: an axis off by e along the tracks' radius changes the angular speed by e/r, so at two
+#: standard errors the axis adds at most about 1 % to the gear speed.
+_MAX_CENTER_SIGMA = 0.005
 #: Looser limits for the first fit, which only decides whether to refine (LK's bias on
 #: turning patches inflates its residual).
 _COARSE_GAIN = 0.8
 _COARSE_SIGMA = 0.05
 #: Least chord (rms over the correspondences) for a decision, px: below, the gear is still.
 _MIN_CHORD_PX = 2.0
-#: A new keyframe is taken after this many frames, or once the median track moved this
+#: A new keyframe is taken after KEY_FRAMES frames, or once the median track moved this
 #: far (LK matches a patch that turned by a few degrees; farther, its bias grows).
-_KEY_FRAMES = 30
 _KEY_CHORD_PX = 20.0
 #: Iterations of the alternating angle / centre refinement.
 _ITERATIONS = 30
-#: Refinement (step 4): rounds, and the rotation after which a new keyframe is taken, rad.
+#: Refinement (step 4): rounds.
 _REFINE_ROUNDS = 3
-_REFINE_KEY_RAD = 0.15
 #: A refinement step larger than this fraction of the distance to the tracks means the
 #: first axis was not near enough for the linear correction: no axis.
 _MAX_REFINE_SHIFT = 0.03
-#: Rounds of outlier rejection, and the smallest rejection threshold, px.
-_ROBUST_ROUNDS = 4
-_MIN_TOL_PX = 0.15
+
 
 
 @dataclass(frozen=True, slots=True)
@@ -151,7 +156,7 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
 
     The fit is repeated without the correspondences whose residual exceeds three robust
     standard deviations (tracks that slid along a tooth edge or onto the background),
-    at most :data:`_ROBUST_ROUNDS` times; the translation model is judged on the same
+    at most :data:`ROBUST_ROUNDS` times; the translation model is judged on the same
     points.
 
     Parameters
@@ -185,11 +190,11 @@ def fit_rotation_axis(p0: F64, p1: F64, group: npt.NDArray[np.intp], *, frames: 
     _, g = np.unique(np.asarray(group), return_inverse=True)
     keep = np.ones(p0.shape[0], dtype=bool)
     est, res = _fit_once(p0, p1, g, keep, frames, corr, gain, max_sigma)
-    for _ in range(_ROBUST_ROUNDS):
+    for _ in range(ROBUST_ROUNDS):
         if res is None:
             break
         mad = float(np.median(res[keep]))
-        new = keep & (res <= max(3.0 * 1.4826 * mad, _MIN_TOL_PX))
+        new = keep & (res <= max(3.0 * 1.4826 * mad, MIN_TOL_PX))
         if int(new.sum()) == int(keep.sum()):
             break
         keep = new
@@ -313,7 +318,7 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
     centre = est.center_px
     dist = math.nan
     for _ in range(_REFINE_ROUNDS):
-        ref = _refine_axis(images, roi, p, centre, est.angle_per_frame_rad)
+        ref = refine_axis(images, roi, p, centre, est.angle_per_frame_rad)
         if ref is None:
             return replace(est, is_rotation=False,
                            reason=f"the axis found first ({centre[0]:.1f}, {centre[1]:.1f}) "
@@ -340,166 +345,6 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
                    reason=f"rotation about ({centre[0]:.1f}, {centre[1]:.1f}) ± {sigma:.2f} px "
                    f"(rms {rms:.3f} px after derotation; {est.rms_translation_px:.3f} px "
                    "for a translation)")
-
-
-def _refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
-                 centre: tuple[float, float], rate_rad: float
-                 ) -> tuple[F64, float, float, int, float] | None:
-    """Step 4: correction of the axis from tracks on derotated frames.
-
-    Each frame is turned back about the current axis ``c₀`` by its predicted angle ``θ``
-    before Lucas–Kanade matches the keyframe's features in it, so the patches do not
-    turn (no bias of LK's translation model). With the true axis ``c₀ + e`` and the
-    true angle ``θ + δ`` a keyframe point ``p₀`` is found at
-    ``p₀ + (R(−θ) − I)·e + δ·J(p₀ − c₀)`` to first order (``J`` a quarter turn): linear
-    in ``e`` and in one ``δ`` per frame, solved by least squares with outlier rejection.
-
-    Returns ``(e, standard error of the axis, rms residual, points, median distance of
-    the points from the axis)`` or ``None``.
-    """
-    h, w = images[0].shape[:2]
-    x0, y0, x1, y1 = roi.padded(p.pad_px, w, h)
-    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    mask[roi.y - y0:roi.y1 - y0, roi.x - x0:roi.x1 - x0] = 255
-    c = np.array([centre[0] - x0, centre[1] - y0])
-    win = (p.win_px, p.win_px)
-    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 30, 0.01)
-    flags = cv2.OPTFLOW_USE_INITIAL_FLOW
-    half = p.win_px // 2
-    rows_p0: list[F64] = []
-    rows_r: list[F64] = []
-    rows_th: list[float] = []
-    rows_g: list[npt.NDArray[np.intp]] = []
-    rows_id: list[npt.NDArray[np.intp]] = []
-    rows_seg: list[int] = []
-    n_keys = 0
-    ids = np.zeros(0, np.intp)
-    next_id = 0
-    key: U8 | None = None
-    pts = np.zeros((0, 2))
-    theta = 0.0
-    inc = rate_rad if math.isfinite(rate_rad) else 0.0
-    age = 0
-    prev: U8 | None = None
-    for image in images:
-        crop = np.ascontiguousarray(image[y0:y1, x0:x1])
-        if prev is not None and np.array_equal(crop, prev):
-            continue
-        prev = crop
-        if key is not None and len(pts) >= p.min_tracks:
-            pred = theta + inc
-            co, si = math.cos(pred), math.sin(pred)
-            m = np.array([[co, -si, c[0] - co * c[0] + si * c[1]],
-                          [si, co, c[1] - si * c[0] - co * c[1]]])
-            der = cv2.warpAffine(crop, m, (crop.shape[1], crop.shape[0]),
-                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                 borderMode=cv2.BORDER_REPLICATE)
-            a = pts.astype(np.float32)[:, None, :]
-            b, st, _ = cv2.calcOpticalFlowPyrLK(key, der, a, a.copy(), winSize=win,
-                                                maxLevel=2, criteria=crit, flags=flags)
-            back, st2, _ = cv2.calcOpticalFlowPyrLK(der, key, b, a.copy(), winSize=win,
-                                                    maxLevel=2, criteria=crit, flags=flags)
-            q = b[:, 0, :].astype(np.float64)
-            # where the point really is: turn q forward again; a point that did not move
-            # (background seen through the teeth) is not on the gear
-            arm_q = q - c
-            raw = c + np.stack([co * arm_q[:, 0] - si * arm_q[:, 1],
-                                si * arm_q[:, 0] + co * arm_q[:, 1]], 1)
-            chord = np.hypot(*(raw - pts).T)
-            expect = abs(pred) * np.hypot(*(pts - c).T)
-            ok = ((st[:, 0] == 1) & (st2[:, 0] == 1) & (chord >= 0.5 * expect)
-                  & (np.hypot(*(back[:, 0, :].astype(np.float64) - pts).T) < p.fb_max_px)
-                  & (q[:, 0] >= half) & (q[:, 0] < x1 - x0 - half)
-                  & (q[:, 1] >= half) & (q[:, 1] < y1 - y0 - half))
-            if ok.sum() >= p.min_tracks:
-                r = q[ok] - pts[ok]
-                arm = pts[ok] - c
-                jr = np.stack([-arm[:, 1], arm[:, 0]], 1)
-                # quick per-frame angle correction: r ≈ t + δ·J(p₀ − c₀)
-                a_mat = np.column_stack([np.tile(np.eye(2), (len(r), 1)),
-                                         jr.reshape(-1, 1)])
-                sol = np.linalg.lstsq(a_mat, r.reshape(-1), rcond=None)[0]
-                new = pred + float(sol[2])
-                inc, theta = new - theta, new
-                rows_p0.append(pts[ok])
-                rows_r.append(r)
-                rows_th.append(pred)
-                rows_g.append(np.full(int(ok.sum()), len(rows_th) - 1, np.intp))
-                rows_id.append(ids[ok])
-                rows_seg.append(n_keys)
-            else:
-                theta = pred            # lost this frame: carry on at the same rate
-            age += 1
-            if abs(theta) < _REFINE_KEY_RAD and age < _KEY_FRAMES:
-                continue
-        # new keyframe: this frame, its features, angles from here
-        key = crop
-        pts = detect_features(crop, p, mask=mask)
-        ids = np.arange(next_id, next_id + len(pts), dtype=np.intp)
-        next_id += len(pts)
-        n_keys += 1
-        theta, age = 0.0, 0
-    if len(rows_th) < 2:
-        return None
-    p0 = np.concatenate(rows_p0)
-    r = np.concatenate(rows_r)
-    g = np.concatenate(rows_g)
-    th = np.asarray(rows_th)[g]
-    n, n_g = len(p0), len(rows_th)
-    arm = p0 - c
-    # unknowns: e (2), δ per group; rows: x and y residual of each point
-    co, si = np.cos(-th), np.sin(-th)
-    a_full = np.zeros((2 * n, 2 + n_g))
-    a_full[0::2, 0], a_full[0::2, 1] = co - 1.0, -si
-    a_full[1::2, 0], a_full[1::2, 1] = si, co - 1.0
-    a_full[0::2, 2:][np.arange(n), g] = -arm[:, 1]
-    a_full[1::2, 2:][np.arange(n), g] = arm[:, 0]
-    y = r.reshape(-1)
-    keep = np.ones(n, dtype=bool)
-    sol = np.zeros(2 + n_g)
-    for _ in range(_ROBUST_ROUNDS):
-        rows = np.repeat(keep, 2)
-        sol = np.linalg.lstsq(a_full[rows], y[rows], rcond=None)[0]
-        res = np.hypot(*(y - a_full @ sol).reshape(-1, 2).T)
-        mad = float(np.median(res[keep]))
-        new_keep = res <= max(3.0 * 1.4826 * mad, _MIN_TOL_PX)
-        if np.array_equal(new_keep, keep):
-            break
-        keep = new_keep
-    rows = np.repeat(keep, 2)
-    res = (y - a_full @ sol)[rows]
-    n_keep = int(keep.sum())
-    cols = np.concatenate([[True, True], np.isin(np.arange(n_g), g[keep])])
-    a_kept = a_full[rows][:, cols]
-    dof = max(res.size - a_kept.shape[1], 1)
-    sigma2 = float(res @ res) / dof
-    try:
-        cov = sigma2 * np.linalg.inv(a_kept.T @ a_kept)[:2, :2]
-    except np.linalg.LinAlgError:
-        return None
-    sigma = float(np.sqrt(np.max(np.linalg.eigvalsh(cov))))
-    # one track seen in many frames: correlated errors, count it about once
-    tracks = np.concatenate(rows_id)[keep]
-    sigma *= math.sqrt(max(n_keep / max(len(np.unique(tracks)), 1), 1.0))
-    # errors shared by the frames of one keyframe (compression blocks, a speck) do not
-    # average out: the spread of the solutions without one keyframe's frames at a time
-    # (jackknife) is the honest error when it is larger
-    seg = np.asarray(rows_seg)[g]
-    segs = np.unique(seg[keep])
-    if segs.size >= 3:
-        est_e = []
-        for k in segs:
-            sub = keep & (seg != k)
-            sub_cols = np.concatenate([[True, True], np.isin(np.arange(n_g), g[sub])])
-            sub_rows = np.repeat(sub, 2)
-            est_e.append(np.linalg.lstsq(a_full[sub_rows][:, sub_cols], y[sub_rows],
-                                         rcond=None)[0][:2])
-        spread = np.asarray(est_e) - np.mean(est_e, axis=0)
-        jack = (segs.size - 1) / segs.size * (spread.T @ spread)
-        sigma = max(sigma, float(np.sqrt(np.max(np.linalg.eigvalsh(jack)))))
-    rms = float(np.sqrt(np.mean(res ** 2) * 2.0))
-    dist = float(np.median(np.hypot(*arm[keep].T)))
-    return sol[:2], sigma, rms, n_keep, dist
 
 
 def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstimate:
@@ -560,7 +405,7 @@ def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstim
                 tracks.append(ids)
                 ages.append(np.full(len(pts), age, np.intp))
                 n_group += 1
-        if (len(pts) < p.min_tracks or age >= _KEY_FRAMES
+        if (len(pts) < p.min_tracks or age >= KEY_FRAMES
                 or (len(pts) and float(np.median(np.hypot(*(pts - key_pts).T))) > _KEY_CHORD_PX)):
             key = crop
             key_pts = detect_features(crop, p, mask=mask)
