@@ -16,6 +16,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from flowtwin.defaults import DEFAULT_PRINTER
 from flowtwin.errors import DataError, ProfileError
 from flowtwin.firmware import PlannerFamily
 from flowtwin.gcode.moves import MoveKind, MoveTable
@@ -35,8 +36,6 @@ from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
 
-#: Printer used when none is given.
-DEFAULT_PRINTER = "generic-klipper"
 
 
 @dataclass(slots=True)

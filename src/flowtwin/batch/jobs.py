@@ -26,6 +26,7 @@ from typing import Literal
 
 import numpy as np
 
+from flowtwin.batch.options import DEFAULT_ENGINE, ENGINES, Engine
 from flowtwin.batch.params import ParamValue
 from flowtwin.errors import FlowtwinError
 from flowtwin.profiles.machine import Machine
@@ -45,15 +46,6 @@ __all__ = [
     "row_identity",
     "run_job",
 ]
-
-#: Which model computes a row.
-Engine = Literal["plan", "simulate"]
-
-#: Every engine, in the order the CLI lists them.
-ENGINES: tuple[Engine, ...] = ("simulate", "plan")
-
-#: The engine used when none is given.
-DEFAULT_ENGINE: Engine = "simulate"
 
 #: Why a row has no results: ``input`` = the G-code or profile was rejected (a
 #: FlowtwinError, deterministic); ``internal`` = the task raised another exception on every

@@ -50,19 +50,15 @@ from flowtwin.calibration.pattern_base import (
     write_pattern,
 )
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern, pattern_params
-from flowtwin.calibration.strand_fit import StrandCalibration, fit_strand
-from flowtwin.calibration.verify import PatternCheck, SegmentCheck, verify_pattern
-from flowtwin.calibration.viscosity_fit import (
-    ViscosityFit,
-    ViscositySweep,
-    apparent_viscosity_pa_s,
-    fit_viscosity_law,
-    sweep_from_table,
-)
 
-#: The fits that need the dynamics, OpenCV or the test stand load on first use, so that
-#: importing the package (and ``flowtwin --help``) stays fast.
+#: The fits that need the dynamics, scipy, OpenCV or the test stand load on first use, so
+#: that importing the package (and ``flowtwin calibrate --help``) stays fast.
 _LAZY = {
+    "StrandCalibration": "strand_fit", "fit_strand": "strand_fit",
+    "PatternCheck": "verify", "SegmentCheck": "verify", "verify_pattern": "verify",
+    "ViscosityFit": "viscosity_fit", "ViscositySweep": "viscosity_fit",
+    "apparent_viscosity_pa_s": "viscosity_fit", "fit_viscosity_law": "viscosity_fit",
+    "sweep_from_table": "viscosity_fit",
     "fit_k": "kfit", "kline_for_machine": "kfit",
     "KLineImageResult": "kimage", "LineReading": "kimage", "analyse_kline_image": "kimage",
     "LagFit": "lagfit", "WidthProfile": "lagfit", "fit_lag": "lagfit",
@@ -80,6 +76,15 @@ if TYPE_CHECKING:
     from flowtwin.calibration.lagmodel import LagModel, LagParams, TestLine, lag_model
     from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
     from flowtwin.calibration.slipfit import SlipCalibration, fit_slip_records
+    from flowtwin.calibration.strand_fit import StrandCalibration, fit_strand
+    from flowtwin.calibration.verify import PatternCheck, SegmentCheck, verify_pattern
+    from flowtwin.calibration.viscosity_fit import (
+        ViscosityFit,
+        ViscositySweep,
+        apparent_viscosity_pa_s,
+        fit_viscosity_law,
+        sweep_from_table,
+    )
 
 
 def __getattr__(name: str) -> Any:

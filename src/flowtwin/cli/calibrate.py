@@ -30,28 +30,22 @@ from flowtwin.calibration.guide import (
 )
 from flowtwin.calibration.kline import KLineParams
 from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
-from flowtwin.calibration.viscosity_fit import (
-    VISCOSITY_COLUMNS,
-    fit_viscosity_law,
-    sweep_from_table,
-)
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.cli.calibrate_image import from_image_cmd
 from flowtwin.cli.calibrate_pattern import register_patterns
 from flowtwin.errors import CalibrationError
-from flowtwin.profiles.drive import DriveProfile
-from flowtwin.profiles.hotend import HotendProfile
 
 if TYPE_CHECKING:
     from flowtwin.calibration.lagfit import LagFit
+    from flowtwin.profiles.drive import DriveProfile
+    from flowtwin.profiles.hotend import HotendProfile
 
 __all__ = ["register"]
 
 # ------------------------------------------------------------------------ helpers ---
 
 def _load_hotend(name: str) -> HotendProfile:
-    from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles import HotendProfile, load_builtin, load_profile
 
     if Path(name).suffix == ".toml" or os.sep in name:
         return load_profile(name, "hotend")
@@ -61,7 +55,7 @@ def _load_hotend(name: str) -> HotendProfile:
 
 
 def _load_drive(name: str) -> DriveProfile:
-    from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles import DriveProfile, load_builtin, load_profile
 
     if Path(name).suffix == ".toml" or os.sep in name:
         return load_profile(name, "drive")
@@ -90,6 +84,11 @@ def _fit_viscosity_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.viscosity_fit import (
+        VISCOSITY_COLUMNS,
+        fit_viscosity_law,
+        sweep_from_table,
+    )
     from flowtwin.profiles import load_rollers
 
     table = read_table(data, VISCOSITY_COLUMNS, min_rows=3)
@@ -140,6 +139,8 @@ def _fit_strand_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
+
     if model not in ("best", "tractrix", "parabola", "catenary"):
         raise CalibrationError("unknown strand model", field="--model", value=model,
                                allowed="best, tractrix, parabola, catenary")

@@ -22,7 +22,6 @@ from flowtwin.calibration.kline import KLineParams
 from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
 from flowtwin.calibration.tower import TowerParams
-from flowtwin.calibration.verify import verify_pattern
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.firmware import Firmware
 
@@ -186,6 +185,8 @@ def _write(kind: str, params: dict[str, Any], *, output: Path, firmware: str,
         bed_temp_c=bed_temp, fan_percent=fan, accel_mm_s2=accel,
         pa_smooth_time_s=pa_smooth_time, center_xy_mm=(center_x, center_y),
         bed_size_mm=(bed_x, bed_y), retract_mm=retract)
+    from flowtwin.calibration.verify import verify_pattern  # plans: the numerical stack
+
     pattern = generate_pattern(kind, settings, params)
     result = verify_pattern(pattern, printer=printer) if check else None
     write_pattern(output, pattern)

@@ -8,26 +8,15 @@ Thin layer over :func:`flowtwin.compensation.compensate`,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from flowtwin.calibration.adaptive_pa import write_orca_model
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
-from flowtwin.compensation import (
-    AdvanceLaw,
-    AdvanceOptions,
-    CompensationReport,
-    GuardOptions,
-    PaceOptions,
-    RefineOptions,
-    SlipOptions,
-    TrajectoryOptions,
-    adaptive_pa_table,
-    best_pressure_advance,
-    compensate,
-)
-from flowtwin.simulation import DEFAULT_MACHINE
+from flowtwin.defaults import DEFAULT_MACHINE
+
+if TYPE_CHECKING:
+    from flowtwin.compensation import CompensationReport
 
 __all__ = ["register", "render_report"]
 
@@ -145,6 +134,17 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Rewrite a G-code so the printer extrudes what it means (nothing without a flag)."""
+        from flowtwin.compensation import (
+            AdvanceLaw,
+            AdvanceOptions,
+            GuardOptions,
+            PaceOptions,
+            RefineOptions,
+            SlipOptions,
+            TrajectoryOptions,
+            compensate,
+        )
+
         adv = AdvanceOptions(law=AdvanceLaw(law), k_scale=k_scale,
                              refine=RefineOptions() if refine else None,
                              relief=relief and refine) if advance else None
@@ -182,6 +182,9 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
+        from flowtwin.calibration.adaptive_pa import write_orca_model
+        from flowtwin.compensation import adaptive_pa_table, best_pressure_advance
+
         fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
         out: dict[str, object] = {"best": fit.as_dict()}
         table_text = None

@@ -5,24 +5,23 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.live import Live
-from rich.table import Table
 
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
-from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
-from flowtwin.control.connect import open_printer
-from flowtwin.control.controllers import Limits, make_controller
-from flowtwin.control.credentials import DEFAULT_KEY_ENV, load_api_key
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import MeasurementSource, SyntheticSlipSource
-from flowtwin.control.printer import Factors, Printer
-from flowtwin.control.supervisor import LoopSettings, RunSummary, Status, run_control
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.credentials import DEFAULT_KEY_ENV
 from flowtwin.errors import FlowtwinError
 from flowtwin.firmware import Channel, Firmware
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+    from flowtwin.control.clock import Clock
+    from flowtwin.control.measurement import MeasurementSource
+    from flowtwin.control.printer import Factors, Printer
+    from flowtwin.control.supervisor import RunSummary, Status
+    from flowtwin.control.twin import TwinPrinter
 
 __all__ = ["register", "render_summary"]
 
@@ -165,6 +164,16 @@ def register(app: typer.Typer) -> None:
                             ] = False,
     ) -> None:
         """Run the slip control loop: measure, command M220/M221, restore 100 % at the end."""
+        from rich.live import Live
+
+        from flowtwin.control.clock import AcceleratedClock, RealClock, SimClock
+        from flowtwin.control.connect import open_printer
+        from flowtwin.control.controllers import Limits, make_controller
+        from flowtwin.control.credentials import load_api_key
+        from flowtwin.control.log import ControlLog
+        from flowtwin.control.supervisor import LoopSettings, run_control
+        from flowtwin.control.twin import TwinPrinter
+
         _check_sources(synthetic, camera, video, twin_camera)
         if duration is not None and not (math.isfinite(duration) and duration > 0):
             raise FlowtwinError("duration must be positive", field="--duration",
@@ -249,6 +258,8 @@ def register(app: typer.Typer) -> None:
 
 
 def _commanded(last: list[Status], channel: Channel) -> Factors:
+    from flowtwin.control.printer import Factors
+
     pct = last[-1].command_pct if last else 100.0
     if channel is Channel.SPEED:
         return Factors(pct, 100.0, "commanded")
@@ -261,6 +272,9 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
             stops: list[Callable[[], bool]], commanded: Callable[[], Factors]
             ) -> MeasurementSource:
     """The measurement source the options ask for (``stops`` gets its end condition)."""
+    from flowtwin.control.measurement import SyntheticSlipSource
+    from flowtwin.control.twin import TwinPrinter
+
     if synthetic:
         factors = commanded
         if isinstance(conn, TwinPrinter):

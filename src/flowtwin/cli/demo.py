@@ -12,9 +12,7 @@ from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, print_json
 from flowtwin.cli.plan import render_plan
 from flowtwin.cli.simulate import render_simulation, run_simulation
-from flowtwin.gcode.generator import PrintSpec, write_print
-from flowtwin.planning import plan_gcode
-from flowtwin.simulation import DEFAULT_MACHINE
+from flowtwin.defaults import DEFAULT_MACHINE
 
 __all__ = ["register", "run_demo"]
 
@@ -26,10 +24,13 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
     Writes ``demo.gcode``, ``plan.json``, ``summary.json`` and ``report.html``; returns the
     plan and simulation summaries with the written paths.
     """
+    from flowtwin.gcode.generator import PrintSpec, write_print
+    from flowtwin.planning import plan_gcode
+    from flowtwin.profiles import load_machine
+
     out_dir.mkdir(parents=True, exist_ok=True)
     gcode = out_dir / "demo.gcode"
     write_print(gcode, PrintSpec())
-    from flowtwin.profiles import load_machine
 
     plan = plan_gcode(gcode, printer=load_machine(machine).printer)
     plan_summary = plan.summary()
@@ -60,6 +61,7 @@ def register(app: typer.Typer) -> None:
         if json_out:
             print_json(summary)
             return
+        from flowtwin.planning import plan_gcode
         from flowtwin.profiles import load_machine
 
         render_plan(plan_gcode(out / "demo.gcode", printer=load_machine(profile).printer))

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
-from flowtwin.planning import DEFAULT_PRINTER, PlanResult, plan_gcode
+from flowtwin.defaults import DEFAULT_PRINTER
+
+if TYPE_CHECKING:
+    from flowtwin.planning import PlanResult
 
 __all__ = ["register", "render_plan"]
 
@@ -70,6 +73,8 @@ def register(app: typer.Typer) -> None:
                                              help="Show the per-layer table.")] = True,
     ) -> None:
         """Plan a G-code file as Klipper or Marlin would: time, filament, moves, layers."""
+        from flowtwin.planning import plan_gcode
+
         with console.status("reading and planning…", spinner="dots") if not json_out else _null():
             result = plan_gcode(str(gcode), printer=profile, klipper_config=klipper_config,
                                 use_slicer_limits=slicer_limits, strict=strict)

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
+from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.errors import FlowtwinError
-from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
+
+if TYPE_CHECKING:
+    from flowtwin.simulation import SimulationResult
 
 __all__ = ["register", "render_simulation", "run_simulation"]
 
@@ -24,7 +26,10 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
     """Simulate with a progress bar and write the requested outputs."""
     import json
 
+    from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
     from flowtwin.report import write_report
+    from flowtwin.simulation import simulate
 
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                   TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),

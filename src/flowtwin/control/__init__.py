@@ -15,39 +15,44 @@ simulated print-job test [003 §3.3] :mod:`flowtwin.control.printjob`.
 
 from __future__ import annotations
 
-from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
-from flowtwin.control.connect import open_printer
-from flowtwin.control.controllers import (
-    FeedForwardController,
-    GreeffController,
-    Limits,
-    OpenLoopController,
-    PIController,
-    limit_command,
-    make_controller,
-)
-from flowtwin.control.credentials import ApiKey, load_api_key
-from flowtwin.control.extrusion import (
-    ExtruderState,
-    StepFlux,
-    StepParams,
-    step_extrusion,
-    step_params,
-)
-from flowtwin.control.job import PrintJob
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import (
-    Measurement,
-    MeasurementLost,
-    MeasurementSource,
-    SyntheticSlipSource,
-)
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
-from flowtwin.control.printer import CommandRejected, ConnectionLost, Factors, Printer, Response
-from flowtwin.control.supervisor import Fault, FaultKind, LoopSettings, RunSummary, run_control
-from flowtwin.control.twin import TwinPrinter
-from flowtwin.control.twinjob import JobHistory, JobRunner, JobTotals
-from flowtwin.firmware import Channel
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
+    from flowtwin.control.connect import open_printer
+    from flowtwin.control.controllers import (
+        FeedForwardController,
+        GreeffController,
+        Limits,
+        OpenLoopController,
+        PIController,
+        limit_command,
+        make_controller,
+    )
+    from flowtwin.control.credentials import ApiKey, load_api_key
+    from flowtwin.control.extrusion import (
+        ExtruderState,
+        StepFlux,
+        StepParams,
+        step_extrusion,
+        step_params,
+    )
+    from flowtwin.control.job import PrintJob
+    from flowtwin.control.log import ControlLog
+    from flowtwin.control.measurement import (
+        Measurement,
+        MeasurementLost,
+        MeasurementSource,
+        SyntheticSlipSource,
+    )
+    from flowtwin.control.polygon import PolygonSpec, polygon_gcode
+    from flowtwin.control.printer import CommandRejected, ConnectionLost, Factors, Printer, Response
+    from flowtwin.control.supervisor import Fault, FaultKind, LoopSettings, RunSummary, run_control
+    from flowtwin.control.twin import TwinPrinter
+    from flowtwin.control.twinjob import JobHistory, JobRunner, JobTotals
+    from flowtwin.firmware import Channel
 
 __all__ = [
     "AcceleratedClock",
@@ -93,3 +98,49 @@ __all__ = [
     "step_extrusion",
     "step_params",
 ]
+
+# names resolve on first use (importing the package stays light)
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "Channel": "flowtwin.firmware",
+    "AcceleratedClock": "flowtwin.control.clock",
+    "Clock": "flowtwin.control.clock",
+    "RealClock": "flowtwin.control.clock",
+    "SimClock": "flowtwin.control.clock",
+    "open_printer": "flowtwin.control.connect",
+    "FeedForwardController": "flowtwin.control.controllers",
+    "GreeffController": "flowtwin.control.controllers",
+    "Limits": "flowtwin.control.controllers",
+    "OpenLoopController": "flowtwin.control.controllers",
+    "PIController": "flowtwin.control.controllers",
+    "limit_command": "flowtwin.control.controllers",
+    "make_controller": "flowtwin.control.controllers",
+    "ApiKey": "flowtwin.control.credentials",
+    "load_api_key": "flowtwin.control.credentials",
+    "ExtruderState": "flowtwin.control.extrusion",
+    "StepFlux": "flowtwin.control.extrusion",
+    "StepParams": "flowtwin.control.extrusion",
+    "step_extrusion": "flowtwin.control.extrusion",
+    "step_params": "flowtwin.control.extrusion",
+    "PrintJob": "flowtwin.control.job",
+    "ControlLog": "flowtwin.control.log",
+    "Measurement": "flowtwin.control.measurement",
+    "MeasurementLost": "flowtwin.control.measurement",
+    "MeasurementSource": "flowtwin.control.measurement",
+    "SyntheticSlipSource": "flowtwin.control.measurement",
+    "PolygonSpec": "flowtwin.control.polygon",
+    "polygon_gcode": "flowtwin.control.polygon",
+    "CommandRejected": "flowtwin.control.printer",
+    "ConnectionLost": "flowtwin.control.printer",
+    "Factors": "flowtwin.control.printer",
+    "Printer": "flowtwin.control.printer",
+    "Response": "flowtwin.control.printer",
+    "Fault": "flowtwin.control.supervisor",
+    "FaultKind": "flowtwin.control.supervisor",
+    "LoopSettings": "flowtwin.control.supervisor",
+    "RunSummary": "flowtwin.control.supervisor",
+    "run_control": "flowtwin.control.supervisor",
+    "TwinPrinter": "flowtwin.control.twin",
+    "JobHistory": "flowtwin.control.twinjob",
+    "JobRunner": "flowtwin.control.twinjob",
+    "JobTotals": "flowtwin.control.twinjob",
+})

@@ -6,6 +6,7 @@ import os
 from collections.abc import Callable
 from typing import BinaryIO
 
+from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.dynamics import AdvanceSettings, predict, printer_advance
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Firmware
@@ -17,9 +18,6 @@ from flowtwin.simulation.result import SimulationResult, deposition_metrics
 
 __all__ = ["DEFAULT_MACHINE", "simulate"]
 
-#: The set-up used when none is given: SPEC §4's reference (roller #3 at 80 N, E3D V6 0.4,
-#: PLA 4043D 1.75 mm at 215 °C) on Tronvoll's Prusa i3 MK2.5 [001].
-DEFAULT_MACHINE = "tronvoll2019"
 
 Progress = Callable[[str], None]
 
