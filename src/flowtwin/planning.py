@@ -10,18 +10,15 @@ apply from where they appear, as on the printer.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import BinaryIO
 
-import numpy as np
-
 from flowtwin.defaults import DEFAULT_PRINTER
-from flowtwin.errors import DataError, ProfileError
+from flowtwin.errors import ProfileError
 from flowtwin.firmware import PlannerFamily
-from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.gcode.moves import MoveTable
 from flowtwin.gcode.reader import read_gcode
-from flowtwin.planner._totals_kernel import plan_totals
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import (
@@ -31,7 +28,8 @@ from flowtwin.planner.klipper_config import (
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
 from flowtwin.planner.marlin_delta import segment_moves
-from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
+from flowtwin.planner.timeline import Timeline
+from flowtwin.planner.totals import PlanTotals
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
@@ -58,55 +56,31 @@ class PlanResult:
     timeline: Timeline
     printer: str
     settings: KlipperSettings | MarlinSettings
+    _totals: PlanTotals | None = field(default=None, init=False, repr=False, compare=False)
+
+    def totals(self) -> PlanTotals:
+        """Per-tool, per-feature and per-layer sums of the plan (one compiled pass over the
+        moves, computed once)."""
+        if self._totals is None:
+            tot = PlanTotals()
+            tot.add(self.table.moves, self.timeline.phases, self.timeline.dwell_s)
+            self._totals = tot
+        return self._totals
 
     def per_layer(self) -> list[dict[str, float | int]]:
         """One row per layer: index, Z (mm), time (s), filament (mm), moves."""
-        m = self.table.moves
-        times = time_by_layer(self.timeline, self.table)
-        rows: list[dict[str, float | int]] = []
-        layer = m["layer"]
-        written = (m["kind"] & MoveKind.FW_RETRACT) == 0
-        keys, inv, counts = np.unique(layer, return_inverse=True, return_counts=True)
-        fil = np.bincount(inv, weights=np.where(written, m["de"], 0.0), minlength=len(keys))
-        for k, key in enumerate(keys.tolist()):
-            z = (self.table.layer_z[key] if 0 <= key < len(self.table.layer_z)
-                 else float("nan"))
-            if z != z:  # NaN: take the Z of the layer's first extrusion
-                sel = (layer == key) & ((m["kind"] & MoveKind.EXTRUDE) != 0)
-                z = float(m["z"][sel][0]) if np.any(sel) else float("nan")
-            rows.append({"layer": int(key), "z_mm": z, "time_s": times.get(key, 0.0),
-                         "filament_mm": float(fil[k]), "moves": int(counts[k])})
-        return rows
+        return self.totals().per_layer(self.table.layer_z)
 
     def summary(self) -> dict[str, object]:
         """The whole-print figures as plain JSON-able values."""
         t = self.table
-        m = t.moves
-        n = len(m)
-        extruded: dict[str, float] = {}
-        net: dict[str, float] = {}
-        feature_keys: list[int] = []
-        feature_s: list[float] = []
-        ext_written = 0
-        layers = 0
-        if n:
-            p = self.timeline.phases
-            if p.shape[0] != n:
-                raise DataError("timeline and move table have different lengths",
-                                field="phases", value=p.shape[0], allowed=f"{n} rows")
-            (t_lo, t_count, written, ext, f_lo, f_count, f_time, ext_written,
-             max_layer) = plan_totals(m["kind"], m["tool"], m["de"], m["flow"], m["feature"],
-                                      m["layer"], p["accel_t"], p["cruise_t"], p["decel_t"],
-                                      int(MoveKind.EXTRUDE), int(MoveKind.FW_RETRACT))
-            for b in np.flatnonzero(t_count).tolist():
-                net[str(t_lo + b)] = float(written[b])
-                extruded[str(t_lo + b)] = float(ext[b])
-            present = np.flatnonzero(f_count)
-            feature_keys = (present + f_lo).tolist()
-            feature_s = f_time[present].tolist()
-            layers = max_layer + 1
-        by_feature = feature_seconds(t.features, feature_keys, feature_s,
-                                     self.timeline.dwell_s)
+        tot = self.totals()
+        net = {str(k): w for k, (w, _x) in tot.filament_by_tool().items()}
+        extruded = {str(k): x for k, (_w, x) in tot.filament_by_tool().items()}
+        by_feature = tot.time_by_feature(t.features)
+        n = tot.moves
+        ext_written = tot.extruding_written
+        layers = tot.layers
         return {
             "file": t.source,
             "printer": self.printer,
