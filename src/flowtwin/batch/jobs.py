@@ -201,18 +201,28 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
     ------
     FlowtwinError
         The G-code or the machine is rejected by the model.
+
+    Notes
+    -----
+    Files above :data:`flowtwin.plan_stream.STREAM_ABOVE_BYTES` are read, planned and
+    simulated streamed (bounded memory; the same summary keys and figures).
     """
+    from flowtwin.plan_stream import should_stream
+
+    large = isinstance(source, str) and should_stream(source, printer=machine.printer)
     if engine == "plan":
+        from flowtwin.plan_stream import plan_stream
         from flowtwin.planning import plan_gcode
 
-        planned = plan_gcode(source, printer=machine.printer)
+        planned = (plan_stream(source, printer=machine.printer).run() if large
+                   else plan_gcode(source, printer=machine.printer))
         summary = planned.summary()
         return summary, ({**summary, "per_layer": planned.per_layer()} if report else None)
     if engine == "simulate":
-        from flowtwin.simulation import simulate
+        from flowtwin.simulation import simulate, simulate_stream
 
-        simulated = simulate(source, machine=machine)
-        summary = simulated.summary()
+        summary = (simulate_stream(source, machine=machine).aggregates.summary() if large
+                   else simulate(source, machine=machine).summary())
         return summary, (dict(summary) if report else None)
     raise FlowtwinError("unknown engine", field="engine", value=engine,
                         allowed=", ".join(ENGINES))

@@ -13,7 +13,7 @@ from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.errors import FlowtwinError
 
 if TYPE_CHECKING:
-    from flowtwin.simulation import SimulationResult
+    from flowtwin.simulation import SimulationResult, StreamResult
 
 __all__ = ["register", "render_simulation", "run_simulation"]
 
@@ -22,7 +22,8 @@ _STAGES = ["read and plan", "physics", "integrate", "deposit", "report"]
 
 def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
                    out_dir: Path | None, series: Path | None, pressure_advance: bool,
-                   slicer_limits: bool, show_progress: bool) -> SimulationResult:
+                   slicer_limits: bool, show_progress: bool,
+                   series_dt_s: float = 0.01) -> SimulationResult:
     """Simulate with a progress bar and write the requested outputs."""
     import json
 
@@ -42,7 +43,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
 
         result = simulate(gcode, machine=machine, klipper_config=klipper_config,
                           pressure_advance=pressure_advance,
-                          series_dt_s=0.01 if (series or out_dir) else None,
+                          series_dt_s=series_dt_s if (series or out_dir) else None,
                           use_slicer_limits=slicer_limits, progress=stage)
         stage("report")
         if out_dir is not None:
@@ -74,7 +75,18 @@ def _json_default(value: object) -> object:
     return str(value)
 
 
-def render_simulation(result: SimulationResult) -> None:
+def _large(gcode: Path, profile: str, klipper_config: Path | None) -> bool:
+    """Whether the file is large enough to simulate streamed (the plan's rule)."""
+    from flowtwin.plan_stream import is_large, should_stream
+    from flowtwin.profiles.machine import load_machine
+
+    if not is_large(str(gcode)):
+        return False
+    return should_stream(str(gcode), klipper_config=klipper_config,
+                         printer=None if klipper_config else load_machine(profile).printer)
+
+
+def render_simulation(result: SimulationResult | StreamResult) -> None:
     """Print the summary table and the worst moves with rich."""
     s = result.summary()
 
@@ -137,12 +149,23 @@ def register(app: typer.Typer) -> None:
         slicer_limits: Annotated[bool, typer.Option(
             "--slicer-limits", help="Marlin-style firmware: plan with the slicer's machine "
             "limits.")] = False,
-        stream: Annotated[bool, typer.Option(
-            "--stream", help="Bounded memory for multi-GB files: whole-print figures only "
-            "(no report, series or per-move tables).")] = False,
+        series_dt: Annotated[float, typer.Option(
+            "--series-dt", help="Sample interval of --series (and the report's plots), s.")
+        ] = 0.01,
+        stream: Annotated[bool | None, typer.Option(
+            "--stream/--no-stream", help="Bounded memory: whole-print, per-layer and "
+            "per-feature figures and the worst moves, no report or series (default: for "
+            "files over 32 MB without --out, --series, --slicer-limits).")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Predict what a G-code really extrudes: flow, bead width, slip, force, grinding."""
+        if not (series_dt > 0.0 and series_dt < float("inf")):
+            raise FlowtwinError("the series sample interval must be positive",
+                                field="--series-dt", value=series_dt, allowed="> 0 s")
+        asked = stream
+        if stream is None:
+            stream = (out is None and series is None and not slicer_limits
+                      and _large(gcode, profile, klipper_config))
         if stream:
             if out is not None or series is not None:
                 raise FlowtwinError("--stream gives whole-print figures only",
@@ -153,17 +176,17 @@ def register(app: typer.Typer) -> None:
                 streamed = simulate_stream(str(gcode), machine=profile,
                                            klipper_config=klipper_config,
                                            pressure_advance=not no_pa)
-            summary = streamed.summary()
             if json_out:
-                print_json(summary)
+                # chosen by size: the same object as without streaming; asked for: with
+                # the stream's own counts
+                print_json(streamed.summary() if asked else streamed.aggregates.summary())
             else:
-                console.print(table_from_rows("Simulation (streamed)", ["", ""],
-                                              [(k, v) for k, v in summary.items()
-                                               if not isinstance(v, dict | list)]))
+                render_simulation(streamed)
             return
         result = run_simulation(str(gcode), machine=profile, klipper_config=klipper_config,
                                 out_dir=out, series=series, pressure_advance=not no_pa,
-                                slicer_limits=slicer_limits, show_progress=not json_out)
+                                slicer_limits=slicer_limits, show_progress=not json_out,
+                                series_dt_s=series_dt)
         if json_out:
             print_json(result.summary())
             return

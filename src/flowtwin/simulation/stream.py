@@ -1,7 +1,7 @@
 """``simulate_stream``: the whole-print simulation in bounded memory, for multi-GB files.
 
 The file is read chunk by chunk (:func:`~flowtwin.gcode.reader.iter_move_chunks`), planned
-window by window (:class:`~flowtwin.simulation.windows.WindowPlanner`: bit-identical phases,
+window by window (:class:`~flowtwin.planner.windows.WindowPlanner`: bit-identical phases,
 times equal to rounding) and simulated section by section: per-move physics, commanded
 feed with pressure advance, integration and deposition, with the integrator's state
 (column compression, grinding), the extruder position, the nozzle temperature and its set
@@ -59,6 +59,8 @@ from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.planner.marlin import plan_marlin
 from flowtwin.planner.timeline import Timeline
+from flowtwin.planner.totals import PlanTotals
+from flowtwin.planner.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
 from flowtwin.planning import PlanResult
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
@@ -66,7 +68,6 @@ from flowtwin.simulation.aggregate import Aggregates
 from flowtwin.simulation.parameters import move_parameters
 from flowtwin.simulation.pipeline import DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
-from flowtwin.simulation.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
 
 __all__ = ["MAX_SECTION_FACTOR", "SECTION_MOVES", "STREAM_CHUNK_BYTES", "StreamResult",
            "simulate_stream"]
@@ -124,6 +125,11 @@ class StreamResult:
     def per_feature(self) -> list[dict[str, float | int | str]]:
         """Rows of ``SimulationResult.per_feature()``."""
         return self.aggregates.feature_rows()
+
+    def worst_moves(self, by: str = "width", count: int = 10) -> list[dict[str, float | int]]:
+        """Rows of ``SimulationResult.worst_moves()`` (``count`` up to
+        :data:`~flowtwin.simulation.aggregate.WORST_KEPT`)."""
+        return self.aggregates.worst_moves(by, count)
 
 
 @dataclass(slots=True)
@@ -232,6 +238,8 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         raise GcodeError("no moves to simulate", source=name,
                          allowed="G-code with at least one G0/G1/G2/G3 move")
     agg.features = features
+    agg.net_filament_mm = {str(k): w for k, (w, _x) in
+                           sim.plan_totals.filament_by_tool().items()}
     return StreamResult(aggregates=agg, windows=wp.windows, sections=sim.sections,
                         unverified_moves=wp.unverified_moves,
                         cuts_not_at_rest=sim.cuts_not_at_rest, lines=lines)
@@ -283,6 +291,7 @@ class _Simulator:
         self.rest_s = 0.5 * advance.smooth_time_s if advance is not None else 0.0
         self.section_moves = section_moves
         self.spans: list[PlannedSpan] = []
+        self.plan_totals = PlanTotals()
         self.n_buf = 0
         self.sections = 0
         self.cuts_not_at_rest = 0
@@ -395,10 +404,11 @@ class _Simulator:
                         initially_grinding=st.grinding)
         plan = PlanResult(table, tl, self.printer, self.settings)  # type: ignore[arg-type]
         metrics = deposition_metrics(plan, dyn, params)
-        self.agg.add(sec_moves, dyn, metrics, params, first=st.first)
+        self.agg.add(sec_moves, dyn, metrics, params)
+        self.plan_totals.add(sec_moves, sec_phases, tl.dwell_s)
         self.agg.note_warnings(params.warnings)
         self.agg.note_warnings(dyn.warnings)
-        self.agg.add_time(tl.dwell_s, t_next if last else None)
+        self.agg.add_time(t_next if last else None)
         # ---- carry the state
         st.first = False
         st.x_mm = dyn.final_compression_mm
