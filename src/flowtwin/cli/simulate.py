@@ -29,7 +29,6 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from flowtwin.report import write_report
     from flowtwin.simulation import simulate
 
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
@@ -47,6 +46,8 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
                           use_slicer_limits=slicer_limits, progress=stage)
         stage("report")
         if out_dir is not None:
+            from flowtwin.report import write_report  # plotting: only for a report
+
             out_dir.mkdir(parents=True, exist_ok=True)
             write_report(result, out_dir / "report.html")
             body = {"summary": result.summary(), "per_layer": result.per_layer(),

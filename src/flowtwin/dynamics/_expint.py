@@ -209,7 +209,7 @@ def collocation_table(max_stages: int = MAX_STAGES) -> npt.NDArray[np.float64]:
 TABLE = collocation_table()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def stages_for(z: float, min_stages: int) -> int:
     """Fewest stages (``>= min_stages``, ``<= MAX_STAGES``) whose error bound meets
     :data:`STAGE_TOL` at ``z = β·h`` (+ the velocity-law variation)."""
@@ -219,7 +219,7 @@ def stages_for(z: float, min_stages: int) -> int:
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def phi6(z: float) -> tuple[float, float, float, float, float, float]:
     """``(φ_0(-z), ..., φ_5(-z))`` for ``z ≥ 0``."""
     x = -z
@@ -252,31 +252,31 @@ def phi6(z: float) -> tuple[float, float, float, float, float, float]:
     return p0, p1, p2, p3, p4, p5
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def phi_fill(z: float, out: npt.NDArray[np.float64]) -> None:
     """``out[k] = φ_k(-z)`` for ``k = 0..5`` and ``z ≥ 0``."""
     out[0], out[1], out[2], out[3], out[4], out[5] = phi6(z)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def poly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """``c0 + c1 t + c2 t² + c3 t³``."""
     return c0 + t * (c1 + t * (c2 + t * c3))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dpoly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """Derivative of :func:`poly4`."""
     return c1 + t * (2.0 * c2 + t * 3.0 * c3)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ipoly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """``∫_0^t poly4 ds``."""
     return t * (c0 + t * (0.5 * c1 + t * (c2 / 3.0 + t * 0.25 * c3)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def shift4(c0: float, c1: float, c2: float, c3: float, s: float, scale: float
            ) -> tuple[float, float, float, float]:
     """Coefficients of ``scale · poly4(s + τ)`` in ``τ`` (Taylor shift)."""
@@ -284,7 +284,7 @@ def shift4(c0: float, c1: float, c2: float, c3: float, s: float, scale: float
             scale * (c2 + 3.0 * c3 * s), scale * c3)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lag4(x0: float, b0: float, b1: float, b2: float, b3: float, k_s: float, t: float
          ) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ) - x/K`` (module docstring)."""
@@ -298,7 +298,7 @@ def lag4(x0: float, b0: float, b1: float, b2: float, b3: float, k_s: float, t: f
     return xt, ix
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lag_step(x0: float, b: npt.NDArray[np.float64], k_s: float, t: float,
              phi: npt.NDArray[np.float64]) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ) - x/K``; also fills ``phi``."""
@@ -306,7 +306,7 @@ def lag_step(x0: float, b: npt.NDArray[np.float64], k_s: float, t: float,
     return lag4(x0, b[0], b[1], b[2], b[3], k_s, t)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def free4(x0: float, b0: float, b1: float, b2: float, b3: float, t: float
           ) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ)`` (no output, Δl ≤ 0)."""
@@ -315,7 +315,7 @@ def free4(x0: float, b0: float, b1: float, b2: float, b3: float, t: float
     return xt, ix
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def slope_factor(v: float, sa: float, sb: float, sc: float) -> float:
     """Slip gradient ``s'(v) = a + b·exp(-c·v)`` (1/N) [000 Eq. 8]; ``b = 0`` gives Eq. 6."""
     if sb == 0.0:
@@ -323,7 +323,7 @@ def slope_factor(v: float, sa: float, sb: float, sc: float) -> float:
     return sa + sb * math.exp(-sc * v)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def colloc4(x0: float, c0: float, c1: float, c2: float, c3: float, tau0: float, h: float,
             alpha_scale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
             s: int, ws: npt.NDArray[np.float64]) -> tuple[float, float, float]:

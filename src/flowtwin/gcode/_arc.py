@@ -64,7 +64,7 @@ def row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool)
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,  # type: ignore[no-untyped-def]
              cw, has_ij, r_p_ij, r_q_ij, has_r, r_mm, klipper, arc_param, e_acc):
     """Write the chords of one arc into ``out`` from row ``n_out``.

@@ -101,7 +101,7 @@ def _record(other, n_other, lineno, start, eol, n_out, kind):  # type: ignore[no
     return n_other + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _record_numeric(other, vals, n_other, n_vals, lineno, start, eol, n_out, c0, code_num,  # type: ignore[no-untyped-def]
                     mask, val):
     _record(other, n_other, lineno, start, eol, n_out, OTHER_NUMERIC)
@@ -135,7 +135,7 @@ def _line_end(buf, k, size):  # type: ignore[no-untyped-def]
     return k, star
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
     """Whether the number after ``*`` is the XOR of every byte of the line before it."""
     csum, _k, ok = _parse_number(buf, star + 1, eol)
@@ -145,7 +145,7 @@ def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
     return ok and int(csum) == x
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 

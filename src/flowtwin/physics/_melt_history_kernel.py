@@ -24,7 +24,7 @@ from flowtwin.physics.melt import _theta_scalar
 __all__ = ["breakpoints", "mean_temperatures"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def breakpoints(prior_t: npt.NDArray[np.float64], prior_v: npt.NDArray[np.float64],
                 t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
                 v_start: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
@@ -99,7 +99,7 @@ def _temperature(t: float, entry: float, wall: float, inlet_c: float, a: float,
     return wall - (wall - inlet_c) * _theta_scalar(fo)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def mean_temperatures(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
                       v_start: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
                       wall: npt.NDArray[np.float64], bt: npt.NDArray[np.float64],

@@ -157,7 +157,7 @@ def bulk_temperature_fraction(fourier: npt.ArrayLike) -> FloatArray:
     return flat_out.reshape(fo.shape)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _theta_scalar(fo: float) -> float:
     if fo == math.inf:
         return 0.0
@@ -173,7 +173,7 @@ def _theta_scalar(fo: float) -> float:
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _theta_kernel(fo: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
     for i in range(fo.shape[0]):
         out[i] = _theta_scalar(fo[i])

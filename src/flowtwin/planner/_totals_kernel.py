@@ -21,7 +21,7 @@ from flowtwin.gcode.groups import compensated_add
 __all__ = ["accumulate", "key_ranges"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def key_ranges(tool: npt.NDArray[np.int16], feature: npt.NDArray[np.int16],
                layer: npt.NDArray[np.int32]) -> tuple[int, int, int, int, int, int]:
     """``(tool_lo, tool_hi, feature_lo, feature_hi, layer_lo, layer_hi)`` of ``n >= 1``
@@ -42,7 +42,7 @@ def key_ranges(tool: npt.NDArray[np.int16], feature: npt.NDArray[np.int16],
     return t_lo, t_hi, f_lo, f_hi, l_lo, l_hi
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def accumulate(kind: npt.NDArray[np.uint8], tool: npt.NDArray[np.int16],
                de: npt.NDArray[np.float64], flow: npt.NDArray[np.float32],
                feature: npt.NDArray[np.int16], layer: npt.NDArray[np.int32],

@@ -75,7 +75,7 @@ N_TOTALS = 17
 _SUMS = (T_CMD, T_DELIVERED, T_EXT_OUT, T_RMS_W, T_RMS_WEE, T_SLIP_LOSS, T_FED_FWD, T_OOZE)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def extruding_mask(kind: npt.NDArray[np.uint8], cmd: npt.NDArray[np.float64], bits: int,
                    out: npt.NDArray[np.bool_]) -> None:
     """``out[i]`` = move ``i`` lays a bead: all of ``bits`` set in ``kind`` and ``cmd > 0``."""
@@ -83,7 +83,7 @@ def extruding_mask(kind: npt.NDArray[np.uint8], cmd: npt.NDArray[np.float64], bi
         out[i] = (kind[i] & bits) == bits and cmd[i] > 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def print_totals(kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.float64],
                  out: npt.NDArray[np.float64], stop_out: npt.NDArray[np.float64],
                  fed_cmd: npt.NDArray[np.float64], slip_loss: npt.NDArray[np.float64],
@@ -102,7 +102,7 @@ def print_totals(kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.flo
     return fold_totals(s, c)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fold_totals(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64]
                 ) -> npt.NDArray[np.float64]:
     """The totals from running sums ``s`` and their compensation terms ``c``."""
@@ -112,7 +112,7 @@ def fold_totals(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64]
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def add_totals(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64], was_grinding: bool,
                kind: npt.NDArray[np.uint8], bits: int, cmd: npt.NDArray[np.float64],
                out: npt.NDArray[np.float64], stop_out: npt.NDArray[np.float64],
@@ -170,7 +170,7 @@ N_GROUP = 9
 _G_SUMS = (G_TIME, G_CMD, G_DELIV, G_WEE, G_W, G_OOZE)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def add_groups(key: npt.NDArray[np.integer], lo: int, acc: npt.NDArray[np.float64],
                comp: npt.NDArray[np.float64], count: npt.NDArray[np.int64],
                kind: npt.NDArray[np.uint8], bits: int, duration: npt.NDArray[np.float64],
@@ -199,7 +199,7 @@ def add_groups(key: npt.NDArray[np.integer], lo: int, acc: npt.NDArray[np.float6
             acc[g, G_WORST] = max(acc[g, G_WORST], abs(width_mean[i] - width_nominal[i]))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fold_groups(acc: npt.NDArray[np.float64], comp: npt.NDArray[np.float64]
                 ) -> npt.NDArray[np.float64]:
     """The group columns from running sums and their compensation terms."""

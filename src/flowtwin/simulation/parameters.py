@@ -165,7 +165,7 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
     return out, n_thin
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
                  kind: npt.NDArray[np.uint8], extrude: int, n_layers: int
                  ) -> npt.NDArray[np.float64]:
@@ -181,7 +181,7 @@ def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
     return top
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _spread_heights(layer: npt.NDArray[np.int32], kind: npt.NDArray[np.uint8], extrude: int,
                     h_layer: npt.NDArray[np.float64], thin: npt.NDArray[np.bool_],
                     default_mm: float, out: npt.NDArray[np.float64]) -> int:

@@ -33,13 +33,15 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
 
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin._pipeline import read_ahead
 from flowtwin.dynamics import (
     AdvanceSettings,
     CommandedFeed,
@@ -65,7 +67,7 @@ from flowtwin.planning import PlanResult
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.aggregate import Aggregates
-from flowtwin.simulation.parameters import move_parameters
+from flowtwin.simulation.parameters import MoveParameters, move_parameters
 from flowtwin.simulation.pipeline import DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
 
@@ -148,6 +150,18 @@ class _State:
     marlin_adv: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(1))
 
 
+@dataclass(slots=True)
+class _Job:
+    """A section ready to integrate."""
+
+    table: MoveTable
+    timeline: Timeline
+    params: MoveParameters
+    feed: CommandedFeed
+    end_s: float | None
+    warnings: list[str]
+
+
 def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                     machine: Machine | SetupProfile | str | os.PathLike[str] | None = None,
                     klipper_config: str | os.PathLike[str] | None = None,
@@ -226,14 +240,25 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                      section_moves)
     lines = 0
     features: list[str] = []
-    for chunk in iter_move_chunks(source, options=options, chunk_bytes=chunk_bytes):
-        sim.add(wp.feed(chunk))
-        sim.run(final=False, progress=progress)
-        lines = chunk.n_lines or lines
-        features = chunk.features or features
-        agg.note_warnings(chunk.warnings)
-    sim.add(wp.finish())
-    sim.run(final=True, progress=progress)
+
+    def planned() -> Iterator[tuple[list[PlannedSpan], MoveTable | None]]:
+        for chunk in iter_move_chunks(source, options=options, chunk_bytes=chunk_bytes):
+            yield wp.feed(chunk), chunk
+        yield wp.finish(), None
+
+    try:
+        # three threads: read + plan ahead, prepare a section here, integrate on the worker
+        for spans, chunk in read_ahead(planned()):
+            sim.add(spans)
+            sim.run(final=chunk is None, progress=progress)
+            if chunk is not None:
+                lines = chunk.n_lines or lines
+                features = chunk.features or features
+                sim.warnings.extend(chunk.warnings)
+        sim.wait()
+        agg.note_warnings(sim.warnings)
+    finally:
+        sim.close()
     if agg.moves == 0:
         raise GcodeError("no moves to simulate", source=name,
                          allowed="G-code with at least one G0/G1/G2/G3 move")
@@ -292,6 +317,9 @@ class _Simulator:
         self.section_moves = section_moves
         self.spans: list[PlannedSpan] = []
         self.plan_totals = PlanTotals()
+        self.warnings: list[str] = []   # the reader's, handed to the next section
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flowtwin-section")
+        self._pending: Future[None] | None = None
         self.n_buf = 0
         self.sections = 0
         self.cuts_not_at_rest = 0
@@ -312,37 +340,70 @@ class _Simulator:
 
     def run(self, *, final: bool, progress: Callable[[int], None] | None) -> None:
         while self.n_buf and (final or self.n_buf >= 2 * self.section_moves):
-            moves, phases, events, dwells, end_t, base = self._merge()
-            cut = len(moves)
-            if not (final and len(moves) <= MAX_SECTION_FACTOR * self.section_moves):
-                cut = self._cut(moves, phases, final)
+            n = self.n_buf
+            cut = n
+            if not (final and n <= MAX_SECTION_FACTOR * self.section_moves):
+                cut = self._cut(final)
                 if cut <= 0:
                     return  # wait for more moves
-            self._section(moves, phases, events, dwells, end_t, base, cut,
-                          last=final and cut == len(moves))
+            self._section(cut, last=final and cut == n)
             if progress is not None:
                 progress(self.done)
 
-    def _merge(self) -> tuple[npt.NDArray[np.void], npt.NDArray[np.void], list[Event],
-                              list[tuple[int, float, str]], float, int]:
-        if len(self.spans) > 1:
-            s0 = self.spans[0]
-            merged = PlannedSpan(s0.start, np.concatenate([s.moves for s in self.spans]),
-                                 np.concatenate([s.phases for s in self.spans]),
-                                 [e for s in self.spans for e in s.events],
-                                 [d for s in self.spans for d in s.dwells],
-                                 self.spans[-1].end_time_s)
-            self.spans = [merged]
-        s = self.spans[0]
-        return s.moves, s.phases, s.events, s.dwells, s.end_time_s, s.start
+    def _front(self, count: int) -> tuple[npt.NDArray[np.void], npt.NDArray[np.void]]:
+        """The first ``count`` buffered moves and phases: views when they lie in the first
+        span, else one copy of the pieces (each move is copied at most once)."""
+        first = self.spans[0]
+        if count <= len(first.moves):
+            return first.moves[:count], first.phases[:count]
+        moves, phases, left = [], [], count
+        for span in self.spans:
+            take = min(left, len(span.moves))
+            moves.append(span.moves[:take])
+            phases.append(span.phases[:take])
+            left -= take
+            if not left:
+                break
+        return np.concatenate(moves), np.concatenate(phases)
 
-    def _cut(self, moves: npt.NDArray[np.void], phases: npt.NDArray[np.void],
-             final: bool) -> int:
+    def _take(self, count: int, *, last: bool
+              ) -> tuple[list[Event], list[tuple[int, float, str]], float]:
+        """Remove the first ``count`` buffered moves; their events and dwells (all that are
+        left when ``last``) and the start of the move after them (the buffer's end time
+        when none is left)."""
+        events: list[Event] = []
+        dwells: list[tuple[int, float, str]] = []
+        hi = self.spans[0].start + count
+        kept: list[PlannedSpan] = []
+        end_t = self.spans[-1].end_time_s
+        for span in self.spans:
+            end = span.start + len(span.moves)
+            if end <= hi or last:
+                events += span.events
+                dwells += span.dwells
+                continue
+            if span.start < hi:  # split: the rest stays (views)
+                k = hi - span.start
+                events += [ev for ev in span.events if ev.move_index < hi]
+                dwells += [d for d in span.dwells if d[0] < hi]
+                span = PlannedSpan(hi, span.moves[k:], span.phases[k:],
+                                   [ev for ev in span.events if ev.move_index >= hi],
+                                   [d for d in span.dwells if d[0] >= hi], span.end_time_s)
+            kept.append(span)
+        if kept:
+            end_t = float(kept[0].phases["t_start"][0])
+        self.spans = kept
+        self.n_buf -= count
+        return events, dwells, end_t
+
+    def _cut(self, final: bool) -> int:
         """Where to end the next section (0: wait for more)."""
-        n = len(moves)
+        n = self.n_buf
         want = min(self.section_moves, n - 1)
         if not (self.smoothing and self.pa_seen):
             return want if n > want else n
+        # boundaries 1..want look at moves 0..want
+        moves, phases = self._front(want + 1)
         dur = np.asarray(phases["accel_t"] + phases["cruise_t"] + phases["decel_t"],
                          dtype=np.float64)
         ts = np.asarray(phases["t_start"], dtype=np.float64)
@@ -360,12 +421,34 @@ class _Simulator:
             return want
         return 0
 
-    def _section(self, moves: npt.NDArray[np.void], phases: npt.NDArray[np.void],
-                 events: list[Event], dwells: list[tuple[int, float, str]], end_t: float,
-                 base: int, cut: int, *, last: bool) -> None:
+    def _section(self, cut: int, *, last: bool) -> None:
+        """Prepare the next ``cut`` moves here and integrate them on the worker thread, while
+        this thread prepares the section after them."""
+        base = self.spans[0].start
+        moves, phases = self._front(cut)
+        events, dwells, t_next = self._take(cut, last=last)
+        job = self._prepare(moves, phases, events, dwells, t_next, base, last=last)
+        self.wait()
+        self._pending = self._pool.submit(self._finish, job)
+
+    def wait(self) -> None:
+        """Wait for the section on the worker thread (its errors raise here)."""
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            pending.result()
+
+    def close(self) -> None:
+        """Stop the worker thread (after :meth:`wait`)."""
+        self._pool.shutdown(wait=True)
+
+    def _prepare(self, sec_moves: npt.NDArray[np.void], sec_phases: npt.NDArray[np.void],
+                 events: list[Event], dwells: list[tuple[int, float, str]], t_next: float,
+                 base: int, *, last: bool) -> _Job:
+        """Everything of a section up to its commanded feed; carries the state it needs.
+        ``t_next``: the start of the move after the section (the print's end for the
+        last)."""
         st = self.st
-        sec_moves = moves[:cut]
-        sec_phases = phases[:cut]
+        cut = len(sec_moves)
         hi = base + cut
         # settings before the section replayed at its start (temperatures separately)
         replay = [Event(0, ev.line, ev.code, ev.params) for ev in
@@ -382,7 +465,6 @@ class _Simulator:
         layers = sec_moves["layer"]
         top = int(layers.max()) + 1 if cut else 0
         table.layer_z = st.layer_z[:top]
-        t_next = end_t if cut == len(moves) else float(phases["t_start"][cut])
         tl = Timeline(phases=sec_phases,
                       dwell_s=[(d[0] - base, d[1], d[2]) for d in dwells
                                if base <= d[0] < hi or (last and d[0] >= hi)],
@@ -400,20 +482,9 @@ class _Simulator:
             # smoothing pads the feed with rest before and after: only the print's own
             # start and end have it
             feed = _trim(feed, -math.inf if st.first else t_a, math.inf if last else t_b)
-        dyn = integrate(feed, params.params, initial_compression_mm=st.x_mm,
-                        initially_grinding=st.grinding)
-        plan = PlanResult(table, tl, self.printer, self.settings)  # type: ignore[arg-type]
-        metrics = deposition_metrics(plan, dyn, params)
-        self.agg.add(sec_moves, dyn, metrics, params)
-        self.plan_totals.add(sec_moves, sec_phases, tl.dwell_s)
-        self.agg.note_warnings(params.warnings)
-        self.agg.note_warnings(dyn.warnings)
-        self.agg.add_time(t_next if last else None)
-        # ---- carry the state
+        # ---- carry the state of this stage
         st.first = False
-        st.x_mm = dyn.final_compression_mm
         st.melt = params.melt_state
-        st.grinding = dyn.final_grinding
         st.e_mm = feed.e_end_mm()
         sched = temperature_schedule(table, tl, initial_c=st.temp_c,
                                      heater_tau_s=self.m.hotend.heater_time_constant_s or 0.0)
@@ -429,12 +500,26 @@ class _Simulator:
         self.start_xyz = np.array([last_move["x"], last_move["y"], last_move["z"]])
         self.sections += 1
         self.done += cut
-        # keep the rest
-        rest = PlannedSpan(hi, moves[cut:], phases[cut:],
-                           [ev for ev in events if ev.move_index >= hi],
-                           [d for d in dwells if d[0] >= hi], end_t)
-        self.spans = [rest] if len(rest.moves) else []
-        self.n_buf = len(rest.moves)
+        warnings, self.warnings = self.warnings, []
+        return _Job(table, tl, params, feed, t_next if last else None, warnings)
+
+    def _finish(self, job: _Job) -> None:
+        """Integrate a prepared section, deposit it and add it to the aggregates (the
+        worker thread, one section at a time, in order)."""
+        st = self.st
+        dyn = integrate(job.feed, job.params.params, initial_compression_mm=st.x_mm,
+                        initially_grinding=st.grinding)
+        st.x_mm = dyn.final_compression_mm
+        st.grinding = dyn.final_grinding
+        plan = PlanResult(job.table, job.timeline, self.printer, self.settings)  # type: ignore[arg-type]
+        metrics = deposition_metrics(plan, dyn, job.params)
+        moves = job.table.moves
+        self.agg.note_warnings(job.warnings)
+        self.agg.add(moves, dyn, metrics, job.params)
+        self.plan_totals.add(moves, job.timeline.phases, job.timeline.dwell_s)
+        self.agg.note_warnings(job.params.warnings)
+        self.agg.note_warnings(dyn.warnings)
+        self.agg.add_time(job.end_s)
 
     def _layer_z(self, moves: npt.NDArray[np.void]) -> None:
         """Record the highest Z of the extrusions of every layer seen so far."""
