@@ -31,6 +31,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from flowtwin._pipeline import read_ahead
 from flowtwin.errors import DataError
 from flowtwin.firmware import PlannerFamily
 from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveTable
@@ -146,8 +147,9 @@ class PlanStream:
                            window_moves=self._window_moves,
                            lead_moves=min(LEAD_MOVES, self._window_moves // 4))
         early: list[Event] = []   # commands before the first move (a file without moves)
-        for chunk in iter_move_chunks(self._source, options=self._options,
-                                      chunk_bytes=self._chunk_bytes):
+        # the reader runs a chunk ahead on a worker thread (its kernel releases the GIL)
+        for chunk in read_ahead(iter_move_chunks(self._source, options=self._options,
+                                                 chunk_bytes=self._chunk_bytes)):
             self._last = chunk
             if self.totals.moves == 0 and len(chunk) == 0 and wp.windows == 0:
                 early.extend(chunk.events)
