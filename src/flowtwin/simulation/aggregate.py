@@ -13,6 +13,7 @@ to the earlier move, as a stable sort).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,6 +28,10 @@ from flowtwin.simulation.result import _PRINTING_BITS, GroupTotals
 __all__ = ["WORST_KEPT", "Aggregates"]
 
 _MAX_WARNINGS = 200
+#: Warnings that count moves or commands of a section: "N what[ (first: …)]" and
+#: "what ignored Nx: why" (a whole print has one of each, with the summed count).
+_COUNTED = re.compile(r"^(?P<n>\d+) (?P<what>.+?)(?: \(first: .*\))?$", re.S)
+_IGNORED = re.compile(r"^(?P<what>.+ ignored )(?P<n>\d+)x: .*$", re.S)
 #: Worst moves kept for each ranking (``worst_moves(count <= WORST_KEPT)``).
 WORST_KEPT = 20
 
@@ -62,6 +67,7 @@ class Aggregates:
     net_filament_mm: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     _warned: set[str] = field(default_factory=set)
+    _counts: dict[str, tuple[int, str]] = field(default_factory=dict)
     _s: npt.NDArray[np.float64] = field(default_factory=lambda: _new_totals()[0])
     _c: npt.NDArray[np.float64] = field(default_factory=lambda: _new_totals()[1])
     _grinding: bool = False
@@ -72,11 +78,34 @@ class Aggregates:
         default_factory=lambda: {"width": [], "force": []})
 
     def note_warnings(self, items: list[str] | tuple[str, ...]) -> None:
-        """Keep warnings once each (at most 200)."""
+        """Keep warnings once each (at most 200); a counted warning (``"N moves …"``,
+        ``"… ignored Nx: …"``) of every section adds to one warning of the whole print,
+        worded as the whole table words it (its count summed, its first occurrence)."""
         for w in items:
+            counted = _COUNTED.match(w) or _IGNORED.match(w)
+            if counted is not None:
+                key = counted["what"]
+                if key in self._counts:
+                    n, first = self._counts[key]
+                    self._counts[key] = (n + int(counted["n"]), first)
+                    continue
+                self._counts[key] = (int(counted["n"]), w)
+                w = key  # its place in the list; worded when the summary is made
             if w not in self._warned and len(self.warnings) < _MAX_WARNINGS:
                 self._warned.add(w)
                 self.warnings.append(w)
+
+    def warning_texts(self) -> list[str]:
+        """The warnings, counted ones with their whole-print counts."""
+        out = []
+        for w in self.warnings:
+            if w in self._counts:
+                n, first = self._counts[w]
+                counted = _COUNTED.match(first) or _IGNORED.match(first)
+                assert counted is not None
+                w = first[:counted.start("n")] + str(n) + first[counted.end("n"):]
+            out.append(w)
+        return out
 
     def add_time(self, end_s: float | None) -> None:
         """``end_s``: the end of the print (last section)."""
@@ -157,7 +186,7 @@ class Aggregates:
             "narrow_beads": int(t[sk.T_NARROW]),
             "moves_over_flow_limit": self.over_flow_limit,
             "net_filament_mm": dict(self.net_filament_mm),
-            "warnings": list(self.warnings),
+            "warnings": self.warning_texts(),
         }
 
     def rows(self, name: str) -> list[dict[str, float | int]]:
