@@ -13,6 +13,9 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[all,dev]'
+	# compile the plan/simulate kernels into numba's cache now (35-100 s once), not in the
+	# user's first command
+	$(PY) -m flowtwin.warmup
 	touch $(STAMP)
 
 install: $(STAMP)
