@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 __all__ = ["FLOW_OK", "FLOW_VISIBLE", "OOZE_NOTABLE_MM3", "SLIP_NOTABLE", "Advice",
            "FeatureFlow", "GrindingRisk", "Spot", "Verdict", "build_verdict",
-           "result_windowed"]
+           "locate_spots", "result_windowed"]
 
 #: Windowed flow errors within ±5 % are called fine.
 FLOW_OK = 0.05
@@ -237,8 +237,8 @@ class Verdict:
                 continue
             out.append(f"Worst {name}-extrusion over {w} of path: {_pct(spot.error)} "
                        f"({spot.excess_mm3:+.3f} mm³; bead {spot.width_nominal_mm:.2f} → "
-                       f"{spot.width_predicted_mm:.2f} mm) at lines {spot.line_first}–"
-                       f"{spot.line_last} (layer {spot.layer}, {spot.feature or 'no feature'}"
+                       f"{spot.width_predicted_mm:.2f} mm) at {_lines(spot)} "
+                       f"(layer {spot.layer}, {spot.feature or 'no feature'}"
                        f"{', right after a retraction' if spot.after_retraction else ''}).")
         out.append(f"Volume: {_pct(self.volume_error)} over the print; RMS flow error per move "
                    f"{100 * self.rms_flow_error:.1f} %; drive slip {100 * self.mean_slip:.2f} %.")
@@ -316,10 +316,8 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
     d = result.dynamics.moves
     names = tab.features
     ext = _extruding(result)
-    path = path_lengths_mm(np.column_stack([m["x"], m["y"], m["z"]]).astype(np.float64),
-                           np.asarray(tab.start_xyze[:3], dtype=np.float64))
-    spots_over = tuple(_spot(result, w, path) for w in win.worst_over)
-    spots_under = tuple(_spot(result, w, path) for w in win.worst_under)
+    path = _path(result)
+    spots_over, spots_under = locate_spots(result, win, path)
     grinding = _grinding(result, ext, s, path)
     k_lag = _lag_k(result, ext)
     ooze = np.asarray(d["ooze_mm3"], dtype=np.float64)
@@ -363,7 +361,24 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
         lag_k_s=k_lag, fit=fit_dict, advice=advice)
 
 
+def locate_spots(result: SimulationResult, windowed: WindowedFlow,
+                 path_mm: npt.NDArray[np.float64] | None = None
+                 ) -> tuple[tuple[Spot, ...], tuple[Spot, ...]]:
+    """The worst windows of ``windowed`` (figures on ``result``'s moves) located in the
+    G-code: ``(over, under)``, worst first."""
+    path = _path(result) if path_mm is None else path_mm
+    return (tuple(_spot(result, w, path) for w in windowed.worst_over),
+            tuple(_spot(result, w, path) for w in windowed.worst_under))
+
+
 # ---- pieces ---------------------------------------------------------------------------------
+def _path(result: SimulationResult) -> npt.NDArray[np.float64]:
+    m = result.plan.table.moves
+    return path_lengths_mm(np.column_stack([m["x"], m["y"], m["z"]]).astype(np.float64),
+                           np.asarray(result.plan.table.start_xyze[:3], dtype=np.float64))
+
+
+
 def _extruding(result: SimulationResult) -> npt.NDArray[np.bool_]:
     kind = result.plan.table.moves["kind"].astype(np.int64)
     return (((kind & _PRINTING) == _PRINTING) & (result.dynamics.moves["cmd_mm3"] > 0))
@@ -543,6 +558,11 @@ def _advice(result: SimulationResult, g: GrindingRisk, over: Spot | None, under:
     if not out:
         out.append(Advice("Nothing to change."))
     return tuple(out)
+
+
+def _lines(s: Spot) -> str:
+    return (f"line {s.line_first}" if s.line_first == s.line_last else
+            f"lines {s.line_first}–{s.line_last}")
 
 
 def _pct(v: float) -> str:

@@ -71,6 +71,11 @@ class SimulationResult:
     warnings: list[str] = field(default_factory=list)
     nozzle_diameter_mm: float = math.nan
 
+    def _repr_html_(self) -> str:
+        """The report (verdict, toolpath viewer, plots) in a notebook cell."""
+        from flowtwin.report.notebook import simulation_repr
+        return simulation_repr(self)
+
     # ---- aggregates -----------------------------------------------------------------------
     def _extruding(self) -> npt.NDArray[np.bool_]:
         """Moves that lay a bead: extruding XY moves with a commanded volume."""
