@@ -48,7 +48,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
 
         result = simulate(gcode, machine=machine, klipper_config=klipper_config,
                           pressure_advance=pressure_advance,
-                          series_dt_s=0.01 if (series or out_dir) else None,
+                          series_dt_s=0.01 if series else None,
                           use_slicer_limits=slicer_limits, progress=stage)
         advance_fit = None
         if fit and len(result.plan.table) <= FIT_MAX_MOVES and gcode != "-":

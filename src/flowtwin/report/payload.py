@@ -137,11 +137,10 @@ class Variant:
     flow_scale_mm3_s: float
 
 
-def _bucket(t: FloatArray, y: FloatArray, t0: float, dt: float, nb: int, *, hold: bool
+def _bucket(t: FloatArray, y: FloatArray, t0: float, dt: float, nb: int
             ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Min, max and mean of samples ``(t, y)`` (``t`` sorted) per bucket; ``nan`` samples
-    are left out; with ``hold`` (a step signal) an empty bucket holds the last value before
-    it, else it is ``nan`` (a gap)."""
+    are left out; a bucket without samples is ``nan`` (a gap)."""
     b = np.clip(((t - t0) / dt).astype(np.int64), 0, nb - 1)
     lo = np.full(nb, np.nan)
     hi = np.full(nb, np.nan)
@@ -155,16 +154,6 @@ def _bucket(t: FloatArray, y: FloatArray, t0: float, dt: float, nb: int, *, hold
         hi[keys] = np.maximum.reduceat(yy, starts)
         counts = np.diff(np.append(starts, yy.size))
         mean[keys] = np.add.reduceat(yy, starts) / counts
-        if not hold:
-            return lo, hi, mean
-        last = np.full(nb, -1, dtype=np.int64)
-        last[keys] = keys
-        last = np.maximum.accumulate(last)
-        last_val = np.full(nb, np.nan)
-        last_val[keys] = yy[starts + counts - 1]
-        empty = np.isnan(lo) & (last >= 0)
-        for arr in (lo, hi, mean):
-            arr[empty] = last_val[last[empty]]
     return lo, hi, mean
 
 
@@ -194,32 +183,74 @@ def series_track(result: SimulationResult) -> Track:
              "q_out": np.where(hide, np.nan, np.asarray(s["q_out_mm3_s"], dtype=np.float64)),
              "force": np.asarray(s["feed_force_n"], dtype=np.float64),
              "slip": 100.0 * np.asarray(s["slip"], dtype=np.float64)}
-    return Track(0.0, dt, {k: _bucket(t, v, 0.0, dt, nb, hold=False)
-                           for k, v in chans.items()},
+    return Track(0.0, dt, {k: _bucket(t, v, 0.0, dt, nb) for k, v in chans.items()},
                  _retraction_times(result), "series")
 
 
+def _steps(t0: FloatArray, t1: FloatArray, lo_v: FloatArray, hi_v: FloatArray,
+           mean_v: FloatArray, dt: float, nb: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Buckets of a step signal: move ``i`` holds ``mean_v[i]`` (ranging over
+    ``[lo_v[i], hi_v[i]]``) from ``t0[i]`` to ``t1[i]`` (moves in time order, not
+    overlapping; ``nan``: left out). Min and max over the moves touching a bucket; the
+    time-weighted mean over the time the bucket is covered; ``nan`` where nothing is."""
+    ok = np.isfinite(mean_v) & (t1 >= t0)
+    a, b = t0[ok], t1[ok]
+    lo_v, hi_v, mean_v = lo_v[ok], hi_v[ok], mean_v[ok]
+    lo = np.full(nb, np.nan)
+    hi = np.full(nb, np.nan)
+    mean = np.full(nb, np.nan)
+    if a.size == 0:
+        return lo, hi, mean
+    b0 = np.clip((a / dt).astype(np.int64), 0, nb - 1)
+    b1 = np.clip((b / dt).astype(np.int64), b0, nb - 1)
+    counts = b1 - b0 + 1               # buckets each move touches (Σ <= moves + buckets)
+    owner = np.repeat(np.arange(a.size), counts)
+    first = np.cumsum(counts) - counts
+    bucket = b0[owner] + (np.arange(owner.size) - first[owner])
+    order = np.argsort(bucket, kind="stable")
+    bucket, owner = bucket[order], owner[order]
+    starts = np.flatnonzero(np.concatenate(([True], np.diff(bucket) != 0)))
+    keys = bucket[starts]
+    lo[keys] = np.minimum.reduceat(np.fmin(lo_v, mean_v)[owner], starts)
+    hi[keys] = np.maximum.reduceat(np.fmax(hi_v, mean_v)[owner], starts)
+    # overlap of each (move, bucket) pair in time → weighted mean
+    edge0 = bucket * dt
+    overlap = np.minimum(b[owner], edge0 + dt) - np.maximum(a[owner], edge0)
+    w = np.maximum(overlap, 0.0) + 1e-12
+    wsum = np.add.reduceat(w, starts)
+    mean[keys] = np.add.reduceat(w * mean_v[owner], starts) / wsum
+    return lo, hi, mean
+
+
 def moves_track(result: SimulationResult) -> Track:
-    """The time track from per-move means (a simulation without a time series)."""
+    """The time track from per-move figures (no time series needed, any print length).
+
+    Delivered melt: each move's lowest and highest flow and its mean (the integrator's
+    per-move ``q_min``, ``q_max``, ``q_mean``); commanded flow: the firmware's feed of the
+    move (pressure advance included) over its duration; force: each move's peak; slip:
+    each move's slip. Retractions and primes are left out of the flows.
+    """
     d = result.dynamics.moves
     t0 = np.asarray(result.plan.timeline.phases["t_start"], dtype=np.float64)
     dur = np.asarray(d["duration_s"], dtype=np.float64)
     t1 = t0 + dur
     t_end = float(t1.max()) if t1.size else 0.0
     dt, nb = _buckets(t_end)
-    # each move is a step: its value from its start to its end
-    t = np.stack([t0, t1 - 1e-9 * np.maximum(dur, 1e-9)], axis=1).ravel()
-    order = np.argsort(t, kind="stable")
-    hide = _e_only(result)
+    hide = _e_only(result) | (dur <= 0)
+
+    def f(name: str) -> FloatArray:
+        return np.where(hide, np.nan, np.asarray(d[name], dtype=np.float64))
+
     with np.errstate(divide="ignore", invalid="ignore"):
-        chans = {"q_cmd": np.where(hide, np.nan,
-                                   np.where(dur > 0, np.asarray(d["fed_cmd_mm3"]) / dur, 0.0)),
-                 "q_out": np.where(hide, np.nan,
-                                   np.where(dur > 0, np.asarray(d["out_mm3"]) / dur, 0.0)),
-                 "force": np.asarray(d["peak_force_n"], dtype=np.float64),
-                 "slip": 100.0 * np.asarray(d["slip"], dtype=np.float64)}
-    return Track(0.0, dt, {k: _bucket(t[order], np.repeat(v, 2)[order], 0.0, dt, nb, hold=True)
-                           for k, v in chans.items()}, _retraction_times(result), "moves")
+        q_cmd = np.where(hide, np.nan, np.asarray(d["fed_cmd_mm3"], dtype=np.float64) / dur)
+    force = np.where(dur > 0, np.asarray(d["peak_force_n"], dtype=np.float64), np.nan)
+    slip = np.where(dur > 0, 100.0 * np.asarray(d["slip"], dtype=np.float64), np.nan)
+    chans = {"q_cmd": _steps(t0, t1, q_cmd, q_cmd, q_cmd, dt, nb),
+             "q_out": _steps(t0, t1, f("q_min_mm3_s"), f("q_max_mm3_s"), f("q_mean_mm3_s"),
+                             dt, nb),
+             "force": _steps(t0, t1, force, force, force, dt, nb),
+             "slip": _steps(t0, t1, slip, slip, slip, dt, nb)}
+    return Track(0.0, dt, chans, _retraction_times(result), "moves")
 
 
 def _e_only(result: SimulationResult) -> npt.NDArray[np.bool_]:
