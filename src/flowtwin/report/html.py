@@ -309,7 +309,7 @@ def _compare_top(summary: dict[str, object], before: Variant, after: Variant,
 <table><tr><th></th><th>before</th><th>after</th></tr>{body}</table>
 <p class="muted">Both against what the original file means, on the original's moves; the
 viewer's before/after buttons switch the colours on one scale.</p>
-<div class="figures">{''.join(spots)}</div>
+<div class="pair">{''.join(spots)}</div>
 </section>"""
 
 

@@ -68,6 +68,7 @@ FT.App.prototype._controls = function () {
       b.addEventListener("click", function () { self.setVariant(i); });
       vbox.appendChild(b);
     });
+    vbox.firstChild.classList.add("on");
   }
   var slider = document.getElementById("ft-layer"), mode = document.getElementById("ft-mode");
   slider.min = data.nLayers > 0 ? 1 : 0; slider.max = data.nLayers; slider.value = data.nLayers;
