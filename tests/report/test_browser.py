@@ -157,6 +157,7 @@ def test_comparison_report_toggles_before_and_after(open_page: Any, demo_gcode: 
                                                     tmp_path: Path) -> None:
     report = compensate(demo_gcode, tmp_path / "comp.gcode", advance=True)
     out = write_comparison(report, tmp_path / "compare.html")
+    assert report._repr_html_().startswith('<iframe class="flowtwin-report"')
     p = open_page(out)
     page = p.page
     _top_view_layer(page, 5)
