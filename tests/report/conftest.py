@@ -48,7 +48,9 @@ class Page:
     errors: list[str] = field(default_factory=list)
 
     def pixels(self) -> bytes:
-        """PNG screenshot of the toolpath canvas."""
+        """PNG screenshot of the toolpath canvas once its picture is complete."""
+        self.page.wait_for_function("FT.app.viewer.idle && !FT.app.viewer._pending",
+                                    timeout=120_000)
         return bytes(self.page.locator("#ft-canvas").screenshot())
 
 

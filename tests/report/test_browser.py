@@ -49,7 +49,7 @@ def _top_view_layer(page: Any, layer: int) -> None:
     page.select_option("#ft-mode", "single")
     page.locator("#ft-layer").fill(str(layer + 1))
     page.click("#ft-fit")
-    page.wait_for_timeout(300)
+    page.wait_for_function("FT.app.viewer.idle && !FT.app.viewer._pending", timeout=120_000)
 
 
 def _click_move(page: Any, move: int) -> None:
@@ -64,7 +64,7 @@ def _click_move(page: Any, move: int) -> None:
                 (1 - (M[1]*p[0] + M[5]*p[1] + M[9]*p[2] + M[13])) / 2 * h]; }""", move)
     box = page.locator("#ft-canvas").bounding_box()
     page.mouse.click(box["x"] + xy[0], box["y"] + xy[1])
-    page.wait_for_timeout(200)
+    page.wait_for_function("FT.app.viewer.idle && !FT.app.viewer._pending", timeout=120_000)
 
 
 def _longest_printing_move(result: SimulationResult, layer: int) -> int:

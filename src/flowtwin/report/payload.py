@@ -1,13 +1,14 @@
 """The data a report page draws, packed compactly: a JSON header and one deflated blob.
 
 Geometry is stored once per report: every move's end point quantised to 16 bits over the
-print's bounding box (x, y, z; 4.6 µm on a 300 mm bed), its kind, layer, feature and the
-difference of its G-code line to the previous move's. Each *variant* (the prediction; or
-before and after compensation) adds one array per :class:`~.quantities.Quantity` (float16,
-or float32 where a value exceeds float16's range), the start time of each move, a time
-track bucketed to at most :data:`TRACK_BUCKETS` columns (min and max per bucket), and the
-per-layer and per-feature rows. The G-code text itself is included (for the line a click
-shows) up to :data:`GCODE_EMBED_MAX_BYTES`.
+print's bounding box (x, y, z; 4.6 µm on a 300 mm bed), its kind, layer, feature, nominal
+width (10 µm) and the difference of its G-code line to the previous move's. Each *variant*
+(the prediction; or before and after compensation) adds one array per
+:class:`~.quantities.Quantity` (float16 rounded to :data:`VALUE_BITS` mantissa bits, or
+float32 where a value exceeds float16's range), the start time of each move (whole
+milliseconds, as differences), a time track bucketed to at most :data:`TRACK_BUCKETS`
+columns (min, max and mean per bucket), and the per-layer and per-feature rows. The G-code
+text itself is included (for the line a click shows) up to :data:`GCODE_EMBED_MAX_BYTES`.
 
 Multi-byte arrays are stored as byte planes (all first bytes, then all second bytes, …),
 which deflate packs far better than interleaved bytes; the page restores them after the
@@ -31,14 +32,16 @@ from flowtwin.gcode.moves import MoveKind
 from flowtwin.report.quantities import Quantity
 from flowtwin.simulation import SimulationResult
 
-__all__ = ["GCODE_EMBED_MAX_BYTES", "TRACK_BUCKETS", "Blob", "Track", "Variant", "build_payload",
-           "moves_track", "series_track", "to_script_json"]
+__all__ = ["GCODE_EMBED_MAX_BYTES", "TRACK_BUCKETS", "VALUE_BITS", "Blob", "Track", "Variant",
+           "build_payload", "moves_track", "series_track", "to_script_json"]
 
 #: Columns of a time track: enough for a full-width plot and a few zoom steps.
 TRACK_BUCKETS = 20_000
 #: G-code text larger than this (uncompressed) is not embedded: clicks show line numbers.
 GCODE_EMBED_MAX_BYTES = 48 * 1024 * 1024
 _F16_MAX = 60000.0
+#: Mantissa bits kept in the per-move values (relative rounding ≤ 2⁻⁸ ≈ 0.4 %).
+VALUE_BITS = 7
 _PRINTING = int(MoveKind.EXTRUDE | MoveKind.XY)
 
 FloatArray = npt.NDArray[np.float64]
@@ -281,10 +284,18 @@ def flow_scale(result: SimulationResult) -> float:
 
 
 def _values_array(values: FloatArray) -> npt.NDArray[np.generic]:
+    """float16 rounded to :data:`VALUE_BITS` bits of mantissa (float32 beyond float16's
+    range): three significant figures are what a colour and a hover show, and the dropped
+    bits are noise that deflate cannot pack."""
     fin = values[np.isfinite(values)]
     if fin.size and float(np.max(np.abs(fin))) > _F16_MAX:
         return values.astype(np.float32)
-    return values.astype(np.float16)
+    half = values.astype(np.float16)
+    bits = half.view(np.uint16).astype(np.uint32)
+    drop = 10 - VALUE_BITS
+    rounded = ((bits + (1 << (drop - 1))) >> drop << drop).astype(np.uint16)
+    finite = np.isfinite(half) & np.isfinite(rounded.view(np.float16))
+    return np.where(finite, rounded, half.view(np.uint16)).view(np.float16)
 
 
 def _quantise(v: FloatArray, lo: float, hi: float) -> npt.NDArray[np.uint16]:
@@ -343,7 +354,8 @@ def build_payload(geometry: SimulationResult, variants: list[Variant], *,
             qs.append({"key": q.key, "label": q.label, "unit": q.unit, "array": name,
                        "diverging": q.diverging, "reverse": q.reverse,
                        "domain": [_num(dom[0]), _num(dom[1])]})
-        blob.add(f"v{vi}.t", var.t_start_s.astype(np.float32))
+        ms = np.round(np.nan_to_num(var.t_start_s, nan=0.0) * 1000.0).astype(np.int64)
+        blob.add(f"v{vi}.t", np.diff(np.concatenate(([0], ms))).clip(0, None).astype(np.uint32))
         tr = var.track
         chans = {}
         for cname, (clo, chi, cmean) in tr.channels.items():

@@ -132,12 +132,8 @@ def simulation_quantities(result: SimulationResult, windowed: WindowedFlow) -> l
                  np.where(ext, 100.0 * _f(met["flow_error"]), nan), diverging=True),
         Quantity("width", "predicted bead width", "mm", _f(met["width_mean_mm"]),
                  aggregate="mean"),
-        Quantity("width_error", "predicted − nominal width", "mm",
-                 _f(met["width_mean_mm"]) - _f(met["width_nominal_mm"]), diverging=True,
-                 aggregate="mean"),
         Quantity("force_margin", "feed force margin to grinding", "N",
                  np.where(ext, _f(met["force_margin_n"]), nan), reverse=True, aggregate="min"),
-        Quantity("feed_force", "peak feed force", "N", _f(d["peak_force_n"])),
         Quantity("speed", "planned speed", "mm/s", cruise),
         Quantity("flow", "commanded volumetric flow", "mm³/s", flow, aggregate="mean"),
         Quantity("slip", "drive slip", "%", np.where(ext, 100.0 * _f(d["slip"]), nan)),
@@ -237,9 +233,8 @@ def compensated_quantities(original: SimulationResult, compensated: SimulationRe
     with np.errstate(divide="ignore", invalid="ignore"):
         err = np.where(bead, delivered / cmd - 1.0, nan)
         width = np.where(bead & (path > 1e-9), delivered / path / h + _BEAD * h, nan)
-    nominal = _f(original.metrics["width_nominal_mm"])
     direct = {"flow_error_window": 100.0 * windowed_after.centred_error,
-              "flow_error_move": 100.0 * err, "width": width, "width_error": width - nominal}
+              "flow_error_move": 100.0 * err, "width": width}
     after = {q.key: q for q in simulation_quantities(
         compensated, _empty_windowed(len(compensated.plan.table), windowed_after.window_mm))}
     out = []

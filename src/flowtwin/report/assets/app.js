@@ -49,6 +49,17 @@ FT.App.prototype.quantity = function (key, variant) {
   return null;
 };
 
+/* Start time of every move in a variant, s (stored as millisecond differences). */
+FT.App.prototype.times = function (V) {
+  var key = V.t + ":s";
+  if (!(key in this.values)) {
+    var d = this.data.get(V.t), out = new Float64Array(d.length), acc = 0;
+    for (var i = 0; i < d.length; i++) { acc += d[i]; out[i] = acc / 1000; }
+    this.values[key] = out;
+  }
+  return this.values[key];
+};
+
 FT.App.prototype.valuesOf = function (q) {
   if (!(q.array in this.values)) this.values[q.array] = this.data.get(q.array);
   return this.values[q.array];
@@ -158,7 +169,7 @@ FT.App.prototype._hover = function (h) {
   if (!h || h.move < 0) { tip.hidden = true; return; }
   var info = this._describe(h.move), q = this.quantity(this.qkey), v = this.data.at(q.array, h.move);
   tip.textContent = "line " + info.line + " · layer " + info.layer + " · " + info.feature + " · " +
-    q.label + " " + FT.fmt(v, q.unit);
+    q.label + " " + FT.sig(v, q.unit);
   tip.style.left = (h.x + 14) + "px"; tip.style.top = (h.y + 10) + "px";
   tip.hidden = false;
 };
@@ -181,7 +192,7 @@ FT.App.prototype.details = function (m) {
     tr.appendChild(FT.el("td", null, q0.label));
     H.variants.forEach(function (v, vi) {
       var q = self.quantity(q0.key, vi);
-      tr.appendChild(FT.el("td", null, q ? FT.fmt(d.at(q.array, m), q.unit) : "–"));
+      tr.appendChild(FT.el("td", null, q ? FT.sig(d.at(q.array, m), q.unit) : "–"));
     });
     t.appendChild(tr);
   });
@@ -230,7 +241,7 @@ FT.App.prototype._charts = function () {
     var c = T.channels[name];
     return { lo: get(c[0]), hi: get(c[1]), mean: get(c[2]) };
   }
-  var nb = get(T.channels.q_cmd[0]).length, t1 = T.t0 + nb * T.dt, times = get(V.t);
+  var nb = get(T.channels.q_cmd[0]).length, t1 = T.t0 + nb * T.dt, times = this.times(V);
   if (!this.link || this.link.t1 !== t1) {
     var charts = this.link ? this.link.charts : [];
     this.link = FT.TimeLink(T.t0, t1, null);

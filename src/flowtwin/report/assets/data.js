@@ -110,6 +110,13 @@ FT.moveAtTime = function (times, t) {
   return a;
 };
 
+/* A value of the viewer: three significant figures (the precision it is stored with). */
+FT.sig = function (v, unit) {
+  if (v === null || v === undefined || !isFinite(v)) return "–";
+  var s = Math.abs(v) >= 1000 ? v.toFixed(0) : String(+v.toPrecision(3));
+  return unit ? s + " " + unit : s;
+};
+
 FT.fmt = function (v, unit) {
   if (v === null || v === undefined || !isFinite(v)) return "–";
   var a = Math.abs(v), s;

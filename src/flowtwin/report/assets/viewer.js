@@ -36,6 +36,7 @@ FT.Viewer = (function () {
   var FS = ["#version 300 es", "precision mediump float;", "in vec4 v_col; out vec4 o;",
             "void main() { o = v_col; }"].join("\n");
   var LOD_MM = [0.6, 2.5];
+  var INTERACTIVE_MAX = 400000, CHUNK_MIN = 16384, CHUNK_MAX = 1 << 24;
   var NAN = -3.0e38;
 
   function compile(gl, type, src) {
@@ -75,6 +76,7 @@ FT.Viewer = (function () {
     this.center = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2];
     this.az = 0; this.el = 90; this.scale = 1;
     this.lodUsed = 0; this.drawn = 0; this.frameMs = 0;
+    this.chunk = 500000; this.idle = false; this.interactive = false;
     this.listeners = { hover: [], pick: [], view: [] };
     this._events();
     this.resize();
@@ -206,7 +208,11 @@ FT.Viewer = (function () {
     this.redraw();
   };
 
-  Viewer.prototype.setDomain = function (dom) { this.dom = dom; this._levelValues(this.levels[1]); this.redraw(); };
+  Viewer.prototype.setDomain = function (dom) {
+    this.dom = dom;
+    for (var i = 1; i < this.levels.length; i++) this._levelValues(this.levels[i]);
+    this.redraw();
+  };
 
   /* Per-instance values of a level: the move's own, or for a merged run the value farthest
    * from the middle of the colour range ("max"/"min": the largest/smallest). */
@@ -297,31 +303,40 @@ FT.Viewer = (function () {
     return [lev.layerStart[a], lev.layerStart[b + 1]];
   };
 
+  /* Level of detail: the coarsest whose chords stay under 1.5 pixels; while the view is
+   * being moved, coarser still until at most INTERACTIVE_MAX instances are drawn. */
   Viewer.prototype._level = function () {
+    var li = 0;
     for (var i = LOD_MM.length; i >= 1; i--) {
-      if (LOD_MM[i - 1] * this.scale / this.dpr < 1.5) {
-        if (!this.levels[i]) {
-          for (var j = this.levels.length; j <= i; j++) this.levels[j] = this._mergedLevel(LOD_MM[j - 1]);
-        }
-        return i;
+      if (LOD_MM[i - 1] * this.scale / this.dpr < 1.5) { li = i; break; }
+    }
+    if (this.interactive) {
+      while (li < LOD_MM.length) {
+        var lev = this._ensure(li), r = this._range(lev);
+        if (r[1] - r[0] <= INTERACTIVE_MAX) break;
+        li++;
       }
     }
-    return 0;
+    this._ensure(li);
+    return li;
+  };
+
+  Viewer.prototype._ensure = function (li) {
+    for (var j = this.levels.length; j <= li; j++) this.levels[j] = this._mergedLevel(LOD_MM[j - 1]);
+    return this.levels[li];
   };
 
   Viewer.prototype.redraw = function () {
     if (this._pending) return;
     var self = this;
     this._pending = true;
+    this.idle = false;
     window.requestAnimationFrame(function () { self._pending = false; self.draw(); });
   };
 
-  Viewer.prototype.draw = function () {
-    var t0 = performance.now(), gl = this.gl, c = this.canvas, L = this.loc, d = this.data;
+  Viewer.prototype._uniforms = function () {
+    var gl = this.gl, c = this.canvas, L = this.loc, d = this.data;
     gl.viewport(0, 0, c.width, c.height);
-    gl.clearColor(0.13, 0.14, 0.16, 1); gl.clearDepth(1);
-    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    if (!this.values) return;
     gl.useProgram(this.prog);
     gl.enable(gl.DEPTH_TEST); gl.depthFunc(gl.LEQUAL);
     gl.uniform3f(L.u_lo, d.lo[0], d.lo[1], d.lo[2]);
@@ -332,23 +347,68 @@ FT.Viewer = (function () {
     gl.uniform1f(L.u_mmpx, this.scale);
     gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D, this.rampTex);
     gl.uniform1i(L.u_ramp, 0);
+  };
+
+  /* Draw the view. Large ranges are drawn progressively, a chunk of instances per animation
+   * frame (top layers first; the chunk adapts so a frame takes ~40 ms), so the page stays
+   * responsive on slow (software) WebGL; `idle` is true once the picture is complete.
+   * `all`: everything in this call (measurements). */
+  Viewer.prototype.draw = function (all) {
+    var t0 = performance.now(), gl = this.gl;
+    this._job = null;
+    gl.clearColor(0.13, 0.14, 0.16, 1); gl.clearDepth(1);
+    gl.viewport(0, 0, this.canvas.width, this.canvas.height);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    if (!this.values) { this.idle = true; return; }
+    this._uniforms();
     var li = this._level(), lev = this.levels[li], r = this._range(lev);
     this.lodUsed = li; this.drawn = r[1] - r[0];
-    gl.bindVertexArray(lev.vao);
-    if (r[1] > r[0]) {
-      this._pointAttrs(lev, r[0]);
-      gl.uniform1f(L.u_mode, 1); gl.uniform1f(L.u_minw, 0.5 * this.dpr);
-      gl.uniform4f(L.u_flat, 0, 0, 0, 0);
-      gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, r[1] - r[0]);
-      if (this.travels) {
-        gl.uniform1f(L.u_mode, 2); gl.uniform4f(L.u_flat, 0.55, 0.75, 1.0, 1.0);
-        gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, r[1] - r[0]);
-      }
-    }
-    if (this.selected >= 0) this._drawSelected();
-    gl.bindVertexArray(null);
+    this._job = { lev: lev, r0: r[0], r1: r[1], end: r[1], pass: 1, last: t0,
+                  passes: this.travels ? 2 : 1, all: !!all };
+    this._step();
     this.frameMs = performance.now() - t0;
-    this._emit("view", this);
+  };
+
+  Viewer.prototype._step = function () {
+    var job = this._job, gl = this.gl, L = this.loc, self = this;
+    if (!job) return;
+    var budget = job.all ? Infinity : this.chunk, n = 0;
+    gl.bindVertexArray(job.lev.vao);
+    while (n < budget && job.pass <= job.passes) {
+      var a = Math.max(job.r0, job.end - (budget - n));
+      if (job.end > a) {
+        this._pointAttrs(job.lev, a);
+        if (job.pass === 1) {
+          gl.uniform1f(L.u_mode, 1); gl.uniform1f(L.u_minw, 0.5 * this.dpr);
+          gl.uniform4f(L.u_flat, 0, 0, 0, 0);
+        } else {
+          gl.uniform1f(L.u_mode, 2); gl.uniform1f(L.u_minw, 0.5 * this.dpr);
+          gl.uniform4f(L.u_flat, 0.55, 0.75, 1.0, 1.0);
+        }
+        gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, job.end - a);
+        n += job.end - a;
+      }
+      job.end = a;
+      if (job.end <= job.r0) { job.pass++; job.end = job.r1; }
+    }
+    if (job.pass > job.passes) {
+      if (this.selected >= 0) this._drawSelected();
+      gl.bindVertexArray(null);
+      this._job = null;
+      this.idle = true;
+      this._emit("view", this);
+      return;
+    }
+    gl.bindVertexArray(null);
+    window.requestAnimationFrame(function () {
+      if (self._job !== job) return;
+      var now = performance.now(), dt = now - job.last;
+      job.last = now;
+      if (dt > 70) self.chunk = Math.max(CHUNK_MIN, Math.floor(self.chunk / 2));
+      else if (dt < 30) self.chunk = Math.min(CHUNK_MAX, Math.floor(self.chunk * 1.5));
+      self._uniforms();
+      self._step();
+    });
   };
 
   Viewer.prototype._drawSelected = function () {
@@ -415,10 +475,19 @@ FT.Viewer = (function () {
     this.redraw();
   };
 
+  /* The view is being moved: draw coarser until it rests for 250 ms. */
+  Viewer.prototype._touch = function () {
+    var self = this;
+    this.interactive = true;
+    clearTimeout(this._restTimer);
+    this._restTimer = setTimeout(function () { self.interactive = false; self.redraw(); }, 250);
+  };
+
   Viewer.prototype._events = function () {
     var self = this, c = this.canvas, drag = null, moved = false;
     c.addEventListener("wheel", function (ev) {
       ev.preventDefault();
+      self._touch();
       var rect = c.getBoundingClientRect(), f = Math.exp(-ev.deltaY * 0.0015);
       var dx = (ev.clientX - rect.left - rect.width / 2) * self.dpr;
       var dy = -(ev.clientY - rect.top - rect.height / 2) * self.dpr;
@@ -436,6 +505,7 @@ FT.Viewer = (function () {
         var dx = ev.clientX - drag.x, dy = ev.clientY - drag.y;
         if (Math.abs(dx) + Math.abs(dy) > 2) moved = true;
         drag.x = ev.clientX; drag.y = ev.clientY;
+        if (moved) self._touch();
         if (drag.rotate) {
           self.az -= dx * 0.4; self.el = Math.max(5, Math.min(90, self.el + dy * 0.4));
         } else {
