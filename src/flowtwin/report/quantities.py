@@ -29,6 +29,9 @@ __all__ = ["Quantity", "compensated_quantities", "simulation_quantities"]
 
 FloatArray = npt.NDArray[np.float64]
 _BEAD = 1.0 - math.pi / 4.0
+#: Colour range of the flow errors, %: white is exact, full colour ±25 % (beyond the
+#: verdict's "visible" 15 %), the same on every print.
+_FLOW_RANGE = (-25.0, 25.0)
 _PRINTING = int(MoveKind.EXTRUDE | MoveKind.XY)
 
 #: Per-move fields shown under another name, or not worth a colour of their own.
@@ -63,6 +66,8 @@ class Quantity:
         Low values are the bad ones (e.g. a force margin).
     aggregate
         How pieces of a compensated move combine: ``"max"``, ``"min"`` or ``"mean"``.
+    fixed_domain
+        A colour range that means the same on every print (``None``: from the values).
     """
 
     key: str
@@ -72,11 +77,14 @@ class Quantity:
     diverging: bool = False
     reverse: bool = False
     aggregate: str = "max"
+    fixed_domain: tuple[float, float] | None = None
 
     def domain(self) -> tuple[float, float]:
-        """Default colour range: robust (0.5–99.5 %) extremes; when diverging, symmetric
-        about 0 up to the 95th percentile of ``|value|`` (so ordinary errors keep their
-        colour next to a few extreme ones, which saturate)."""
+        """Default colour range: :attr:`fixed_domain`, else robust (0.5–99.5 %) extremes;
+        when diverging, symmetric about 0 up to the 95th percentile of ``|value|`` (so
+        ordinary values keep their colour next to a few extreme ones, which saturate)."""
+        if self.fixed_domain is not None:
+            return self.fixed_domain
         v = self.values[np.isfinite(self.values)]
         if v.size == 0:
             return (0.0, 1.0)
@@ -127,9 +135,10 @@ def simulation_quantities(result: SimulationResult, windowed: WindowedFlow) -> l
         flow = np.where(ext & (dur > 0), _f(d["cmd_mm3"]) / dur, np.nan)
     out = [
         Quantity("flow_error_window", f"flow error over {w:g} mm of path", "%",
-                 100.0 * windowed.centred_error, diverging=True),
+                 100.0 * windowed.centred_error, diverging=True, fixed_domain=_FLOW_RANGE),
         Quantity("flow_error_move", "flow error per move", "%",
-                 np.where(ext, 100.0 * _f(met["flow_error"]), nan), diverging=True),
+                 np.where(ext, 100.0 * _f(met["flow_error"]), nan), diverging=True,
+                 fixed_domain=_FLOW_RANGE),
         Quantity("width", "predicted bead width", "mm", _f(met["width_mean_mm"]),
                  aggregate="mean"),
         Quantity("force_margin", "feed force margin to grinding", "N",
@@ -247,7 +256,7 @@ def compensated_quantities(original: SimulationResult, compensated: SimulationRe
         else:
             values = nan.copy()
         out.append(Quantity(key, ref.label, ref.unit, values, ref.diverging, ref.reverse,
-                            ref.aggregate))
+                            ref.aggregate, ref.fixed_domain))
     return out
 
 

@@ -153,7 +153,7 @@ FT.App.prototype._legend = function () {
   var d = this.dom;
   FT.niceTicks(d[0], d[1], 6).forEach(function (t) {
     var x = 10 + (t - d[0]) / (d[1] - d[0]) * (W - 20);
-    g.fillRect(x, 16, 1, 4); g.fillText(FT.fmt(t), x, 21);
+    g.fillRect(x, 16, 1, 4); g.fillText(FT.tick(t), x, 21);
   });
   document.getElementById("ft-legend-label").textContent = q.label + (q.unit ? " (" + q.unit + ")" : "") +
     (q.diverging ? " — blue: less than meant, red: more" : "") + "; grey: no value";

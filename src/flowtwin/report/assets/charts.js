@@ -17,6 +17,9 @@ FT.niceTicks = function (lo, hi, count) {
   return out;
 };
 
+/* An axis tick: no trailing zeros. */
+FT.tick = function (v) { return String(+v.toPrecision(6)); };
+
 FT.fmtTime = function (s) {
   if (!isFinite(s)) return "–";
   var h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
@@ -62,7 +65,7 @@ FT.TimeChart = (function () {
     for (var i = 0; i < yt.length; i++) {
       var yy = Math.round(Y(yt[i])) + 0.5;
       g.beginPath(); g.moveTo(PAD.l, yy); g.lineTo(PAD.l + w, yy); g.stroke();
-      g.fillText(FT.fmt(yt[i]), PAD.l - 4, yy);
+      g.fillText(FT.tick(yt[i]), PAD.l - 4, yy);
     }
     var xt = FT.niceTicks(L.a, L.b, Math.max(2, Math.floor(w / 90)));
     g.textAlign = "center"; g.textBaseline = "top";
@@ -250,7 +253,7 @@ FT.BarChart = function (canvas, opts) {
   FT.niceTicks(lo, hi, 4).forEach(function (t) {
     var y = Math.round(Y(t)) + 0.5;
     g.beginPath(); g.moveTo(PAD.l, y); g.lineTo(PAD.l + w, y); g.stroke();
-    g.fillText(FT.fmt(t), PAD.l - 4, y);
+    g.fillText(FT.tick(t), PAD.l - 4, y);
   });
   var bw = w / Math.max(n, 1);
   function bar(v, color) {

@@ -36,7 +36,7 @@ FT.Viewer = (function () {
   var FS = ["#version 300 es", "precision mediump float;", "in vec4 v_col; out vec4 o;",
             "void main() { o = v_col; }"].join("\n");
   var LOD_MM = [0.6, 2.5];
-  var INTERACTIVE_MAX = 400000, CHUNK_MIN = 16384, CHUNK_MAX = 1 << 24;
+  var INTERACTIVE_MAX = 400000, CHUNK_MIN = 8192, CHUNK_MAX = 1 << 24;
   var NAN = -3.0e38;
 
   function compile(gl, type, src) {
@@ -76,7 +76,7 @@ FT.Viewer = (function () {
     this.center = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2];
     this.az = 0; this.el = 90; this.scale = 1;
     this.lodUsed = 0; this.drawn = 0; this.frameMs = 0;
-    this.chunk = 500000; this.idle = false; this.interactive = false;
+    this.chunk = 100000; this.idle = false; this.interactive = false;
     this.listeners = { hover: [], pick: [], view: [] };
     this._events();
     this.resize();
