@@ -12,7 +12,8 @@ from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeEl
 from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.errors import FlowtwinError
-from flowtwin.report.verdict import Spot, Verdict, build_verdict
+from flowtwin.report.spots import Spot
+from flowtwin.report.verdict import Verdict, build_verdict
 from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
 
 __all__ = ["FIT_MAX_MOVES", "register", "render_simulation", "run_simulation"]

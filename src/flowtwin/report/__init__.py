@@ -18,7 +18,8 @@ from flowtwin.report.html import (
     write_comparison,
     write_report,
 )
-from flowtwin.report.verdict import Verdict, build_verdict, result_windowed
+from flowtwin.report.spots import result_windowed
+from flowtwin.report.verdict import Verdict, build_verdict
 
 __all__ = ["Verdict", "build_verdict", "comparison_html", "report_html", "result_windowed",
            "source_text", "write_comparison", "write_report"]

@@ -27,8 +27,9 @@ from flowtwin.atomic import atomic_write_text
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.source import open_source
 from flowtwin.report.payload import Variant, build_payload
+from flowtwin.report.spots import Spot, locate_spots, result_windowed
 from flowtwin.report.variants import comparison_variants, prediction_variant
-from flowtwin.report.verdict import Spot, Verdict, build_verdict, locate_spots, result_windowed
+from flowtwin.report.verdict import Verdict, build_verdict
 from flowtwin.simulation import SimulationResult
 
 if TYPE_CHECKING:

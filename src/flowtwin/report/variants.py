@@ -23,7 +23,7 @@ from flowtwin.report.payload import (
     series_track,
 )
 from flowtwin.report.quantities import Quantity, compensated_quantities, simulation_quantities
-from flowtwin.report.verdict import Spot, locate_spots, result_windowed
+from flowtwin.report.spots import Spot, locate_spots, result_windowed
 from flowtwin.simulation import SimulationResult
 from flowtwin.simulation.windowed import WindowedFlow
 

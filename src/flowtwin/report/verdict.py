@@ -10,8 +10,8 @@ the ``flowtwin compensate`` flags. The HTML report, ``flowtwin simulate`` and an
 command print the same object.
 
 The words follow thresholds of this module (:data:`FLOW_OK`, :data:`FLOW_VISIBLE`,
-:data:`SLIP_NOTABLE`, :data:`OOZE_NOTABLE_MM3`); they are reporting conventions, not
-physics, and are stated in ``docs/report.md``. The grinding safety share is the grinding
+:data:`SLIP_NOTABLE`); they are reporting conventions, not physics, and are stated in
+``docs/report.md``. Where the windows are is :mod:`flowtwin.report.spots`. The grinding safety share is the grinding
 guard's (:class:`flowtwin.compensation.GuardOptions`), so the advice and the guard agree.
 """
 
@@ -25,17 +25,16 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation.guard import GuardOptions
-from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
+from flowtwin.report.spots import Spot, locate_spots, move_paths_mm, result_windowed
 from flowtwin.simulation import SimulationResult
-from flowtwin.simulation.windowed import Window, WindowedFlow, path_lengths_mm, windowed_flow
+from flowtwin.simulation.windowed import WindowedFlow
 
 if TYPE_CHECKING:
     from flowtwin.compensation.settings import AdvanceFit
 
-__all__ = ["FLOW_OK", "FLOW_VISIBLE", "OOZE_NOTABLE_MM3", "SLIP_NOTABLE", "Advice",
-           "FeatureFlow", "GrindingRisk", "Spot", "Verdict", "build_verdict",
-           "locate_spots", "result_windowed"]
+__all__ = ["FLOW_OK", "FLOW_VISIBLE", "SLIP_NOTABLE", "Advice", "FeatureFlow", "GrindingRisk",
+           "Spot", "Verdict", "build_verdict"]
 
 #: Windowed flow errors within ±5 % are called fine.
 FLOW_OK = 0.05
@@ -43,46 +42,8 @@ FLOW_OK = 0.05
 FLOW_VISIBLE = 0.15
 #: Mean drive slip above 1 % is worth feeding forward (``compensate --slip``).
 SLIP_NOTABLE = 0.01
-#: Ooze above 1 mm³ over the print is mentioned with its worst place.
-OOZE_NOTABLE_MM3 = 1.0
 _BEAD = 1.0 - math.pi / 4.0
 _PRINTING = int(MoveKind.EXTRUDE | MoveKind.XY)
-
-
-@dataclass(frozen=True, slots=True)
-class Spot:
-    """One window of one nozzle diameter of path, located in the G-code.
-
-    Attributes
-    ----------
-    error
-        Flow error over the window, delivered / commanded − 1 (fraction).
-    excess_mm3
-        Delivered − commanded melt over the window, mm³.
-    length_mm
-        Path length of the window, mm.
-    line, line_first, line_last
-        G-code line of the move at the window's middle, of its first and its last move.
-    layer, z_mm, feature
-        Where it is.
-    width_nominal_mm, width_predicted_mm
-        Bead width the G-code means and the twin predicts over the window, mm.
-    after_retraction
-        The window starts a printed stretch that follows a retraction (a seam or a restart).
-    """
-
-    error: float
-    excess_mm3: float
-    length_mm: float
-    line: int
-    line_first: int
-    line_last: int
-    layer: int
-    z_mm: float
-    feature: str
-    width_nominal_mm: float
-    width_predicted_mm: float
-    after_retraction: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -248,49 +209,6 @@ class Verdict:
         return out
 
 
-def result_windowed(result: SimulationResult, *, delivered_mm3: npt.ArrayLike | None = None,
-                    window_mm: float | None = None, spots: int = 10) -> WindowedFlow:
-    """Windowed flow error of a simulation over one nozzle diameter of path.
-
-    The moves scored are the twin's (extruding, with XY motion, a commanded volume and a
-    bead), as :func:`flowtwin.compensation.metrics.flow_figures` scores them.
-
-    Parameters
-    ----------
-    result
-        The simulation.
-    delivered_mm3
-        Delivered melt per move of ``result`` (default: the simulation's own); a
-        compensated file's delivery mapped onto the original moves gives its figures
-        against the original intent. Shape ``(n_moves,)``.
-    window_mm
-        Window length, mm (default: the nozzle diameter of the simulated machine).
-    spots
-        Worst separate windows to locate each way.
-    """
-    tab = result.plan.table
-    m = tab.moves
-    xyz = np.column_stack([m["x"], m["y"], m["z"]]).astype(np.float64)
-    path = path_lengths_mm(xyz, np.asarray(tab.start_xyze[:3], dtype=np.float64))
-    cmd = np.asarray(result.dynamics.moves["cmd_mm3"], dtype=np.float64)
-    dlv = (np.asarray(result.dynamics.moves["out_mm3"], dtype=np.float64)
-           if delivered_mm3 is None else np.asarray(delivered_mm3, dtype=np.float64))
-    kind = m["kind"].astype(np.int64)
-    printed = (((kind & _PRINTING) == _PRINTING) & (cmd > 0)
-               & np.isfinite(result.metrics["width_nominal_mm"]) & (path > 0))
-    w = float(window_mm if window_mm is not None else result.nozzle_diameter_mm)
-    if not math.isfinite(w):
-        meta = tab.metadata.get("nozzle_diameter_mm", tab.metadata.get("nozzle_diameter"))
-        try:
-            w = float(str(meta).split(",")[0])
-        except ValueError:
-            raise DataError("the nozzle diameter of this simulation is unknown",
-                            field="nozzle_diameter_mm", value=meta,
-                            allowed="a result of flowtwin.simulation.simulate, or window_mm"
-                            ) from None
-    return windowed_flow(path, cmd, dlv, printed, window_mm=w, spots=spots)
-
-
 def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
                   windowed: WindowedFlow | None = None) -> Verdict:
     """The verdict of ``result`` (see the module docstring).
@@ -316,7 +234,7 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
     d = result.dynamics.moves
     names = tab.features
     ext = _extruding(result)
-    path = _path(result)
+    path = move_paths_mm(result)
     spots_over, spots_under = locate_spots(result, win, path)
     grinding = _grinding(result, ext, s, path)
     k_lag = _lag_k(result, ext)
@@ -361,24 +279,7 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
         lag_k_s=k_lag, fit=fit_dict, advice=advice)
 
 
-def locate_spots(result: SimulationResult, windowed: WindowedFlow,
-                 path_mm: npt.NDArray[np.float64] | None = None
-                 ) -> tuple[tuple[Spot, ...], tuple[Spot, ...]]:
-    """The worst windows of ``windowed`` (figures on ``result``'s moves) located in the
-    G-code: ``(over, under)``, worst first."""
-    path = _path(result) if path_mm is None else path_mm
-    return (tuple(_spot(result, w, path) for w in windowed.worst_over),
-            tuple(_spot(result, w, path) for w in windowed.worst_under))
-
-
 # ---- pieces ---------------------------------------------------------------------------------
-def _path(result: SimulationResult) -> npt.NDArray[np.float64]:
-    m = result.plan.table.moves
-    return path_lengths_mm(np.column_stack([m["x"], m["y"], m["z"]]).astype(np.float64),
-                           np.asarray(result.plan.table.start_xyze[:3], dtype=np.float64))
-
-
-
 def _extruding(result: SimulationResult) -> npt.NDArray[np.bool_]:
     kind = result.plan.table.moves["kind"].astype(np.int64)
     return (((kind & _PRINTING) == _PRINTING) & (result.dynamics.moves["cmd_mm3"] > 0))
@@ -391,51 +292,6 @@ def _name(names: list[str], k: int) -> str:
 def _nanext(fn: object, a: npt.NDArray[np.float64]) -> float:
     fin = a[np.isfinite(a)]
     return float(fn(fin)) if fin.size else math.nan  # type: ignore[operator]
-
-
-def _spot(result: SimulationResult, w: Window, path: npt.NDArray[np.float64]) -> Spot:
-    tab = result.plan.table
-    m = tab.moves
-    c = w.centre_move
-    h = float(result.parameters.layer_height_mm[c])
-    length = max(w.length_mm, 1e-12)
-
-    def width(volume: float) -> float:
-        return volume / length / h + _BEAD * h if h > 0 else math.nan
-
-    layer = int(m["layer"][c])
-    z = float(m["z"][c])
-    after = _after_retraction(m["kind"].astype(np.int64), path, w.first_move)
-    return Spot(error=w.error, excess_mm3=w.delivered_mm3 - w.commanded_mm3,
-                length_mm=w.length_mm, line=int(m["line"][c]),
-                line_first=int(m["line"][w.first_move]), line_last=int(m["line"][w.last_move]),
-                layer=layer, z_mm=z, feature=_name(tab.features, int(m["feature"][c])),
-                width_nominal_mm=width(w.commanded_mm3),
-                width_predicted_mm=width(w.delivered_mm3), after_retraction=after)
-
-
-#: A window this close (path, mm) to the start of a stretch that follows a retraction is
-#: called "right after a retraction".
-_RESTART_MM = 2.0
-
-
-def _after_retraction(kind: npt.NDArray[np.int64], path: npt.NDArray[np.float64],
-                      move: int) -> bool:
-    """``move`` lies within :data:`_RESTART_MM` of path after the start of a printed stretch
-    that a retraction (negative E, among the 50 moves before it) precedes."""
-    k = move - 1
-    walked = 0.0
-    while k >= 0 and (kind[k] & _PRINTING) == _PRINTING:
-        walked += float(path[k])
-        if walked > _RESTART_MM:
-            return False
-        k -= 1
-    stop = k - 50
-    while k >= 0 and k > stop and (kind[k] & _PRINTING) != _PRINTING:
-        if kind[k] & int(MoveKind.RETRACT):
-            return True
-        k -= 1
-    return False
 
 
 def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str, object],
