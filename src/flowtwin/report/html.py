@@ -93,7 +93,8 @@ def _spot_table(spots: Sequence[Spot], caption: str) -> str:
     return f"<h3>{_e(caption)}</h3><table>{head}{''.join(rows)}</table>"
 
 
-def _verdict_html(v: Verdict) -> str:
+def _verdict_html(v: Verdict) -> tuple[str, str]:
+    """The verdict card, and the tables of the worst windows (shown under the viewer)."""
     g = v.grinding
     level = {"safe": "level-safe", "at risk": "level-risk", "grinds": "level-bad"}[g.level]
     worst = max((abs(s.error) for s in (v.over, v.under) if s is not None), default=0.0)
@@ -127,7 +128,7 @@ def _verdict_html(v: Verdict) -> str:
 <div class="figures">{''.join(figs)}</div>
 <h3>What to do</h3><ol class="advice">{advice}</ol>
 <details><summary>In words</summary><ul class="sentences">{sentences}</ul></details>
-</section>
+</section>""", f"""
 <h2>Where: the worst {v.window_mm:g} mm of path</h2>
 <p class="muted">Flow error over windows of one nozzle diameter ({v.window_mm:g} mm) of
 continuously printed path: delivered / commanded − 1. Click a line to see it in the viewer.</p>
@@ -168,6 +169,7 @@ _VIEWER = """
  </div>
  <div id="ft-details" class="card"></div>
 </div>
+<!--after-viewer-->
 <h2>Along the print</h2>
 <div class="toolbar"><span><span class="key" style="background:#7f8c8d"></span>commanded flow
  (firmware, pressure advance included)<span class="key" style="background:#c0392b"></span>
@@ -194,7 +196,7 @@ _VIEWER = """
 
 
 def _page(title: str, head_html: str, body_top: str, header_json: str, blob: str,
-          warnings: Sequence[str]) -> str:
+          warnings: Sequence[str], after_viewer: str = "") -> str:
     warn = ""
     if warnings:
         items = "".join(f"<li class='warn'>{_e(w)}</li>" for w in warnings[:200])
@@ -208,7 +210,7 @@ def _page(title: str, head_html: str, body_top: str, header_json: str, blob: str
 <body><main>
 {head_html}
 {body_top}
-{_VIEWER}
+{_VIEWER.replace("<!--after-viewer-->", after_viewer)}
 {warn}
 <p class="muted">flowtwin report · all data and scripts are inside this file (no network).</p>
 </main>
@@ -258,7 +260,8 @@ def report_html(result: SimulationResult, *, fit: AdvanceFit | None = None,
     head = (f"<h1>What {_e(name)} really extrudes</h1><p class='sub'>on <b>{_e(v.machine)}"
             f"</b> ({_e(v.printer)}, {_e(v.firmware)}; pressure advance "
             f"{_e(v.pressure_advance)})</p>")
-    return _page(f"flowtwin: {name}", head, _verdict_html(v), header, blob, result.warnings)
+    card, where = _verdict_html(v)
+    return _page(f"flowtwin: {name}", head, card, header, blob, result.warnings, where)
 
 
 def write_report(result: SimulationResult, path: str | os.PathLike[str], *,

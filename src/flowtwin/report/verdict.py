@@ -11,8 +11,9 @@ command print the same object.
 
 The words follow thresholds of this module (:data:`FLOW_OK`, :data:`FLOW_VISIBLE`,
 :data:`SLIP_NOTABLE`); they are reporting conventions, not physics, and are stated in
-``docs/report.md``. Where the windows are is :mod:`flowtwin.report.spots`. The grinding safety share is the grinding
-guard's (:class:`flowtwin.compensation.GuardOptions`), so the advice and the guard agree.
+``docs/report.md``. Where the windows are is :mod:`flowtwin.report.spots`. The grinding
+safety share is the grinding guard's (:class:`flowtwin.compensation.GuardOptions`), so the
+advice and the guard agree.
 """
 
 from __future__ import annotations
