@@ -265,7 +265,7 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
     slip = float(s["mean_slip"])  # type: ignore[arg-type]
     advice = _advice(result, grinding, over, under, slip, k_lag, fit)
     headline = _headline(grinding, over, under, float(s["total_time_s"]),  # type: ignore[arg-type]
-                         win.window_mm)
+                         win.window_mm, bool(np.any(ext)))
     return Verdict(
         file=str(s["file"]), machine=str(s["machine"]), printer=str(s["printer"]),
         firmware=str(s["firmware"]), pressure_advance=str(s["pressure_advance"]),
@@ -304,7 +304,7 @@ def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str,
     grip = np.broadcast_to(np.asarray(pp.max_feed_force_n, dtype=np.float64), d.shape)
     safety = GuardOptions().safety
     margin = result.metrics["force_margin_n"]
-    fin = np.flatnonzero(np.isfinite(margin))
+    fin = np.flatnonzero(np.isfinite(margin))   # every move, as the summary's minimum
     if fin.size == 0:
         return GrindingRisk("safe", math.nan, math.nan, float(s["max_feed_force_n"]),  # type: ignore[arg-type]
                             math.nan, 0, 0, 0, -1, "", safety, math.nan, math.nan)
@@ -350,7 +350,10 @@ def _lag_k(result: SimulationResult, ext: npt.NDArray[np.bool_]) -> float:
 
 
 def _headline(g: GrindingRisk, over: Spot | None, under: Spot | None, time_s: float,
-              window_mm: float) -> str:
+              window_mm: float, printed: bool) -> str:
+    if not printed:
+        return (f"Nothing is printed (no extruding move with XY motion); it takes "
+                f"{_duration(time_s)}.")
     worst = max((abs(sp.error) for sp in (over, under) if sp is not None), default=0.0)
     if worst <= FLOW_OK:
         flow = f"extrudes within ±{100 * FLOW_OK:.0f} % of what it means everywhere"
