@@ -55,9 +55,12 @@ _FRAMES = """() => {
                                                  new Uint8Array(4)); };
   const time = (setup) => { setup(); frame(); const t = performance.now(); frame();
                             return [performance.now() - t, v.drawn, v.lodUsed]; };
-  out.whole_3d = time(() => { FT.app.setLayer(FT.app.data.nLayers - 1, false); v.setTilt(true); v.fit(); });
-  out.layer_top = time(() => { v.setTilt(false); FT.app.setLayer(Math.floor(FT.app.data.nLayers / 2), true); v.fitDrawn(); });
-  out.whole_zoomed_out = time(() => { FT.app.setLayer(FT.app.data.nLayers - 1, false); v.fit(); v.scale *= 0.15; });
+  const top = FT.app.data.nLayers - 1;
+  out.whole_3d = time(() => { FT.app.setLayer(top, false); v.setTilt(true); v.fit(); });
+  out.layer_top = time(() => {
+    v.setTilt(false); FT.app.setLayer(Math.floor(top / 2), true); v.fitDrawn(); });
+  out.whole_zoomed_out = time(() => {
+    FT.app.setLayer(top, false); v.fit(); v.scale *= 0.15; });
   v.fit();
   const t = performance.now(); v.pick(v.canvas.clientWidth / 2, v.canvas.clientHeight / 2, 4);
   out.pick_ms = performance.now() - t;

@@ -83,7 +83,7 @@ def test_every_per_move_array_of_the_result_becomes_a_quantity(
         demo_result: SimulationResult) -> None:
     # a model that adds a per-move melt temperature shows up without a change in the report
     n = len(demo_result.plan.table)
-    extra = np.dtype(METRIC_DTYPE.descr + [("melt_temperature_c", np.float64)])
+    extra = np.dtype([*METRIC_DTYPE.descr, ("melt_temperature_c", np.float64)])
     metrics = np.zeros(n, extra)
     for name in METRIC_DTYPE.names or ():
         metrics[name] = demo_result.metrics[name]

@@ -443,23 +443,33 @@ FT.Viewer = (function () {
     var W = this.canvas.width, H = this.canvas.height, dpr = this.dpr;
     var cx = px * dpr, cy = py * dpr, best = -1, bestDepth = Infinity, bestDist = Infinity;
     var sx = (d.hi[0] - d.lo[0]) / 65535, sy = (d.hi[1] - d.lo[1]) / 65535, sz = (d.hi[2] - d.lo[2]) / 65535;
-    var pos = lev.pos, want2 = this.travels;
-    function proj(o) {
-      var x = d.lo[0] + pos[o] * sx, y = d.lo[1] + pos[o + 1] * sy, z = d.lo[2] + pos[o + 2] * sz;
-      return [(M[0] * x + M[4] * y + M[8] * z + M[12] + 1) * W / 2,
-              (1 - (M[1] * x + M[5] * y + M[9] * z + M[13])) * H / 2,
-              M[2] * x + M[6] * y + M[10] * z + M[14]];
-    }
+    var pos = lev.pos, want2 = this.travels, lo = d.lo;
+    // screen x, y and depth of a quantised point are affine in its three 16-bit integers
+    var ax = [M[0] * sx * W / 2, M[4] * sy * W / 2, M[8] * sz * W / 2,
+              (M[0] * lo[0] + M[4] * lo[1] + M[8] * lo[2] + M[12] + 1) * W / 2];
+    var ay = [-M[1] * sx * H / 2, -M[5] * sy * H / 2, -M[9] * sz * H / 2,
+              (1 - (M[1] * lo[0] + M[5] * lo[1] + M[9] * lo[2] + M[13])) * H / 2];
+    var az = [M[2] * sx, M[6] * sy, M[10] * sz, M[2] * lo[0] + M[6] * lo[1] + M[10] * lo[2] + M[14]];
+    var wpx = 0.01 * this.scale * 0.5, minw = 0.5 * dpr, tolpx = tol * dpr;
     for (var k = r[0]; k < r[1]; k++) {
       var c = lev.cls[k];
       if (!(c === 1 || (c === 2 && want2))) continue;
-      var a = proj(k * 6), b = proj(k * 6 + 3);
-      var vx = b[0] - a[0], vy = b[1] - a[1], wx = cx - a[0], wy = cy - a[1];
+      var o = k * 6, x0 = pos[o], y0 = pos[o + 1], z0 = pos[o + 2];
+      var x1 = pos[o + 3], y1 = pos[o + 4], z1 = pos[o + 5];
+      var pax = ax[0] * x0 + ax[1] * y0 + ax[2] * z0 + ax[3];
+      var pay = ay[0] * x0 + ay[1] * y0 + ay[2] * z0 + ay[3];
+      var vx = ax[0] * x1 + ax[1] * y1 + ax[2] * z1 + ax[3] - pax;
+      var vy = ay[0] * x1 + ay[1] * y1 + ay[2] * z1 + ay[3] - pay;
+      var wx = cx - pax, wy = cy - pay;
+      var hw = Math.max(lev.w[k] * wpx, minw) + tolpx;
+      // quick reject: the cursor is outside the segment's box grown by the half width
+      if ((wx < -hw && wx - vx < -hw) || (wx > hw && wx - vx > hw) ||
+          (wy < -hw && wy - vy < -hw) || (wy > hw && wy - vy > hw)) continue;
       var l2 = vx * vx + vy * vy, t = l2 > 0 ? Math.max(0, Math.min(1, (wx * vx + wy * vy) / l2)) : 0;
       var dx = wx - t * vx, dy = wy - t * vy, dist = Math.sqrt(dx * dx + dy * dy);
-      var hw = Math.max(lev.w[k] * 0.01 * this.scale * 0.5, 0.5 * dpr);
-      if (dist > hw + tol * dpr) continue;
-      var depth = a[2] + t * (b[2] - a[2]);
+      if (dist > hw) continue;
+      var za = az[0] * x0 + az[1] * y0 + az[2] * z0 + az[3];
+      var depth = za + t * (az[0] * x1 + az[1] * y1 + az[2] * z1 + az[3] - za);
       if (depth < bestDepth - 1e-6 || (Math.abs(depth - bestDepth) <= 1e-6 && dist < bestDist)) {
         best = k; bestDepth = depth; bestDist = dist;
       }
