@@ -23,6 +23,7 @@ bound for a machine without one, not what a user with a graphics card sees.
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import tempfile
@@ -34,7 +35,7 @@ from flowtwin.report import write_report
 from flowtwin.simulation import simulate
 
 HERE = Path(__file__).resolve().parent
-CORPUS = HERE.parent.parent / "shared" / "corpus"
+CORPUS = Path(os.environ.get("FLOWTWIN_SHARED", HERE.parent.parent / "shared")) / "corpus"
 BENCHY = "prusaslicer_2.7.1_benchy.gcode"
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",

@@ -62,7 +62,10 @@ def _click_move(page: Any, move: int) -> None:
         const w = v.canvas.clientWidth, h = v.canvas.clientHeight;
         return [(M[0]*p[0] + M[4]*p[1] + M[8]*p[2] + M[12] + 1) / 2 * w,
                 (1 - (M[1]*p[0] + M[5]*p[1] + M[9]*p[2] + M[13])) / 2 * h]; }""", move)
-    box = page.locator("#ft-canvas").bounding_box()
+    canvas = page.locator("#ft-canvas")
+    canvas.scroll_into_view_if_needed()
+    box = canvas.bounding_box()
+    assert 0 <= box["y"] + xy[1] < page.viewport_size["height"]
     page.mouse.click(box["x"] + xy[0], box["y"] + xy[1])
     page.wait_for_function("FT.app.viewer.idle && !FT.app.viewer._pending", timeout=120_000)
 
