@@ -185,6 +185,9 @@ _VIEWER = """
  plot is the roller's grip. Wheel: zoom in time · drag: pan · double click: all ·
  click: show that move.</p>
 <h2>Per feature</h2>
+<p class="muted">Worst under- (blue, left) and over-extrusion (orange, right) over one
+ nozzle diameter of path per feature, with its share of the print time.</p>
+<canvas id="ft-featurechart" class="hbars"></canvas>
 <table id="ft-features"></table>
 <h2>Per layer</h2>
 <p class="muted">Worst over- (orange, up) and under-extrusion (blue, down) over

@@ -296,6 +296,14 @@ FT.App.prototype._tables = function () {
      FT.fmt(r.max_feed_force_n), FT.fmt(r.ooze_mm3)].forEach(function (s) { row.appendChild(FT.el("td", null, s)); });
     ft.appendChild(row);
   });
+  var F = V.features.filter(function (r) { return r.commanded_mm3 > 0; });
+  FT.HBarChart(document.getElementById("ft-featurechart"), {
+    labels: F.map(function (r) { return r.feature; }),
+    right: F.map(function (r) { return r.worst_over === null ? NaN : 100 * r.worst_over; }),
+    left: F.map(function (r) { return r.worst_under === null ? NaN : 100 * r.worst_under; }),
+    note: F.map(function (r) { return (100 * r.time_s / totalTime).toFixed(0) + " % of time"; }),
+    unit: " %", minSpan: 5, cap: 100
+  });
   var L = V.layers.filter(function (r) { return r.layer >= 0; });
   FT.BarChart(document.getElementById("ft-layerchart"), {
     up: L.map(function (r) { return r.worst_over === null ? NaN : 100 * r.worst_over; }),

@@ -283,3 +283,40 @@ FT.BarChart = function (canvas, opts) {
   }
   c._ftN = n; c._ftOnClick = opts.onClick;
 };
+
+/* Horizontal bars per category around zero (e.g. worst under- and over-extrusion per
+ * feature); names are drawn as canvas text. */
+FT.HBarChart = function (canvas, opts) {
+  var n = opts.labels.length, rowH = 22, PAD = { l: 170, r: 100, t: 18, b: 6 };
+  canvas.style.height = (PAD.t + PAD.b + rowH * Math.max(n, 1)) + "px";
+  var c = canvas, r = window.devicePixelRatio || 1, W = c.clientWidth, H = c.clientHeight;
+  c.width = Math.round(W * r); c.height = Math.round(H * r);
+  var g = c.getContext("2d"), w = W - PAD.l - PAD.r;
+  g.setTransform(r, 0, 0, r, 0, 0); g.clearRect(0, 0, W, H);
+  var vals = [];
+  for (var i = 0; i < n; i++) {
+    if (isFinite(opts.right[i])) vals.push(Math.abs(opts.right[i]));
+    if (isFinite(opts.left[i])) vals.push(Math.abs(opts.left[i]));
+  }
+  var cap = Math.max(opts.minSpan || 1, vals.length ? Math.max.apply(null, vals) : 1);
+  if (opts.cap) cap = Math.min(cap, opts.cap);
+  var X = function (v) { return PAD.l + (v + cap) / (2 * cap) * w; };
+  g.font = "12px system-ui, sans-serif"; g.textBaseline = "middle";
+  g.fillStyle = "#555"; g.textAlign = "center";
+  [-cap, -cap / 2, 0, cap / 2, cap].forEach(function (t) { g.fillText(FT.tick(+t.toPrecision(3)) + (opts.unit || ""), X(t), 8); });
+  for (var k = 0; k < n; k++) {
+    var y = PAD.t + k * rowH;
+    g.fillStyle = k % 2 ? "#fafbfc" : "#f1f3f5"; g.fillRect(0, y, W, rowH);
+    g.fillStyle = "#222"; g.textAlign = "left";
+    var name = String(opts.labels[k]);
+    g.fillText(name.length > 26 ? name.slice(0, 25) + "…" : name, 6, y + rowH / 2);
+    [[opts.left[k], opts.leftColor || "#2471a3"], [opts.right[k], opts.rightColor || "#d35400"]].forEach(function (b) {
+      if (!isFinite(b[0])) return;
+      var v = Math.max(-cap, Math.min(cap, b[0]));
+      g.fillStyle = Math.abs(b[0]) > cap ? "#7b241c" : b[1];
+      g.fillRect(Math.min(X(0), X(v)), y + 4, Math.abs(X(v) - X(0)), rowH - 8);
+    });
+    if (opts.note) { g.fillStyle = "#555"; g.textAlign = "right"; g.fillText(opts.note[k], W - 4, y + rowH / 2); }
+  }
+  g.strokeStyle = "#888"; g.beginPath(); g.moveTo(X(0) + 0.5, PAD.t); g.lineTo(X(0) + 0.5, H - PAD.b); g.stroke();
+};
