@@ -97,6 +97,10 @@ def _browser_figures(page_path: Path) -> dict[str, object] | None:
             page.goto(page_path.resolve().as_uri())
             page.wait_for_function("document.body.getAttribute('data-ready')", timeout=600_000)
             ready = time.perf_counter() - t0
+            state = page.evaluate("document.body.getAttribute('data-ready')")
+            if state != "1":
+                raise RuntimeError(f"the report page did not start ({state}): "
+                                   + page.inner_text("#ft-status"))
             out: dict[str, object] = {"ready_s": ready, **page.evaluate("FT.timing")}
             out.update(page.evaluate(_FRAMES))
             return out
