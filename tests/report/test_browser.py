@@ -191,3 +191,19 @@ def test_benchy_report_within_budget_and_interactive(open_page: Any, corpus_dir:
     page.wait_for_timeout(500)
     assert _differing_share(a, p.pixels()) > 0.01
     assert p.errors == []
+
+
+@pytest.mark.shared
+def test_spiral_vase_with_a_layer_per_move(open_page: Any, corpus_dir: Path,
+                                           tmp_path: Path) -> None:
+    # FullControl's ripple vase rises continuously: 14 k "layers" of one move each
+    result = simulate(corpus_dir / "fullcontrol_ripple_vase.gcode")
+    n_layers = int(result.plan.table.moves["layer"].max()) + 1
+    assert n_layers > 10_000
+    out = write_report(result, tmp_path / "vase.html")
+    assert out.stat().st_size < 3_000_000       # per-layer rows travel as columns
+    p = open_page(out)
+    note = p.page.inner_text("#ft-layers-note")
+    assert f"{n_layers:,}" in note
+    assert p.page.locator("#ft-layers tr").count() == 1000 + 1   # header + the first rows
+    assert p.errors == []

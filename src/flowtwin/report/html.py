@@ -194,6 +194,7 @@ _VIEWER = """
  one nozzle diameter of path per layer; dark bars are beyond the axis. Click a bar or a
  row to view that layer.</p>
 <canvas id="ft-layerchart" class="bars"></canvas>
+<p id="ft-layers-note" class="muted"></p>
 <div class="scroll"><table id="ft-layers"></table></div>
 """
 

@@ -7,8 +7,9 @@ width (10 µm) and the difference of its G-code line to the previous move's. Eac
 :class:`~.quantities.Quantity` (float16 rounded to :data:`VALUE_BITS` mantissa bits, or
 float32 where a value exceeds float16's range), the start time of each move (whole
 milliseconds, as differences), a time track bucketed to at most :data:`TRACK_BUCKETS`
-columns (min, max and mean per bucket), and the per-layer and per-feature rows. The G-code
-text itself is included (for the line a click shows) up to :data:`GCODE_EMBED_MAX_BYTES`.
+columns (min, max and mean per bucket), the per-layer rows (as columns: a spiral vase has a
+"layer" per move) and the per-feature rows. The G-code text itself is included (for the
+line a click shows) up to :data:`GCODE_EMBED_MAX_BYTES`.
 
 Multi-byte arrays are stored as byte planes (all first bytes, then all second bytes, …),
 which deflate packs far better than interleaved bytes; the page restores them after the
@@ -363,11 +364,18 @@ def build_payload(geometry: SimulationResult, variants: list[Variant], *,
                             blob.add(f"v{vi}.{cname}.hi", chi.astype(np.float32)),
                             blob.add(f"v{vi}.{cname}.mean", cmean.astype(np.float32))]
         blob.add(f"v{vi}.retract", tr.retractions_s.astype(np.float32))
+        layer_cols = {}
+        for col in (var.layers[0].keys() if var.layers else ()):
+            vals = np.array([float(r[col]) if r[col] is not None else np.nan  # type: ignore[arg-type]
+                             for r in var.layers], dtype=np.float64)
+            layer_cols[col] = blob.add(f"v{vi}.layers.{col}", vals.astype(
+                np.int32 if col in ("layer", "grinding_moves") else np.float32))
         var_json.append({
             "name": var.name, "label": var.label, "quantities": qs, "t": f"v{vi}.t",
             "track": {"t0": tr.t0_s, "dt": tr.dt_s, "channels": chans,
                       "retract": f"v{vi}.retract", "source": tr.source},
-            "layers": var.layers, "features": var.features, "spots": var.spots,
+            "layers": {"n": len(var.layers), "columns": layer_cols},
+            "features": var.features, "spots": var.spots,
             "flow_scale": var.flow_scale_mm3_s})
     text_info = None
     if gcode_text is not None and len(gcode_text) <= GCODE_EMBED_MAX_BYTES:

@@ -304,7 +304,7 @@ FT.App.prototype._tables = function () {
     note: F.map(function (r) { return (100 * r.time_s / totalTime).toFixed(0) + " % of time"; }),
     unit: " %", minSpan: 5, cap: 100
   });
-  var L = V.layers.filter(function (r) { return r.layer >= 0; });
+  var L = this.layerRows(V).filter(function (r) { return r.layer >= 0; });
   FT.BarChart(document.getElementById("ft-layerchart"), {
     up: L.map(function (r) { return r.worst_over === null ? NaN : 100 * r.worst_over; }),
     down: L.map(function (r) { return r.worst_under === null ? NaN : 100 * r.worst_under; }),
@@ -313,6 +313,28 @@ FT.App.prototype._tables = function () {
   });
   this._layerTable(L, pct);
 };
+
+/* The per-layer rows of a variant (stored as columns). */
+FT.App.prototype.layerRows = function (V) {
+  var key = "layers:" + V.name;
+  if (!(key in this.values)) {
+    var cols = {}, names = Object.keys(V.layers.columns), rows = [], self = this;
+    names.forEach(function (c) { cols[c] = self.data.get(V.layers.columns[c]); });
+    for (var i = 0; i < V.layers.n; i++) {
+      var r = {};
+      for (var k = 0; k < names.length; k++) {
+        var v = cols[names[k]][i];
+        r[names[k]] = v === v ? v : null;
+      }
+      rows.push(r);
+    }
+    this.values[key] = rows;
+  }
+  return this.values[key];
+};
+
+/* Rows shown in the per-layer table (all are sortable; the first MAX_ROWS are drawn). */
+FT.MAX_ROWS = 1000;
 
 FT.App.prototype._layerTable = function (rows, pct) {
   var self = this, tab = document.getElementById("ft-layers");
@@ -338,7 +360,10 @@ FT.App.prototype._layerTable = function (rows, pct) {
     head.appendChild(th);
   });
   tab.appendChild(head);
-  rows.forEach(function (r) {
+  var note = document.getElementById("ft-layers-note");
+  note.textContent = rows.length > FT.MAX_ROWS ? "The first " + FT.MAX_ROWS + " of " +
+    rows.length.toLocaleString() + " layers in this order (click a column to sort)." : "";
+  rows.slice(0, FT.MAX_ROWS).forEach(function (r) {
     var tr = FT.el("tr", { "class": "clickable" });
     cols.forEach(function (c) { tr.appendChild(FT.el("td", null, (fmt[c[0]] || FT.fmt)(r[c[0]]))); });
     tr.addEventListener("click", function () {
