@@ -36,7 +36,7 @@ FT.Viewer = (function () {
   var FS = ["#version 300 es", "precision mediump float;", "in vec4 v_col; out vec4 o;",
             "void main() { o = v_col; }"].join("\n");
   var LOD_MM = [0.6, 2.5];
-  var INTERACTIVE_MAX = 400000, CHUNK_MIN = 8192, CHUNK_MAX = 1 << 24;
+  var INTERACTIVE_MIN = 50000, CHUNK_MIN = 8192, CHUNK_MAX = 1 << 24, EXPAND_MAX = 1000000;
   var NAN = -3.0e38;
 
   function compile(gl, type, src) {
@@ -164,24 +164,45 @@ FT.Viewer = (function () {
     return lev;
   };
 
+  /* Repeat each element of `a` (groups of `k` values per instance) six times: one per
+   * vertex of the instance's two triangles. */
+  function six(a, k) {
+    var out = new a.constructor(a.length * 6), n = a.length / k;
+    for (var i = 0; i < n; i++) {
+      for (var v = 0; v < 6; v++) {
+        for (var j = 0; j < k; j++) out[(i * 6 + v) * k + j] = a[i * k + j];
+      }
+    }
+    return out;
+  }
+
+  /* GPU buffers of a level. Up to EXPAND_MAX instances the per-instance data are repeated
+   * for the six vertices and drawn without instancing: software WebGL (SwiftShader) draws
+   * that ~16× faster than the same instanced draw (measured), for 6× the memory; larger
+   * levels stay instanced (a GPU draws both alike). One shader serves both
+   * (gl_VertexID % 6 is the corner either way). */
   Viewer.prototype._upload = function (lev) {
-    var gl = this.gl, A = this.attr;
+    var gl = this.gl, A = this.attr, x = lev.count <= EXPAND_MAX;
+    lev.expanded = x;
     lev.vao = gl.createVertexArray();
     gl.bindVertexArray(lev.vao);
     lev.posBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, lev.posBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, lev.pos, gl.STATIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, x ? six(lev.pos, 6) : lev.pos, gl.STATIC_DRAW);
     lev.clsBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, lev.clsBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, lev.cls, gl.STATIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, x ? six(lev.cls, 1) : lev.cls, gl.STATIC_DRAW);
     lev.wBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, lev.wBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, lev.w, gl.STATIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, x ? six(lev.w, 1) : lev.w, gl.STATIC_DRAW);
     lev.valBuf = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, lev.valBuf);
-    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(lev.count), gl.DYNAMIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(lev.count * (x ? 6 : 1)), gl.DYNAMIC_DRAW);
     [A.a_p0, A.a_p1, A.a_v, A.a_cls, A.a_w].forEach(function (a) {
-      gl.enableVertexAttribArray(a); gl.vertexAttribDivisor(a, 1);
+      gl.enableVertexAttribArray(a); gl.vertexAttribDivisor(a, x ? 0 : 1);
     });
+    if (x) this._pointAttrs(lev, 0);
     gl.bindVertexArray(null);
   };
 
+  /* Attribute pointers from instance `first` on (instanced levels; an expanded level keeps
+   * its pointers at 0 and draws from vertex 6·first). */
   Viewer.prototype._pointAttrs = function (lev, first) {
     var gl = this.gl, A = this.attr;
     gl.bindBuffer(gl.ARRAY_BUFFER, lev.posBuf);
@@ -193,6 +214,14 @@ FT.Viewer = (function () {
     gl.vertexAttribPointer(A.a_cls, 1, gl.UNSIGNED_BYTE, false, 1, first);
     gl.bindBuffer(gl.ARRAY_BUFFER, lev.wBuf);
     gl.vertexAttribPointer(A.a_w, 1, gl.UNSIGNED_BYTE, false, 1, first);
+  };
+
+  /* Draw instances [first, first + n) of a level (its VAO bound). */
+  Viewer.prototype._drawRange = function (lev, first, n) {
+    var gl = this.gl;
+    if (lev.expanded) { gl.drawArrays(gl.TRIANGLES, first * 6, n * 6); return; }
+    this._pointAttrs(lev, first);
+    gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, n);
   };
 
   /* Colour by `values` (per move, file order; NaN = none) over `dom` with `ramp` (RGBA bytes). */
@@ -236,7 +265,7 @@ FT.Viewer = (function () {
     }
     var gl = this.gl;
     gl.bindBuffer(gl.ARRAY_BUFFER, lev.valBuf);
-    gl.bufferSubData(gl.ARRAY_BUFFER, 0, out);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, lev.expanded ? six(out, 1) : out);
   };
 
   /* Layers to draw: [a, b] inclusive (stored layer numbers: 0 = before the first layer). */
@@ -304,7 +333,8 @@ FT.Viewer = (function () {
   };
 
   /* Level of detail: the coarsest whose chords stay under 1.5 pixels; while the view is
-   * being moved, coarser still until at most INTERACTIVE_MAX instances are drawn. */
+   * being moved, coarser still until the range fits in what this machine draws in one
+   * frame (the progressive chunk, measured; at least INTERACTIVE_MIN instances). */
   Viewer.prototype._level = function () {
     var li = 0;
     for (var i = LOD_MM.length; i >= 1; i--) {
@@ -313,7 +343,7 @@ FT.Viewer = (function () {
     if (this.interactive) {
       while (li < LOD_MM.length) {
         var lev = this._ensure(li), r = this._range(lev);
-        if (r[1] - r[0] <= INTERACTIVE_MAX) break;
+        if (r[1] - r[0] <= Math.max(this.chunk, INTERACTIVE_MIN)) break;
         li++;
       }
     }
@@ -377,7 +407,6 @@ FT.Viewer = (function () {
     while (n < budget && job.pass <= job.passes) {
       var a = Math.max(job.r0, job.end - (budget - n));
       if (job.end > a) {
-        this._pointAttrs(job.lev, a);
         if (job.pass === 1) {
           gl.uniform1f(L.u_mode, 1); gl.uniform1f(L.u_minw, 0.5 * this.dpr);
           gl.uniform4f(L.u_flat, 0, 0, 0, 0);
@@ -385,7 +414,7 @@ FT.Viewer = (function () {
           gl.uniform1f(L.u_mode, 2); gl.uniform1f(L.u_minw, 0.5 * this.dpr);
           gl.uniform4f(L.u_flat, 0.55, 0.75, 1.0, 1.0);
         }
-        gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, job.end - a);
+        this._drawRange(job.lev, a, job.end - a);
         n += job.end - a;
       }
       job.end = a;
@@ -415,11 +444,10 @@ FT.Viewer = (function () {
     var gl = this.gl, L = this.loc, lev = this.levels[0], k = this._slot(this.selected);
     if (k < 0) return;
     gl.bindVertexArray(lev.vao);
-    this._pointAttrs(lev, k);
     gl.disable(gl.DEPTH_TEST);
     gl.uniform1f(L.u_mode, lev.cls[k] || 1); gl.uniform1f(L.u_minw, 3 * this.dpr);
     gl.uniform4f(L.u_flat, 1.0, 0.85, 0.0, 1.0);
-    gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, 1);
+    this._drawRange(lev, k, 1);
     gl.enable(gl.DEPTH_TEST);
   };
 
