@@ -161,7 +161,8 @@ def test_cli_streams_large_files_with_the_same_output(corpus_dir: Path,
         assert exc.value.code == 0
         return json.loads(capsys.readouterr().out)  # type: ignore[no-any-return]
 
-    whole = run()
+    whole = run("--no-fit")
+    whole.pop("verdict")  # the verdict (windowed figures, places) needs the whole tables
     monkeypatch.setattr(flowtwin.plan_stream, "STREAM_ABOVE_BYTES", 1024)
     auto = run()
     assert auto.keys() == whole.keys()

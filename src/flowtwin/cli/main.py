@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import importlib
 import os
+import signal
 import sys
+import threading
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Protocol, cast
 
 import typer
@@ -152,7 +154,17 @@ def _click_kind(exc: BaseException) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; user errors exit 2 with a message, internal errors exit 3."""
+    """Run the CLI; user errors exit 2 with a message, internal errors exit 3; Ctrl-C exits
+    130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
+    terminated: list[int] = []
+
+    def terminate(signum: int, frame: object) -> None:
+        # unwind like Ctrl-C, so outputs being written are dropped whole
+        terminated.append(signum)
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, terminate)
     try:
         # standalone_mode=False returns typer.Exit codes instead of exiting with them
         code = app(args=argv, standalone_mode=False)
@@ -166,8 +178,7 @@ def main(argv: list[str] | None = None) -> None:
                      markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
     except KeyboardInterrupt:
-        _err().print("interrupted")
-        sys.exit(130)
+        _interrupted(terminated)
     except SystemExit:
         raise
     except Exception as exc:  # last line of defence for the user
@@ -176,11 +187,12 @@ def main(argv: list[str] | None = None) -> None:
             usage = cast(_ClickError, exc)
             usage.show()
             sys.exit(usage.exit_code)
-        if kind == "Abort":
-            _err().print("aborted")
-            sys.exit(1)
+        if kind == "Abort":  # click's form of Ctrl-C (or of SIGTERM, through the handler)
+            _interrupted(terminated)
         _internal_error(exc)
     else:
+        if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C or our SIGTERM)
+            _interrupted(terminated)
         sys.exit(code if isinstance(code, int) else 0)
 
 
@@ -189,6 +201,15 @@ def _err() -> Console:
     from rich.console import Console
 
     return Console(stderr=True, highlight=False)
+
+
+def _interrupted(terminated: list[int]) -> NoReturn:
+    """Ctrl-C: exit 130; ``SIGTERM``: exit 143 (nothing half-written either way)."""
+    if terminated:
+        _err().print("terminated")
+        sys.exit(128 + signal.SIGTERM)
+    _err().print("interrupted")
+    sys.exit(130)
 
 
 def _internal_error(exc: BaseException) -> NoReturn:
