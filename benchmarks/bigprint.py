@@ -5,15 +5,13 @@
   at 0.1 mm layers, gyroid infill. Needs ``apt-get install -y prusa-slicer openscad``;
   takes a few minutes once and is cached in ``bench-out/``.
 * :func:`gigabyte_print` — a G-code file of about 1 GB for the bounded-memory check
-  (issue #21.3): the big print's moves repeated, each copy lifted above the previous one
-  (so the file is one real, ever taller print), written once into ``bench-out/``.
+  (issue #21.3): the big print's moves repeated in place, written once into ``bench-out/``.
 
 Usage: ``python -m benchmarks.bigprint [big|gigabyte]`` prints the path (generating it).
 """
 
 from __future__ import annotations
 
-import re
 import shutil
 import subprocess
 import sys
@@ -56,43 +54,23 @@ def big_print(out_dir: Path = OUT) -> Path:
     return path
 
 
-_Z = re.compile(rb"Z(-?[0-9.]+)")
-
-
 def gigabyte_print(out_dir: Path = OUT, size_bytes: int = 1_000_000_000) -> Path:
-    """A G-code file of about ``size_bytes``: the big print's body repeated, each copy
-    lifted by the height of the previous ones (absolute Z rewritten), ``G92 E0`` between
-    copies so absolute E restarts."""
+    """A G-code file of about ``size_bytes``: the big print's body (from its first layer to
+    its end G-code) printed again and again in the same place, ``G92 E0`` before each copy
+    (a farm job repeating one part; every copy within any printer's build volume)."""
     path = out_dir / f"dome-x{size_bytes // 1_000_000}MB.gcode"
     if path.exists():
         return path
     src = big_print(out_dir).read_bytes()
-    lines = src.split(b"\n")
-    # the print's body: from the first layer change to the end G-code
-    start = next(i for i, ln in enumerate(lines) if ln.startswith(b";LAYER_CHANGE"))
-    end = max(i for i, ln in enumerate(lines) if ln.startswith(b";LAYER_CHANGE"))
-    end = next((i for i in range(end, len(lines)) if lines[i].startswith(b"M107")), end)
-    head, body = b"\n".join(lines[:start]) + b"\n", lines[start:end]
-    top = max(float(m.group(1)) for ln in body if ln.startswith(b"G1") and b"Z" in ln
-              for m in [_Z.search(ln.split(b";")[0])] if m)
+    start = src.index(b";LAYER_CHANGE")
+    end = src.index(b"\nM107", src.rindex(b";LAYER_CHANGE")) + 1
+    head, body = src[:start], b"G92 E0\n" + src[start:end]
     tmp = path.with_suffix(".tmp.gcode")
-    written = 0
     with open(tmp, "wb") as f:
         f.write(head)
-        copy = 0
-        while written < size_bytes:
-            lift = copy * top
-            f.write(b"G92 E0\n")
-            for ln in body:
-                if lift and ln.startswith(b"G1") and b"Z" in ln:
-                    code = ln.split(b";")[0]
-                    m = _Z.search(code)
-                    if m:
-                        ln = code[:m.start()] + b"Z%.3f" % (float(m.group(1)) + lift) \
-                            + code[m.end():]
-                f.write(ln + b"\n")
-            written = f.tell()
-            copy += 1
+        while f.tell() < size_bytes:
+            f.write(body)
+        f.write(src[end:])
     tmp.replace(path)
     return path
 
