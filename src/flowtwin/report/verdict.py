@@ -252,20 +252,31 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
     ooze = np.asarray(d["ooze_mm3"], dtype=np.float64)
     ooze_line = int(m["line"][int(np.argmax(ooze))]) if ooze.size and ooze.max() > 0 else 0
     by_feature = []
-    feat = m["feature"].astype(np.int64)
-    for k in np.unique(feat[ext]).tolist():
-        sel = ext & (feat == k)
-        cmd = d["cmd_mm3"][sel]
-        err = result.metrics["flow_error"][sel]
+    # one stable sort groups the extruding moves by feature, each group in move order: the
+    # sums over a group's slice are those over its mask (the same values, the same order)
+    rows = np.flatnonzero(ext)
+    feat = m["feature"][rows].astype(np.int64)
+    order = rows[np.argsort(feat, kind="stable")]
+    keys, starts = np.unique(feat[np.argsort(feat, kind="stable")], return_index=True)
+    bounds = np.append(starts, order.size)
+    cmd_all = np.asarray(d["cmd_mm3"], dtype=np.float64)[order]
+    err_all = np.asarray(result.metrics["flow_error"], dtype=np.float64)[order]
+    dur_all = np.asarray(d["duration_s"], dtype=np.float64)[order]
+    margin_all = np.asarray(result.metrics["force_margin_n"], dtype=np.float64)[order]
+    over_all, under_all = win.move_max_error[order], win.move_min_error[order]
+    for j, k in enumerate(keys.tolist()):
+        g = slice(int(bounds[j]), int(bounds[j + 1]))
+        cmd = cmd_all[g]
+        err = err_all[g]
         wsum = float(np.sum(cmd))
-        margin = result.metrics["force_margin_n"][sel]
+        margin = margin_all[g]
         fin = margin[np.isfinite(margin)]
         by_feature.append(FeatureFlow(
-            feature=_name(names, k), time_s=float(np.sum(d["duration_s"][sel])),
+            feature=_name(names, k), time_s=float(np.sum(dur_all[g])),
             commanded_mm3=wsum,
             rms_flow_error=float(np.sqrt(np.sum(cmd * err * err) / wsum)) if wsum > 0 else 0.0,
-            worst_over=_nanext(np.nanmax, win.move_max_error[sel]),
-            worst_under=_nanext(np.nanmin, win.move_min_error[sel]),
+            worst_over=_nanext(np.nanmax, over_all[g]),
+            worst_under=_nanext(np.nanmin, under_all[g]),
             min_margin_n=float(fin.min()) if fin.size else math.nan))
     over = spots_over[0] if spots_over else None
     under = spots_under[0] if spots_under else None
