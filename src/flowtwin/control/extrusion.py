@@ -18,7 +18,10 @@ piece has an exact exponential solution:
   ``dx/dt = v − max(x, 0)/K``; no backflow [001 Fig. 8].
 
 Regime changes inside a step (the force reaching ``F_max``, its release, ``x`` crossing 0)
-are located exactly from the exponential solutions. The same equations, integrated over a
+are located exactly from the exponential solutions. Every exponential piece is the one lag
+step of :mod:`flowtwin.physics.lag` (:func:`~flowtwin.physics.lag.lag_linear`, with the
+time constant ``1/β`` in the slip regime; :func:`~flowtwin.physics.lag.lag_step` for the
+retraction, which finds the crossing of 0). The same equations, integrated over a
 whole G-code, are :func:`flowtwin.dynamics.integrate`; ``tests/control`` checks that the
 two agree.
 """
@@ -29,7 +32,7 @@ import math
 from dataclasses import dataclass
 
 from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
-from flowtwin.physics.lag import lag_factor_s
+from flowtwin.physics.lag import lag_factor_s, lag_linear, lag_step
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
 from flowtwin.profiles.machine import Machine
@@ -163,8 +166,8 @@ def step_extrusion(state: ExtruderState, v_mm_s: float, dt_s: float,
                 continue
             t_rel = k_lag * math.log(x / x_release)
             tau = min(left, t_rel)
-            x_new = x * math.exp(-tau / k_lag)
-            out += x - x_new
+            x_new, ix = lag_linear(x, 0.0, 0.0, tau, k_lag)
+            out += ix / k_lag
             grind_s += tau
             x = x_new
             if tau == t_rel:
@@ -181,38 +184,29 @@ def step_extrusion(state: ExtruderState, v_mm_s: float, dt_s: float,
             if x >= x_grind:
                 grinding = True
                 continue
+            # the lag with the time constant 1/β and the input v(1 − k_p); out is x/K
             beta = 1.0 / k_lag + v * p.slip_gradient_per_n(v) / kc
-            x_inf = v * (1.0 - p.slip_offset) / beta
+            v_in = v * (1.0 - p.slip_offset)
+            x_inf = v_in / beta
             t_grind = math.inf
             if x_inf > x_grind:
                 t_grind = math.log((x - x_inf) / (x_grind - x_inf)) / beta
             tau = min(left, t_grind)
-            decay = -math.expm1(-beta * tau)  # 1 − e^{−βτ}
-            x_new = x_inf + (x - x_inf) * (1.0 - decay)
-            out_piece = (x_inf * tau + (x - x_inf) * decay / beta) / k_lag
+            x_new, ix = lag_linear(x, v_in, 0.0, tau, 1.0 / beta)
+            out_piece = ix / k_lag
             out += out_piece
             fed += x_new - x + out_piece
             x = x_new
             if tau == t_grind:
                 x, grinding = x_grind, True
         else:
-            # retraction or standstill: the filament follows the gear (no slip)
-            if x > 0.0:
-                x_inf = v * k_lag
-                t_zero = math.inf
-                if v < 0.0:
-                    t_zero = k_lag * math.log((x - x_inf) / (-x_inf))
-                tau = min(left, t_zero)
-                decay = -math.expm1(-tau / k_lag)
-                x_new = x_inf + (x - x_inf) * (1.0 - decay)
-                out_piece = v * tau - (x_new - x)
-                out += out_piece
-                fed += v * tau
-                x = 0.0 if tau == t_zero else x_new
-            else:
-                tau = left
-                fed += v * tau
-                x += v * tau
+            # retraction or standstill: the filament follows the gear (no slip), the lag
+            # with no backflow
+            tau = left
+            step = lag_step(x, v, 0.0, tau, k_lag)
+            out += step.out_mm
+            fed += step.fed_mm
+            x = step.x_mm
             if grinding and x <= x_release:
                 grinding = False
         left -= tau
