@@ -8,14 +8,19 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.control.extrusion import ExtruderState, StepParams, step_extrusion, step_params
-from flowtwin.control.job import PrintJob
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
 from flowtwin.control.printer import Factors
-from flowtwin.control.twinjob import JobRunner
+from flowtwin.control.simulated.extruder import (
+    ExtruderState,
+    StepParams,
+    step_extrusion,
+    step_params,
+)
+from flowtwin.control.simulated.job import PrintJob
+from flowtwin.control.simulated.runner import JobRunner
 from flowtwin.physics.drive import steady_state_slip
 from flowtwin.physics.lag import lag_step
 from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 from flowtwin.simulation import simulate
 from flowtwin.simulation.parameters import operating_point
 

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.control.job import PrintJob, WaitMode
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
+from flowtwin.control.simulated.job import PrintJob, WaitMode
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_area_mm2
 from flowtwin.planning import plan_gcode
 from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 
 GREEFF = load_machine("greeff2017")
 

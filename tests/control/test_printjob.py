@@ -14,17 +14,17 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.control.log import ControlLog
-from flowtwin.control.polygon import PolygonSpec
-from flowtwin.control.printjob import (
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.errors import ProfileError
+from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_loop import (
     PrintJobComparison,
     PrintJobSettings,
     compare_print_jobs,
     job_runner,
     run_print_job,
 )
-from flowtwin.errors import ProfileError
-from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec
 
 SETTINGS = PrintJobSettings(part=PolygonSpec.greeff(layers_per_set=3), seed=11)
 

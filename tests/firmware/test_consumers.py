@@ -16,9 +16,9 @@ import pytest
 
 from flowtwin.calibration import PrintSettings, generate_pattern
 from flowtwin.compensation.settings import best_pressure_advance, pa_test_gcode
-from flowtwin.control.clock import SimClock
+from flowtwin.control.loop.clock import SimClock
 from flowtwin.control.printer import FactorTracker
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.dynamics import (
     AdvanceSettings,
     advance_schedule,

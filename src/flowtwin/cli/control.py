@@ -12,15 +12,15 @@ from rich.live import Live
 from rich.table import Table
 
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
-from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
 from flowtwin.control.connect import open_printer
-from flowtwin.control.controllers import Limits, make_controller
-from flowtwin.control.credentials import DEFAULT_KEY_ENV, load_api_key
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import MeasurementSource, SyntheticSlipSource
+from flowtwin.control.loop.clock import AcceleratedClock, Clock, RealClock, SimClock
+from flowtwin.control.loop.controllers import Limits, make_controller
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.measurement import MeasurementSource, SyntheticSlipSource
+from flowtwin.control.loop.supervisor import LoopSettings, RunSummary, Status, run_control
 from flowtwin.control.printer import Factors, Printer
-from flowtwin.control.supervisor import LoopSettings, RunSummary, Status, run_control
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.simulated.twin import TwinPrinter
+from flowtwin.control.transports.credentials import DEFAULT_KEY_ENV, load_api_key
 from flowtwin.errors import FlowtwinError
 from flowtwin.firmware import Channel, Firmware
 
@@ -193,7 +193,7 @@ def register(app: typer.Typer) -> None:
                               limits=Limits(min_pct, max_pct, rate_limit))
         stops: list[Callable[[], bool]] = []
         if isinstance(conn, TwinPrinter) and (twin_camera or gcode is not None):
-            from flowtwin.control.printjob import job_runner
+            from flowtwin.reproduce.greeff2017_loop import job_runner
 
             conn.job = job_runner(machine=machine, gcode=gcode,
                                   layers_per_set=layers_per_set, start_s=clock.now())
@@ -271,7 +271,7 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
         return SyntheticSlipSource(clock, duration_s=duration or DEFAULT_DURATION_S,
                                    seed=seed, factors=factors)
     if camera is not None or video is not None:
-        from flowtwin.control.video import CameraSource, VideoSource
+        from flowtwin.control.loop.video import CameraSource, VideoSource
         from flowtwin.vision import build_config
 
         config = build_config(config_path=vision_config)
@@ -282,8 +282,8 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
         assert camera is not None
         index: int | str = int(camera) if camera.isdigit() else camera
         return CameraSource(index, config, clock, window_frames=window_frames)
-    from flowtwin.control.printjob import PrintJobSettings
-    from flowtwin.control.twin_camera import TwinCameraSource, twin_scene
+    from flowtwin.control.simulated.camera import TwinCameraSource, twin_scene
+    from flowtwin.reproduce.greeff2017_loop import PrintJobSettings
 
     assert isinstance(conn, TwinPrinter) and conn.job is not None
     st = PrintJobSettings()  # the print-job test's camera: 320×256 px at 50 µm/px

@@ -3,10 +3,10 @@
 twin printer (prints the 40-sided polygon with the greeff2017 machine's physics)
 → twin camera (renders frames of gear and filament) → vision (OpenCV, [003 §2.2])
 → controller (Greeff's: thresholded, time-averaged slip as the speed multiplier ``M220``
-[003 §2.3]) → supervisor → twin. All on a :class:`~flowtwin.control.clock.SimClock`, so a
+[003 §2.3]) → supervisor → twin. All on a :class:`~flowtwin.control.loop.clock.SimClock`, so a
 200 s print runs as fast as the physics and the image processing allow.
 
-The same print runs twice, loop off (:class:`~flowtwin.control.controllers.OpenLoopController`:
+The same print runs twice, loop off (:class:`~flowtwin.control.loop.controllers.OpenLoopController`:
 the camera measures, nothing is commanded) and loop on, and is compared like the paper:
 deposited mass (the twin's melt out since layer 0 × density — the weighed object) and
 slip (camera-measured, and the twin's true slip). The paper found +14 % mass with the
@@ -22,18 +22,18 @@ from typing import Any
 
 import numpy as np
 
-from flowtwin.control.clock import SimClock
-from flowtwin.control.controllers import Controller, GreeffController, OpenLoopController
-from flowtwin.control.job import PrintJob
-from flowtwin.control.log import ControlLog
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
-from flowtwin.control.supervisor import LoopSettings, RunSummary, run_control
-from flowtwin.control.twin import TwinPrinter
-from flowtwin.control.twin_camera import CameraRecord, TwinCameraSource, twin_scene
-from flowtwin.control.twinjob import JobHistory, JobRunner
+from flowtwin.control.loop.clock import SimClock
+from flowtwin.control.loop.controllers import Controller, GreeffController, OpenLoopController
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.supervisor import LoopSettings, RunSummary, run_control
+from flowtwin.control.simulated.camera import CameraRecord, TwinCameraSource, twin_scene
+from flowtwin.control.simulated.job import PrintJob
+from flowtwin.control.simulated.runner import JobHistory, JobRunner
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.errors import ProfileError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 from flowtwin.vision.synth import SceneSpec
 
 __all__ = ["PAPER_MASS_GAIN", "PrintJobComparison", "PrintJobRun", "PrintJobSettings",
@@ -62,7 +62,7 @@ class PrintJobSettings:
         cannot measure — a retraction — does not trip it).
     camera_frames, camera_interval_s
         Frames per measurement and time between measurements (the subsample, see
-        :mod:`flowtwin.control.twin_camera`).
+        :mod:`flowtwin.control.simulated.camera`).
     camera_size_px, camera_mm_per_px
         Frame size and scale of the twin camera. Default 320×256 px at 50 µm/px — coarser
         than Greeff's ~20 µm/px [003 §2.1] to keep the rendering affordable (the vision
@@ -281,8 +281,9 @@ def job_runner(*, machine: str | Machine = "greeff2017", gcode: str | Path | Non
     machine
         Set-up (name or object) whose physics the twin follows.
     gcode
-        G-code file to print; None prints :func:`~flowtwin.control.polygon.polygon_gcode`
-        with ``layers_per_set`` layers per temperature set.
+        G-code file to print; None prints the polygon
+        (:func:`~flowtwin.reproduce.greeff2017_polygon.polygon_gcode`) with
+        ``layers_per_set`` layers per temperature set.
     layers_per_set
         Layers per temperature set of the polygon (11 in [003 §3.3]).
     start_s

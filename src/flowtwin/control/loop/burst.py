@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from flowtwin.control.measurement import Measurement
+from flowtwin.control.loop.measurement import Measurement
 from flowtwin.vision import Frame, VisionConfig, VisionResult, measure_frames
 
 __all__ = ["IDLE_GEAR_SPEED_MM_S", "measure_burst", "measurement_from_result"]

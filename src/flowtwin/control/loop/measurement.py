@@ -3,8 +3,8 @@
 A :class:`MeasurementSource` is polled by the supervisor once per loop tick. ``read()``
 returns the newest measurement not yet returned (or None when nothing new arrived) and
 must not block; a source whose camera or file is gone raises :class:`MeasurementLost`.
-The camera and video sources (:mod:`flowtwin.control.video`) and the twin's camera
-(:mod:`flowtwin.control.twin_camera`) implement the same interface on top of
+The camera and video sources (:mod:`flowtwin.control.loop.video`) and the twin's camera
+(:mod:`flowtwin.control.simulated.camera`) implement the same interface on top of
 :mod:`flowtwin.vision`.
 
 :class:`SyntheticSlipSource` produces a slip signal for exercising the loop without a
@@ -24,7 +24,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from flowtwin.control.clock import Clock
+from flowtwin.control.loop.clock import Clock
 from flowtwin.control.printer import Factors
 from flowtwin.errors import ProfileError, VisionError
 

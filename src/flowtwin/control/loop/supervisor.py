@@ -35,10 +35,10 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from flowtwin.control.clock import Clock
-from flowtwin.control.controllers import Controller
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import MeasurementLost, MeasurementSource
+from flowtwin.control.loop.clock import Clock
+from flowtwin.control.loop.controllers import Controller
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.measurement import MeasurementLost, MeasurementSource
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,

@@ -1,7 +1,7 @@
 """Camera and video measurement sources for the loop, on top of :mod:`flowtwin.vision`.
 
 Both cut the frame stream into bursts of ``window_frames`` frames and measure the newest
-complete burst with the vision pipeline (:func:`~flowtwin.control.burst.measure_burst`):
+complete burst with the vision pipeline (:func:`~flowtwin.control.loop.burst.measure_burst`):
 one loop measurement per burst. When the loop polls often enough, consecutive bursts
 share their boundary frame and no step is lost; when it falls behind, older bursts are
 skipped (their measurement would be stale).
@@ -9,14 +9,14 @@ skipped (their measurement would be stale).
 * :class:`VideoSource` replays a recorded video (or image folder) **on the loop's clock**:
   a frame becomes available when the loop's time since the first ``read()`` reaches its
   capture time (divided by ``speed``). Deterministic, no thread: with a
-  :class:`~flowtwin.control.clock.SimClock` a recording replays as fast as it can be
+  :class:`~flowtwin.control.loop.clock.SimClock` a recording replays as fast as it can be
   measured. When the recording is used up, :attr:`VideoSource.finished` turns True and
   ``read()`` returns None (the CLI ends the run then).
 * :class:`CameraSource` reads a live camera (an index, as :func:`flowtwin.vision.open_source`
   takes it — or any other source, e.g. a file, read as fast as it decodes) in a
   background thread, so ``read()`` never blocks; a frame's loop time is the loop clock at
   its arrival, its capture time (driver timestamp) sets the step ``Δt`` of the vision.
-  A camera that fails or ends raises :class:`~flowtwin.control.measurement.MeasurementLost`.
+  A camera that fails or ends raises :class:`~flowtwin.control.loop.measurement.MeasurementLost`.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-from flowtwin.control.burst import measure_burst
-from flowtwin.control.clock import Clock
-from flowtwin.control.measurement import Measurement, MeasurementLost
+from flowtwin.control.loop.burst import measure_burst
+from flowtwin.control.loop.clock import Clock
+from flowtwin.control.loop.measurement import Measurement, MeasurementLost
 from flowtwin.errors import FlowtwinError, ProfileError
 from flowtwin.vision import Frame, VisionConfig, open_source
 

@@ -14,7 +14,7 @@ Subsampling (documented, to keep a simulated print affordable): rendering a fram
 the twin's gear is at rest over the whole burst (a heater wait), the camera would film a
 still scene and the vision would flag the gear as stopped; the source then reports an
 *idle* measurement without rendering. A burst is a slip measurement only over steady
-forward feeding (:mod:`flowtwin.control.burst`).
+forward feeding (:mod:`flowtwin.control.loop.burst`).
 Each measurement also records the twin's true slip over the same frames
 (:attr:`TwinCameraSource.records`), so the camera's error is known.
 """
@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flowtwin.control.burst import IDLE_GEAR_SPEED_MM_S, measure_burst
-from flowtwin.control.measurement import Measurement
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.loop.burst import IDLE_GEAR_SPEED_MM_S, measure_burst
+from flowtwin.control.loop.measurement import Measurement
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.errors import ProfileError
 from flowtwin.vision import Frame, VisionConfig
 from flowtwin.vision.synth import MotionSeries, SceneSpec, SyntheticCamera
@@ -94,7 +94,7 @@ class CameraRecord:
 
 
 class TwinCameraSource:
-    """A :class:`~flowtwin.control.measurement.MeasurementSource` filming the twin printer.
+    """A :class:`~flowtwin.control.loop.measurement.MeasurementSource` filming the twin printer.
 
     Parameters
     ----------

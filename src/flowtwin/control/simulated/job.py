@@ -1,6 +1,6 @@
 """A print job for the twin printer: a G-code file read and planned once, in program time.
 
-The twin prints a job physically (:class:`~flowtwin.control.twinjob.JobRunner`). What
+The twin prints a job physically (:class:`~flowtwin.control.simulated.runner.JobRunner`). What
 the G-code asks for does not depend on the loop, so it is prepared once with flowtwin's
 own reader, planner and feed model: the commanded extruder position against *program
 time* ``τ`` (the planner's clock at 100 % speed, :func:`flowtwin.dynamics.nominal_feed`),

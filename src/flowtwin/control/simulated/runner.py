@@ -1,6 +1,6 @@
 """The twin printer printing a job: program time, heater, extruder physics, history.
 
-:class:`JobRunner` advances a :class:`~flowtwin.control.job.PrintJob` on the loop's clock
+:class:`JobRunner` advances a :class:`~flowtwin.control.simulated.job.PrintJob` on the loop's clock
 in steps of at most ``step_s``:
 
 * **speed multiplier** (``M220``): program time runs at ``speed/100`` of clock time — the
@@ -15,7 +15,7 @@ in steps of at most ``step_s``:
   (by more than ``window_c``);
 * **extruder**: the commanded gear surface speed of the step,
   ``v = ΔE(τ)·flow/Δt``, drives the state equation of SPEC §3.4
-  (:func:`~flowtwin.control.extrusion.step_extrusion`) with the parameters of the
+  (:func:`~flowtwin.control.simulated.extruder.step_extrusion`) with the parameters of the
   machine at the nozzle's temperature and the move's layer height — so slip follows the
   machine's physics: it grows as the nozzle cools and falls when ``M220`` lowers the
   speed, as [003 §2.3, §3.1] observed.
@@ -34,9 +34,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.control.extrusion import ExtruderState, StepParams, step_extrusion, step_params
-from flowtwin.control.job import PrintJob, WaitMode
 from flowtwin.control.printer import Factors
+from flowtwin.control.simulated.extruder import (
+    ExtruderState,
+    StepParams,
+    step_extrusion,
+    step_params,
+)
+from flowtwin.control.simulated.job import PrintJob, WaitMode
 from flowtwin.errors import ProfileError
 from flowtwin.profiles.machine import Machine
 

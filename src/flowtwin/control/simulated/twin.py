@@ -1,7 +1,7 @@
 """The twin as a simulated printer: takes G-code, applies multipliers as the firmware would.
 
 :class:`TwinPrinter` implements :class:`~flowtwin.control.printer.Printer` on a
-:class:`~flowtwin.control.clock.Clock`, in real or accelerated time. It interprets the
+:class:`~flowtwin.control.loop.clock.Clock`, in real or accelerated time. It interprets the
 multiplier commands with the semantics of the chosen firmware (Marlin: integer ``S``,
 bare ``M221`` reports ``echo:E0 Flow: N%``; Klipper: float ``S``, bare ``M221`` resets to
 100 %, ``M900`` unknown), and applies a new multiplier to the extrusion only after
@@ -11,7 +11,7 @@ multiplier acts on moves queued after it. It records every command it received.
 It can lose its connection on purpose (:meth:`drop_connection`) so the supervisor's
 recovery path can be exercised.
 
-Given a print job (:class:`~flowtwin.control.twinjob.JobRunner`), the twin also prints:
+Given a print job (:class:`~flowtwin.control.simulated.runner.JobRunner`), the twin also prints:
 every call first advances the job to the clock's time with the multipliers that acted
 meanwhile, so the extrusion — and the slip — follow the machine's physics at the current
 temperature and the commanded speed and flow (``M220`` lowers the gear speed, hence the
@@ -23,7 +23,7 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass, field
 
-from flowtwin.control.clock import Clock
+from flowtwin.control.loop.clock import Clock
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -31,7 +31,7 @@ from flowtwin.control.printer import (
     FactorTracker,
     Response,
 )
-from flowtwin.control.twinjob import JobRunner
+from flowtwin.control.simulated.runner import JobRunner
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Channel, Firmware, check_command, read_factor_command
 from flowtwin.gcode.words import parse_line

@@ -3,7 +3,7 @@
 Security rules enforced here: only the host and port the user gave are ever contacted
 (every HTTP request is checked; redirects are not followed; proxy settings from the
 environment are ignored, because a proxy is another host), and headers carrying a key are
-built at the last moment from :class:`~flowtwin.control.credentials.ApiKey`.
+built at the last moment from :class:`~flowtwin.control.transports.credentials.ApiKey`.
 """
 
 from __future__ import annotations

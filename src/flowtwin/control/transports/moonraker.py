@@ -27,8 +27,6 @@ from typing import Any
 
 import httpx
 
-from flowtwin.control._net import PushSocket, guarded_client, websocket_url
-from flowtwin.control.credentials import ApiKey
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -36,6 +34,8 @@ from flowtwin.control.printer import (
     FactorTracker,
     Response,
 )
+from flowtwin.control.transports._net import PushSocket, guarded_client, websocket_url
+from flowtwin.control.transports.credentials import ApiKey
 from flowtwin.errors import PrinterConnectionError
 from flowtwin.firmware import Channel, Firmware, check_command
 
