@@ -11,10 +11,10 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagmodel import LagParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.fits.lagmodel import LagParams
+from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
 from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import MoveKind, MoveTable

@@ -9,11 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
+from flowtwin.calibration.fits.kfit import kline_for_machine
 from flowtwin.calibration.kimage import analyse_kline_image, load_grey
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
-from flowtwin.calibration.patterns import generate_pattern
+from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.library import generate_pattern
 from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.firmware import Firmware

@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.csvdata import read_table_text
-from flowtwin.calibration.kfit import fit_k, kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagfit import (
+from flowtwin.calibration.fits.kfit import fit_k, kline_for_machine
+from flowtwin.calibration.fits.lagfit import (
     PROFILE_COLUMNS,
     WidthProfile,
     fit_lag,
     profiles_from_table,
     read_width_profiles,
 )
-from flowtwin.calibration.lagmodel import LagModel, LagParams, lag_model, printed_runs
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, lag_model, printed_runs
+from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.printer import PressureAdvance

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagmodel import LagParams, _path_kinematics, lag_model, printed_runs
-from flowtwin.calibration.pattern_base import PrintSettings
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.fits.lagmodel import LagParams, _path_kinematics, lag_model, printed_runs
+from flowtwin.calibration.patterns.base import PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.errors import CalibrationError
 from flowtwin.physics.deposition import bead_area_mm2
 from flowtwin.planner.timeline import PHASE_DTYPE

@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
-from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
-from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern, pattern_params
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.base import PrintSettings, write_pattern
+from flowtwin.calibration.patterns.library import PATTERN_KINDS, generate_pattern, pattern_params
+from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.beadwidth import area_widths, sample_strip, window_widths
-from flowtwin.calibration.lagmodel import LagParams, lag_model
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
+from flowtwin.calibration.patterns.base import Pattern
 from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.machine import Machine

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from flowtwin.calibration.adaptive_pa import parse_orca_model
+from flowtwin.calibration.tuning.adaptive_pa import parse_orca_model
+from flowtwin.calibration.tuning.advance_settings import pa_test_gcode
 from flowtwin.compensation import adaptive_pa_table, best_pressure_advance
-from flowtwin.compensation.settings import pa_test_gcode
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 from flowtwin.gcode.reader import read_gcode

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration import PrintSettings, generate_pattern
-from flowtwin.compensation.settings import best_pressure_advance, pa_test_gcode
+from flowtwin.calibration.tuning.advance_settings import best_pressure_advance, pa_test_gcode
 from flowtwin.control.loop.clock import SimClock
 from flowtwin.control.printer import FactorTracker
 from flowtwin.control.simulated.twin import TwinPrinter

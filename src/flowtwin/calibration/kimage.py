@@ -1,7 +1,7 @@
 """The advance factor from an image of a printed K-factor pattern.
 
 ``analyse_kline_image`` reads a flatbed scan or a photo of the K-line pattern [001
-Fig. 10] (:func:`~flowtwin.calibration.kline.kline_pattern`), finds and registers its lines
+Fig. 10] (:func:`~flowtwin.calibration.patterns.kline.kline_pattern`), finds and registers its lines
 (:mod:`~flowtwin.calibration.linefind`), measures the bead width along every K-line, scores
 each line and fits the lag:
 
@@ -23,7 +23,7 @@ each line and fits the lag:
   ``e_dec`` between neighbouring lines (linear interpolation) — the two columns of [001
   Table II].
 * **Lag fit.** All lines' width profiles together are fitted with the twin
-  (:func:`~flowtwin.calibration.lagfit.fit_lag`): one lag ``K`` for the printer, each line
+  (:func:`~flowtwin.calibration.fits.lagfit.fit_lag`): one lag ``K`` for the printer, each line
   predicted with the advance factor it was printed with, a free flow gain (which also
   absorbs a scale error of the widths) and a free shift and stretch of the positions
   along the lines (the registration takes the line ends from the beads' ends, which the
@@ -56,9 +56,9 @@ from flowtwin.calibration.beadwidth import (
     sample_strip,
     window_widths,
 )
-from flowtwin.calibration.kfit import pattern_firmware
-from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.lagmodel import (
+from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
+from flowtwin.calibration.fits.lagmodel import (
     DEFAULT_MACHINE,
     LagModel,
     TestLine,
@@ -71,7 +71,7 @@ from flowtwin.calibration.linefind import (
     local_scale,
     register_pattern,
 )
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.patterns.base import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
@@ -357,7 +357,7 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
     image
         Image file (PNG, JPEG, TIFF…) or array (grey or BGR).
     pattern
-        The K-line pattern as printed (:func:`~flowtwin.calibration.patterns.
+        The K-line pattern as printed (:func:`~flowtwin.calibration.patterns.library.
         generate_pattern` with the same settings and parameters).
     machine
         Set-up for the twin (planner, column): default the lag model's.

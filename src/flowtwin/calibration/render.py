@@ -2,7 +2,7 @@
 
 Every run of extruding moves of a G-code (prime line, test lines, tick marks) is drawn as
 a dark bead on a light background, its width along the path the twin's prediction for a
-given lag (:class:`~flowtwin.calibration.lagmodel.LagModel`, [001 Eqs. 7, 15]). The bead
+given lag (:class:`~flowtwin.calibration.fits.lagmodel.LagModel`, [001 Eqs. 7, 15]). The bead
 has round end caps (radius half the width at the end) and round joins at corners. Where
 the predicted width is below half the layer height the bead is left out: the slicer's
 bead model is ill-defined there [001 Fig. 12] and the print shows a gap.
@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.lagmodel import LagParams, lag_model
+from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.machine import Machine
 

@@ -12,13 +12,13 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from flowtwin.calibration.adaptive_pa import (
-    ADAPTIVE_PA_COLUMNS,
-    append_measurement,
-    table_from_measurements,
-    write_orca_model,
-)
 from flowtwin.calibration.csvdata import read_table
+from flowtwin.calibration.fits.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
+from flowtwin.calibration.fits.viscosity_fit import (
+    VISCOSITY_COLUMNS,
+    fit_viscosity_law,
+    sweep_from_table,
+)
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.guide import (
     ADAPTIVE_HELP,
@@ -28,13 +28,13 @@ from flowtwin.calibration.guide import (
     STRAND_HELP,
     VISCOSITY_HELP,
 )
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
-from flowtwin.calibration.viscosity_fit import (
-    VISCOSITY_COLUMNS,
-    fit_viscosity_law,
-    sweep_from_table,
+from flowtwin.calibration.patterns.base import PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.tuning.adaptive_pa import (
+    ADAPTIVE_PA_COLUMNS,
+    append_measurement,
+    table_from_measurements,
+    write_orca_model,
 )
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.cli.calibrate_image import from_image_cmd
@@ -44,7 +44,7 @@ from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
 
 if TYPE_CHECKING:
-    from flowtwin.calibration.lagfit import LagFit
+    from flowtwin.calibration.fits.lagfit import LagFit
 
 __all__ = ["register"]
 
@@ -298,8 +298,8 @@ def _fit_k_cmd(
         help="Add k_s,k_err_s,flow_mm3_s,accel_mm_s2 to this adaptive-pa file.")] = None,
     json_out: _Json = False,
 ) -> None:
-    from flowtwin.calibration.kfit import fit_k
-    from flowtwin.calibration.lagfit import read_width_profiles
+    from flowtwin.calibration.fits.kfit import fit_k
+    from flowtwin.calibration.fits.lagfit import read_width_profiles
 
     profiles = read_width_profiles(profile)
     settings, params = _kline_parts(k_la, k_la, 0.01, slow_speed, fast_speed, slow_length,
@@ -336,7 +336,7 @@ def _fit_slip_cmd(
     output: _Output = None,
     json_out: _Json = False,
 ) -> None:
-    from flowtwin.calibration.slipfit import fit_slip_records
+    from flowtwin.calibration.fits.slipfit import fit_slip_records
 
     cal = fit_slip_records(records, roller_id=roller)
     text = cal.fragment()

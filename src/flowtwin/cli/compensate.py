@@ -1,8 +1,8 @@
 """``flowtwin compensate`` and ``flowtwin tune``: fix the G-code, or set the firmware.
 
 Thin layer over :func:`flowtwin.compensation.compensate`,
-:func:`flowtwin.compensation.best_pressure_advance` and
-:func:`flowtwin.compensation.adaptive_pa_table`.
+:func:`flowtwin.calibration.tuning.advance_settings.best_pressure_advance` and
+:func:`flowtwin.calibration.tuning.advance_settings.adaptive_pa_table`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from typing import Annotated
 
 import typer
 
-from flowtwin.calibration.adaptive_pa import write_orca_model
+from flowtwin.calibration.tuning.adaptive_pa import write_orca_model
+from flowtwin.calibration.tuning.advance_settings import adaptive_pa_table, best_pressure_advance
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.compensation import (
     AdvanceLaw,
@@ -23,8 +24,6 @@ from flowtwin.compensation import (
     RefineOptions,
     SlipOptions,
     TrajectoryOptions,
-    adaptive_pa_table,
-    best_pressure_advance,
     compensate,
 )
 from flowtwin.simulation import DEFAULT_MACHINE

@@ -6,13 +6,13 @@ Two ways to say which line was measured:
   K-line, a flow line, any straight line of a print); each test line runs over the
   consecutive extruding moves from there, and its advance factor is whatever the profile
   and the file's own commands set;
-* **the K-line's parameters** (:class:`~flowtwin.calibration.kline.KLineParams` speeds and
-  lengths, :class:`~flowtwin.calibration.pattern_base.PrintSettings` bead and
+* **the K-line's parameters** (:class:`~flowtwin.calibration.patterns.kline.KLineParams` speeds and
+  lengths, :class:`~flowtwin.calibration.patterns.base.PrintSettings` bead and
   acceleration) and the advance factor it was printed with: the line is generated as
   ``flowtwin calibrate pattern kline`` writes it, for the machine's firmware.
 
 Either way the twin is planned on the machine's printer and fitted to the widths
-(:func:`~flowtwin.calibration.lagfit.fit_lag`).
+(:func:`~flowtwin.calibration.fits.lagfit.fit_lag`).
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
-from flowtwin.calibration.kline import KLineParams, kline_pattern
-from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
+from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
+from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams, kline_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine
@@ -55,7 +55,7 @@ def fit_k(profiles: Sequence[WidthProfile] | Mapping[int | None, WidthProfile], 
     ----------
     profiles
         One profile per test line; a mapping keyed by G-code line (as
-        :func:`~flowtwin.calibration.lagfit.read_width_profiles` returns it) supplies
+        :func:`~flowtwin.calibration.fits.lagfit.read_width_profiles` returns it) supplies
         ``gcode_lines`` itself.
     gcode
         The G-code that printed the lines (path or bytes); ``None``: a K-line from
@@ -70,8 +70,8 @@ def fit_k(profiles: Sequence[WidthProfile] | Mapping[int | None, WidthProfile], 
     machine
         Set-up (planner, column, slip); default the lag model's.
     fit_dead_time, fit_gain, slip, end_margin_mm
-        See :func:`~flowtwin.calibration.lagfit.fit_lag` and
-        :func:`~flowtwin.calibration.lagmodel.lag_model`.
+        See :func:`~flowtwin.calibration.fits.lagfit.fit_lag` and
+        :func:`~flowtwin.calibration.fits.lagmodel.lag_model`.
 
     Returns
     -------

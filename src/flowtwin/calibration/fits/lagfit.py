@@ -1,7 +1,7 @@
 """The lag ``K`` (and optionally a dead time and a gain) from bead widths along test lines.
 
 The measured width profile of one or more test lines is compared with the twin's
-prediction (:class:`~flowtwin.calibration.lagmodel.LagModel`: planner + dynamics with a
+prediction (:class:`~flowtwin.calibration.fits.lagmodel.LagModel`: planner + dynamics with a
 free lag, [001 Eqs. 7, 10, 15]) and ``K`` — with the dead time ``τ`` and the gain ``g`` of
 Bellini's ``g·e^(−τs)/(1 + K·s)`` if asked — is found by nonlinear least squares
 (:func:`scipy.optimize.least_squares`, trust region with bounds) on the width residuals.
@@ -42,8 +42,8 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from flowtwin.calibration.csvdata import Column, Table, read_table
+from flowtwin.calibration.fits.lagmodel import DEAD_TIME_MAX_S, LagModel, LagParams, TestLine
 from flowtwin.calibration.fragment import render_fragment
-from flowtwin.calibration.lagmodel import DEAD_TIME_MAX_S, LagModel, LagParams, TestLine
 from flowtwin.errors import CalibrationError, DataError
 
 __all__ = [
@@ -336,7 +336,7 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
     Parameters
     ----------
     model
-        The test lines in their planned G-code (:func:`~flowtwin.calibration.lagmodel.
+        The test lines in their planned G-code (:func:`~flowtwin.calibration.fits.lagmodel.
         lag_model`).
     profiles
         One measured profile per test line, in the order of ``model.lines`` (a mapping

@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.calibration.csvdata import Column, Table
-from flowtwin.calibration.fitting import propagate_std
+from flowtwin.calibration.fits.fitting import propagate_std
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.physics.strand import (
     StrandFit,

@@ -43,7 +43,7 @@ import numpy.typing as npt
 from pydantic import BaseModel, ValidationError
 
 from flowtwin.calibration.csvdata import Column, Table
-from flowtwin.calibration.fitting import CurveFit, fit_curve, propagate_std
+from flowtwin.calibration.fits.fitting import CurveFit, fit_curve, propagate_std
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.physics.drive import slip_gradient, slip_gradient_velocity
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3

@@ -10,7 +10,7 @@ the net filament of the file is the sum of the bead volumes over ``A_fil``.
 
 The writer records, for each move a pattern means to *test*, its source line, target
 speed and flow (:class:`TestSegment`), and every advance command it writes
-(:class:`PaSetting`), so :func:`flowtwin.calibration.verify.verify_pattern` can read the
+(:class:`PaSetting`), so :func:`flowtwin.calibration.patterns.verify.verify_pattern` can read the
 file back, plan it and check that the printer really reaches those speeds.
 """
 

@@ -1,15 +1,15 @@
 """The pattern library: every calibration pattern by name, with its parameter type.
 
-=========  ==============================================  ================================
+=========  ==============================================  ===============
 kind       what it tests                                   module
-=========  ==============================================  ================================
-kline      advance factor: slow/fast/slow lines [001]      :mod:`~flowtwin.calibration.kline`
-chevron    advance factor: Ellis-style nested corners      :mod:`~flowtwin.calibration.chevron`
-tower      advance factor: ``K = start + step·z``          :mod:`~flowtwin.calibration.tower`
-flow       extrusion multiplier: solid blocks              :mod:`~flowtwin.calibration.flow`
-maxflow    maximum volumetric speed: rising-flow lines     :mod:`~flowtwin.calibration.flow`
-flowline   lag: one line alternating ``v/4`` and ``v``     :mod:`~flowtwin.calibration.flow`
-=========  ==============================================  ================================
+=========  ==============================================  ===============
+kline      advance factor: slow/fast/slow lines [001]      :mod:`.kline`
+chevron    advance factor: Ellis-style nested corners      :mod:`.chevron`
+tower      advance factor: ``K = start + step·z``          :mod:`.tower`
+flow       extrusion multiplier: solid blocks              :mod:`.flow_rate`
+maxflow    maximum volumetric speed: rising-flow lines     :mod:`.flow_rate`
+flowline   lag: one line alternating ``v/4`` and ``v``     :mod:`.flow_rate`
+=========  ==============================================  ===============
 """
 
 from __future__ import annotations
@@ -18,8 +18,9 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from flowtwin.calibration.chevron import ChevronParams, chevron_pattern
-from flowtwin.calibration.flow import (
+from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.chevron import ChevronParams, chevron_pattern
+from flowtwin.calibration.patterns.flow_rate import (
     FlowBlockParams,
     FlowLineParams,
     MaxFlowParams,
@@ -27,9 +28,8 @@ from flowtwin.calibration.flow import (
     flowline_pattern,
     maxflow_pattern,
 )
-from flowtwin.calibration.kline import KLineParams, kline_pattern
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
-from flowtwin.calibration.tower import TowerParams, tower_pattern
+from flowtwin.calibration.patterns.kline import KLineParams, kline_pattern
+from flowtwin.calibration.patterns.tower import TowerParams, tower_pattern
 from flowtwin.errors import CalibrationError
 
 __all__ = ["PATTERN_KINDS", "PatternKind", "generate_pattern", "pattern_params"]

@@ -14,7 +14,7 @@ planner cap, RepRapFirmware's, Prusa's; :mod:`flowtwin.dynamics.advance`), so:
   ``K`` over layer heights and temperatures move the optimum away from the lag factor;
 * :func:`adaptive_pa_table` does the same on a short test print per volumetric flow and
   acceleration and returns OrcaSlicer's adaptive pressure advance table
-  (:class:`flowtwin.calibration.adaptive_pa.AdaptivePaTable`, rows ``PA, flow, accel``).
+  (:class:`flowtwin.calibration.tuning.adaptive_pa.AdaptivePaTable`, rows ``PA, flow, accel``).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from flowtwin.calibration.adaptive_pa import AdaptivePaTable
+from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
 from flowtwin.dynamics import AdvanceSettings, predict
 from flowtwin.errors import CalibrationError, GcodeError
 from flowtwin.firmware import (
