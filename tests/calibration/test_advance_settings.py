@@ -7,12 +7,24 @@ from pathlib import Path
 import pytest
 
 from flowtwin.calibration.tuning.adaptive_pa import parse_orca_model
-from flowtwin.calibration.tuning.advance_settings import pa_test_gcode
-from flowtwin.compensation import adaptive_pa_table, best_pressure_advance
+from flowtwin.calibration.tuning.advance_settings import (
+    adaptive_pa_table,
+    best_pressure_advance,
+    pa_test_gcode,
+)
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
+from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.profiles.machine import load_machine
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The built-in example print (2 layers: small and fast), relative E."""
+    path = tmp_path_factory.mktemp("example") / "example.gcode"
+    write_print(path, PrintSpec(layers=2))
+    return path
 
 
 def test_best_k_beats_no_advance_and_the_lag_factor(example: Path) -> None:
