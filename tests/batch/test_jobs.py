@@ -21,7 +21,7 @@ from flowtwin.batch.jobs import (
 )
 from flowtwin.batch.overrides import MachineBuilder, load_base
 from flowtwin.errors import FlowtwinError
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 
 
 def _job(path: Path, **kw: object) -> Job:

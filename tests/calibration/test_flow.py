@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.patterns.base import PrintSettings
 from flowtwin.calibration.patterns.flow_rate import (
     FlowBlockParams,
     FlowLineParams,
@@ -17,6 +16,7 @@ from flowtwin.calibration.patterns.flow_rate import (
     flowline_pattern,
     maxflow_pattern,
 )
+from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware

@@ -11,9 +11,9 @@ import pytest
 
 from flowtwin.calibration.fits.kfit import kline_for_machine
 from flowtwin.calibration.kimage import analyse_kline_image, load_grey
-from flowtwin.calibration.patterns.base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.catalog import generate_pattern
 from flowtwin.calibration.patterns.kline import KLineParams
-from flowtwin.calibration.patterns.library import generate_pattern
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.firmware import Firmware

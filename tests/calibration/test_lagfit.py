@@ -18,8 +18,8 @@ from flowtwin.calibration.fits.lagfit import (
     read_width_profiles,
 )
 from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, lag_model, printed_runs
-from flowtwin.calibration.patterns.base import Pattern, PrintSettings
 from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.printer import PressureAdvance

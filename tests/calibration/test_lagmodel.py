@@ -10,12 +10,12 @@ import pytest
 
 from flowtwin.calibration.fits.kfit import kline_for_machine
 from flowtwin.calibration.fits.lagmodel import LagParams, _path_kinematics, lag_model, printed_runs
-from flowtwin.calibration.patterns.base import PrintSettings
 from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.errors import CalibrationError
 from flowtwin.physics.deposition import bead_area_mm2
+from flowtwin.planner.plan_file import load_printer
 from flowtwin.planner.timeline import PHASE_DTYPE
-from flowtwin.planning import load_printer
 from flowtwin.profiles.machine import Machine, load_machine
 
 

@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
-from flowtwin.calibration.patterns.base import PrintSettings, write_pattern
-from flowtwin.calibration.patterns.library import PATTERN_KINDS, generate_pattern, pattern_params
+from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern, pattern_params
+from flowtwin.calibration.patterns.pattern import PrintSettings, write_pattern
 from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
@@ -45,7 +45,7 @@ def test_acceleration_and_smoothing_commands_are_honoured_by_the_planner(gc: Any
     check = verify_pattern(pattern, printer="generic-klipper")
     assert check.ok
     # with 1500 mm/s² the fast segment still cruises, but Klipper plans at that accel:
-    from flowtwin.planning import plan_gcode
+    from flowtwin.planner.plan_file import plan_gcode
 
     result = plan_gcode(pattern.text().encode(), printer="generic-klipper")
     accel = result.timeline.phases["accel"][gc.extruding(result.table)]

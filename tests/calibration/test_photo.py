@@ -34,8 +34,8 @@ from flowtwin.calibration.image.photosynth import (
     synthetic_widths,
 )
 from flowtwin.calibration.image.quality import edge_ratio
-from flowtwin.calibration.patterns.base import Pattern, PrintSettings
 from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.cli.calibrate import register
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import load_machine

@@ -9,7 +9,7 @@ import pytest
 
 from flowtwin.calibration.beadwidth import area_widths, sample_strip, window_widths
 from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
-from flowtwin.calibration.patterns.base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.machine import Machine

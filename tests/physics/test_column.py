@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from flowtwin.errors import ProfileError
-from flowtwin.physics.column import (
+from flowtwin.physics.compliance import (
     bowden_compliance_mm_per_n,
     compliance_mm_per_n,
     compression_mm,

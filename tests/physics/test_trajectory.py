@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from flowtwin.errors import DataError
-from flowtwin.physics.trajectory import (
+from flowtwin.physics.nozzle_path import (
     SplineMethod,
     circle_nozzle_phase_rad,
     circle_nozzle_radius_mm,

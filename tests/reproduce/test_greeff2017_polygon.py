@@ -11,7 +11,7 @@ from flowtwin.control.simulated.job import PrintJob, WaitMode
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_area_mm2
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles import load_machine
 from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 

@@ -11,7 +11,7 @@ import pytest
 
 from flowtwin.errors import VisionError
 from flowtwin.vision import Frame, Quality, SourceInfo, measure, measure_frames, open_source
-from flowtwin.vision.source import read_timestamps_file
+from flowtwin.vision.capture import read_timestamps_file
 from flowtwin.vision.synth import (
     MotionSeries,
     SceneSpec,

@@ -6,7 +6,7 @@ is lost. The model behind it is chosen by :data:`Engine`:
 
 * ``"simulate"`` (default) — :func:`flowtwin.simulation.simulate`, the whole-print twin
   (print time, commanded and delivered volume, width, force, grinding and ooze figures);
-* ``"plan"`` — :func:`flowtwin.planning.plan_gcode` only (print time, filament, moves,
+* ``"plan"`` — :func:`flowtwin.planner.plan_file.plan_gcode` only (print time, filament, moves,
   layers): faster, for time estimates.
 
 A row is flat: the job's identity (``index``, ``row_id``, ``file``, one column per swept
@@ -211,7 +211,7 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
         The G-code or the machine is rejected by the model.
     """
     if engine == "plan":
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         planned = plan_gcode(source, printer=machine.printer)
         summary = planned.summary()

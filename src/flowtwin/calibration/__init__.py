@@ -10,7 +10,7 @@ Quick start::
     check = verify_pattern(pattern, printer="generic-marlin")   # read back and plan
     assert check.ok                                             # test speeds reached
 
-Patterns (:mod:`~flowtwin.calibration.patterns.library`): K-factor lines, Ellis-style chevrons, a
+Patterns (:mod:`~flowtwin.calibration.patterns.catalog`): K-factor lines, Ellis-style chevrons, a
 PA tower, extrusion-multiplier blocks, a max-volumetric-speed ramp and a flow line, for
 every firmware of :mod:`flowtwin.firmware`, every bead from [001 Eq. 7]. Fits: the lag ``K``
 (dead time, gain) from widths along test lines by fitting the twin
@@ -49,14 +49,14 @@ from flowtwin.calibration.fits.viscosity_fit import (
     sweep_from_table,
 )
 from flowtwin.calibration.fragment import render_fragment, write_fragment
-from flowtwin.calibration.patterns.base import (
+from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern, pattern_params
+from flowtwin.calibration.patterns.pattern import (
     PaSetting,
     Pattern,
     PrintSettings,
     TestSegment,
     write_pattern,
 )
-from flowtwin.calibration.patterns.library import PATTERN_KINDS, generate_pattern, pattern_params
 from flowtwin.calibration.patterns.verify import PatternCheck, SegmentCheck, verify_pattern
 from flowtwin.calibration.tuning.adaptive_pa import (
     AdaptivePaTable,

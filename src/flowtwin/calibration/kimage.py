@@ -71,7 +71,7 @@ from flowtwin.calibration.linefind import (
     local_scale,
     register_pattern,
 )
-from flowtwin.calibration.patterns.base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
@@ -357,7 +357,7 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
     image
         Image file (PNG, JPEG, TIFF…) or array (grey or BGR).
     pattern
-        The K-line pattern as printed (:func:`~flowtwin.calibration.patterns.library.
+        The K-line pattern as printed (:func:`~flowtwin.calibration.patterns.catalog.
         generate_pattern` with the same settings and parameters).
     machine
         Set-up for the twin (planner, column): default the lag model's.

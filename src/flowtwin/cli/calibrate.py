@@ -28,8 +28,8 @@ from flowtwin.calibration.guide import (
     STRAND_HELP,
     VISCOSITY_HELP,
 )
-from flowtwin.calibration.patterns.base import PrintSettings
 from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.calibration.tuning.adaptive_pa import (
     ADAPTIVE_PA_COLUMNS,
     append_measurement,

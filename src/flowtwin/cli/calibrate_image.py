@@ -77,8 +77,8 @@ def from_image_cmd(
         layout_settings,
         line_layout_pattern,
     )
-    from flowtwin.calibration.patterns.base import PrintSettings
     from flowtwin.calibration.patterns.kline import KLineParams
+    from flowtwin.calibration.patterns.pattern import PrintSettings
     from flowtwin.profiles.machine import load_machine
 
     if pattern == "chevron":

@@ -2,7 +2,7 @@
 
 Every kind takes the shared print options (firmware, bead, temperatures, placement, the
 check) and only its own parameters; an option of another kind is a usage error. A thin
-layer over :func:`flowtwin.calibration.patterns.library.generate_pattern`.
+layer over :func:`flowtwin.calibration.patterns.catalog.generate_pattern`.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from typing import Annotated, Any
 import typer
 
 from flowtwin.calibration.guide import PATTERN_HELP, PATTERN_KIND_HELP
-from flowtwin.calibration.patterns.base import PrintSettings, write_pattern
+from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern
 from flowtwin.calibration.patterns.chevron import ChevronParams
 from flowtwin.calibration.patterns.flow_rate import FlowBlockParams, FlowLineParams, MaxFlowParams
 from flowtwin.calibration.patterns.kline import KLineParams
-from flowtwin.calibration.patterns.library import PATTERN_KINDS, generate_pattern
+from flowtwin.calibration.patterns.pattern import PrintSettings, write_pattern
 from flowtwin.calibration.patterns.tower import TowerParams
 from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows

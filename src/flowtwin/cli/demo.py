@@ -13,7 +13,7 @@ from flowtwin.cli._common import console, print_json
 from flowtwin.cli.plan import render_plan
 from flowtwin.cli.simulate import render_simulation, run_simulation
 from flowtwin.gcode.generator import PrintSpec, write_print
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.simulation import DEFAULT_MACHINE
 
 __all__ = ["register", "run_demo"]

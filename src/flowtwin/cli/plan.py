@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
-from flowtwin.planning import DEFAULT_PRINTER, PlanResult, plan_gcode
+from flowtwin.planner.plan_file import DEFAULT_PRINTER, PlanResult, plan_gcode
 
 __all__ = ["register", "render_plan"]
 

@@ -16,16 +16,16 @@ from flowtwin.dynamics.advance import (
     apply_advance,
     printer_advance,
 )
-from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
-from flowtwin.dynamics.integrator import integrate
-from flowtwin.dynamics.params import ExtrusionParams, resolve_per_move
-from flowtwin.dynamics.predict import predict
-from flowtwin.dynamics.result import (
+from flowtwin.dynamics.extrusion_result import (
     MOVE_RESULT_DTYPE,
     SERIES_DTYPE,
     DynamicsResult,
     DynamicsSummary,
 )
+from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
+from flowtwin.dynamics.integrator import integrate
+from flowtwin.dynamics.params import ExtrusionParams, resolve_per_move
+from flowtwin.dynamics.predict import predict
 from flowtwin.dynamics.thermal import TemperatureSchedule, move_temperatures, temperature_schedule
 
 __all__ = [

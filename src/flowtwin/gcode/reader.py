@@ -46,9 +46,9 @@ from flowtwin.gcode._commands import (
 )
 from flowtwin.gcode._rows import _Rows
 from flowtwin.gcode.bgcode.read import BgcodeText
+from flowtwin.gcode.inputs import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
-from flowtwin.gcode.source import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.words import parse_line
 
 __all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]

@@ -16,7 +16,7 @@ import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
 from flowtwin.errors import CalibrationError
-from flowtwin.physics.column import compliance_mm_per_n
+from flowtwin.physics.compliance import compliance_mm_per_n
 from flowtwin.physics.defaults import HotendConstants, SetupConstants
 from flowtwin.physics.drive import (
     is_grinding,

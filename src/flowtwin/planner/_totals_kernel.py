@@ -1,5 +1,5 @@
 """Compiled per-tool and per-feature totals of a planned print (private; see
-:meth:`flowtwin.planning.PlanResult.summary`).
+:meth:`flowtwin.planner.plan_file.PlanResult.summary`).
 
 Two passes over the move and phase records instead of a dozen numpy passes over strided
 record fields (0.24 s → ~0.04 s on a 2.1 M-move print). Sums are Neumaier-compensated,

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from flowtwin.dynamics import DynamicsResult, ExtrusionParams, integrate
 from flowtwin.dynamics.feed import PHASE_CRUISE, CommandedFeed
-from flowtwin.physics.column import compliance_mm_per_n
+from flowtwin.physics.compliance import compliance_mm_per_n
 from flowtwin.physics.defaults import TRONVOLL_MK25
 from flowtwin.physics.lag import lag_factor_s
 from flowtwin.physics.operating_point import (

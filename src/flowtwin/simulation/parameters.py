@@ -19,7 +19,7 @@ from numba import njit
 
 from flowtwin.dynamics import ExtrusionParams, move_temperatures
 from flowtwin.gcode.moves import MoveKind, MoveTable
-from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
+from flowtwin.physics.compliance import bowden_compliance_mm_per_n, compliance_mm_per_n
 from flowtwin.physics.lag import lag_factor_s
 from flowtwin.physics.melt_history import MeltState
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3

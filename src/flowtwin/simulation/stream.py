@@ -58,8 +58,8 @@ from flowtwin.planner.from_profile import klipper_settings, marlin_settings, rea
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.planner.marlin import plan_marlin
+from flowtwin.planner.plan_file import PlanResult
 from flowtwin.planner.timeline import Timeline
-from flowtwin.planning import PlanResult
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.aggregate import Aggregates

@@ -7,7 +7,7 @@ Two ways to say which line was measured:
   consecutive extruding moves from there, and its advance factor is whatever the profile
   and the file's own commands set;
 * **the K-line's parameters** (:class:`~flowtwin.calibration.patterns.kline.KLineParams` speeds and
-  lengths, :class:`~flowtwin.calibration.patterns.base.PrintSettings` bead and
+  lengths, :class:`~flowtwin.calibration.patterns.pattern.PrintSettings` bead and
   acceleration) and the advance factor it was printed with: the line is generated as
   ``flowtwin calibrate pattern kline`` writes it, for the machine's firmware.
 
@@ -23,8 +23,8 @@ from dataclasses import replace
 
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
 from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
-from flowtwin.calibration.patterns.base import Pattern, PrintSettings
 from flowtwin.calibration.patterns.kline import KLineParams, kline_pattern
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine

@@ -5,7 +5,7 @@ A *test line* is a run of consecutive extruding XY moves of a G-code file (a K-f
 its length. For a trial lag ``K`` (and, optionally, a dead time ``τ`` and a gain ``g``) the
 model predicts that width:
 
-1. The G-code is read and planned once (:func:`flowtwin.planning.plan_gcode`): the
+1. The G-code is read and planned once (:func:`flowtwin.planner.plan_file.plan_gcode`): the
    timeline gives, for every test line, the nozzle's path position ``s(t)`` and speed
    ``v(t)`` (piecewise constant acceleration).
 2. The dynamics (:func:`flowtwin.dynamics.predict`) turn the commanded feed — with the
@@ -49,7 +49,7 @@ from flowtwin.dynamics import (
 from flowtwin.errors import CalibrationError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_width_mm
-from flowtwin.planning import PlanResult, plan_gcode
+from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.simulation.parameters import move_parameters
 

@@ -40,7 +40,7 @@ from flowtwin.calibration.image.detect import LineSet, detect_lines
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
 from flowtwin.calibration.image.register import LayoutGeometry, Reading, register_layout
 from flowtwin.calibration.kimage import LineReading, load_grey, score_line
-from flowtwin.calibration.patterns.base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 

@@ -50,7 +50,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from flowtwin.calibration.patterns.base import (
+from flowtwin.calibration.patterns.pattern import (
     Pattern,
     PatternWriter,
     PrintSettings,

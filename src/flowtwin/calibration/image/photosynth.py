@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.patterns.base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 
 __all__ = ["PhotoConditions", "SynthPhoto", "render_photo", "scene_from_pattern",
            "synthetic_widths"]

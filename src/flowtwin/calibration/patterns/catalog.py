@@ -18,7 +18,6 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from flowtwin.calibration.patterns.base import Pattern, PrintSettings
 from flowtwin.calibration.patterns.chevron import ChevronParams, chevron_pattern
 from flowtwin.calibration.patterns.flow_rate import (
     FlowBlockParams,
@@ -29,6 +28,7 @@ from flowtwin.calibration.patterns.flow_rate import (
     maxflow_pattern,
 )
 from flowtwin.calibration.patterns.kline import KLineParams, kline_pattern
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.calibration.patterns.tower import TowerParams, tower_pattern
 from flowtwin.errors import CalibrationError
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from flowtwin.calibration.patterns.base import (
+from flowtwin.calibration.patterns.pattern import (
     Pattern,
     PatternWriter,
     PrintSettings,
@@ -85,7 +85,7 @@ def chevron_pattern(settings: PrintSettings, params: ChevronParams | None = None
     -------
     Pattern
         Test segments: role ``"arm"`` (``"first-layer arm"`` on layer 0), group = chevron
-        index; one :class:`~flowtwin.calibration.patterns.base.PaSetting` per chevron per
+        index; one :class:`~flowtwin.calibration.patterns.pattern.PaSetting` per chevron per
         layer, written before the chevron's first wall.
     """
     p = params or ChevronParams()

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from flowtwin.calibration.patterns.base import (
+from flowtwin.calibration.patterns.pattern import (
     Pattern,
     PatternWriter,
     PrintSettings,

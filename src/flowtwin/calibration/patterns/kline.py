@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from flowtwin.calibration.patterns.base import (
+from flowtwin.calibration.patterns.pattern import (
     Pattern,
     PatternWriter,
     PrintSettings,
@@ -74,7 +74,7 @@ def kline_pattern(settings: PrintSettings, params: KLineParams | None = None) ->
     -------
     Pattern
         Test segments: roles ``"slow"``, ``"fast"``, ``"slow"`` per line, group = line
-        index; one :class:`~flowtwin.calibration.patterns.base.PaSetting` per line.
+        index; one :class:`~flowtwin.calibration.patterns.pattern.PaSetting` per line.
     """
     p = params or KLineParams()
     ks = p.k_values

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from flowtwin.calibration.patterns.base import Pattern, PatternWriter, PrintSettings, check_param
+from flowtwin.calibration.patterns.pattern import Pattern, PatternWriter, PrintSettings, check_param
 
 __all__ = ["TowerParams", "tower_k_at", "tower_pattern"]
 
@@ -63,7 +63,7 @@ def tower_pattern(settings: PrintSettings, params: TowerParams | None = None) ->
     -------
     Pattern
         Test segments: role ``"side"`` (``"first-layer side"`` on layer 0), group = layer;
-        one :class:`~flowtwin.calibration.patterns.base.PaSetting` per layer with its ``z``.
+        one :class:`~flowtwin.calibration.patterns.pattern.PaSetting` per layer with its ``z``.
     """
     p = params or TowerParams()
     s = settings

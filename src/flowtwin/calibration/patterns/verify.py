@@ -5,7 +5,7 @@ means to test: a 40 mm "fast" segment that never leaves its acceleration ramp te
 nothing. :func:`verify_pattern` reads the generated G-code back with
 :func:`flowtwin.gcode.reader.read_gcode`, plans it for a printer profile with the
 Klipper or Marlin planner, and compares, for every
-:class:`~flowtwin.calibration.patterns.base.TestSegment`, the planned cruise speed
+:class:`~flowtwin.calibration.patterns.pattern.TestSegment`, the planned cruise speed
 (``Timeline.phases["cruise_v"]``) with the target, and the flow it implies
 (``cruise_v · ΔE·A_fil/L``, the reader's E) with the target flow. It also reports unknown
 commands and compares the file's net filament with the pattern's.
@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from flowtwin.calibration.patterns.base import Pattern, TestSegment
+from flowtwin.calibration.patterns.pattern import Pattern, TestSegment
 from flowtwin.errors import CalibrationError
 from flowtwin.gcode.moves import MoveKind
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["PatternCheck", "SegmentCheck", "verify_pattern"]

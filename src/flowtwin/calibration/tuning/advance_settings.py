@@ -41,7 +41,7 @@ from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, WordFormats, form
 from flowtwin.gcode.generator import PrintSpec, generate_print
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_area_mm2
-from flowtwin.planning import PlanResult, plan_gcode
+from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation import DEFAULT_MACHINE, move_parameters

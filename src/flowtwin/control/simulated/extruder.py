@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
+from flowtwin.physics.compliance import bowden_compliance_mm_per_n, compliance_mm_per_n
 from flowtwin.physics.lag import lag_factor_s, lag_linear, lag_step
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s

@@ -25,7 +25,7 @@ import numpy.typing as npt
 from flowtwin.dynamics import CommandedFeed, nominal_feed
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import MoveKind
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles.machine import Machine
 from flowtwin.simulation.parameters import layer_heights_mm
 
