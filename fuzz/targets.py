@@ -120,6 +120,47 @@ def _cli(argv: list[str]) -> None:
                 raise RuntimeError(f"CLI exit status {exc.code}") from None
 
 
+def bgcode_target(seed: int) -> Target:
+    """Prusa binary G-code: flowtwin's writer on real corpus slices in every storage variant
+    (no checksum in half of them, so edits reach the decompressors and MeatPack)."""
+    import itertools
+    import tempfile
+
+    from flowtwin.gcode.bgcode.format import ChecksumType, Compression, GcodeEncoding
+    from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+    corpus = _corpus()
+    texts = [b"\n".join((corpus / name).read_bytes().split(b"\n")[:n]) + b"\n"
+             for name, n in (("prusaslicer_2.8.1_minicube_small.gcode", 1500),
+                             ("prusaslicer_2.7.4_vase.gcode", 600),
+                             ("bambustudio_1.07_2colour_cube_small.gcode", 400))]
+    seeds: list[bytes] = []
+    variants = itertools.product(ChecksumType, (Compression.NONE, Compression.DEFLATE,
+                                                Compression.HEATSHRINK_11_4,
+                                                Compression.HEATSHRINK_12_4), GcodeEncoding)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "seed.bgcode"
+        for i, (check, comp, enc) in enumerate(variants):
+            text_to_bgcode(texts[i % len(texts)], out, options=BgcodeOptions(
+                checksum=check, gcode=comp, gcode_encoding=enc))
+            seeds.append(out.read_bytes())
+
+    def make(rng: random.Random) -> bytes:
+        return mutate_bytes(rng, rng.choice(seeds))
+
+    def run(path: Path, rng: random.Random) -> None:
+        from flowtwin.gcode.reader import read_gcode
+        from flowtwin.planning import plan_gcode
+
+        target.count("read")
+        read_gcode(path)
+        target.count("plan")
+        plan_gcode(path).summary()
+
+    target = Target("bgcode", ".bgcode", make, run, weight=1.0)
+    return target
+
+
 # ---------------------------------------------------------------- profiles and configs
 
 
@@ -274,6 +315,7 @@ def image_target() -> Target:
 
 FACTORIES: dict[str, Callable[[int], Target]] = {
     "gcode": gcode_target,
+    "bgcode": bgcode_target,
     "profile": lambda seed: profile_target(),
     "klipper-cfg": lambda seed: klipper_cfg_target(),
     "records-csv": lambda seed: records_csv_target(),

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import importlib
 import os
+import signal
 import sys
+import threading
 from typing import NoReturn, Protocol, cast
 
 import typer
@@ -68,8 +70,18 @@ def _click_kind(exc: BaseException) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the CLI; user errors exit 2 with a message, internal errors exit 3."""
+    """Run the CLI; user errors exit 2 with a message, internal errors exit 3; Ctrl-C exits
+    130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
     err = Console(stderr=True, highlight=False)
+    terminated: list[int] = []
+
+    def terminate(signum: int, frame: object) -> None:
+        # unwind like Ctrl-C, so outputs being written are dropped whole
+        terminated.append(signum)
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, terminate)
     try:
         # standalone_mode=False returns typer.Exit codes instead of exiting with them
         code = app(args=argv, standalone_mode=False)
@@ -83,8 +95,7 @@ def main(argv: list[str] | None = None) -> None:
                   markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
     except KeyboardInterrupt:
-        err.print("interrupted")
-        sys.exit(130)
+        _interrupted(err, terminated)
     except SystemExit:
         raise
     except Exception as exc:  # last line of defence for the user
@@ -93,12 +104,22 @@ def main(argv: list[str] | None = None) -> None:
             usage = cast(_ClickError, exc)
             usage.show()
             sys.exit(usage.exit_code)
-        if kind == "Abort":
-            err.print("aborted")
-            sys.exit(1)
+        if kind == "Abort":  # click's form of Ctrl-C (or of SIGTERM, through the handler)
+            _interrupted(err, terminated)
         _internal_error(err, exc)
     else:
+        if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C or our SIGTERM)
+            _interrupted(err, terminated)
         sys.exit(code if isinstance(code, int) else 0)
+
+
+def _interrupted(err: Console, terminated: list[int]) -> NoReturn:
+    """Ctrl-C: exit 130; ``SIGTERM``: exit 143 (nothing half-written either way)."""
+    if terminated:
+        err.print("terminated")
+        sys.exit(128 + signal.SIGTERM)
+    err.print("interrupted")
+    sys.exit(130)
 
 
 def _internal_error(err: Console, exc: BaseException) -> NoReturn:
