@@ -79,7 +79,7 @@ def gcode_target(seed: int) -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
         from flowtwin.profiles.machine import load_machine
         from flowtwin.simulation import simulate
 
@@ -150,7 +150,7 @@ def bgcode_target(seed: int) -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         target.count("read")
         read_gcode(path)
@@ -186,7 +186,7 @@ def klipper_cfg_target() -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.planner.klipper_config import load_printer_cfg
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         target.count("load")
         load_printer_cfg(path)
@@ -242,7 +242,7 @@ def width_csv_target() -> Target:
              b"# measured\nposition_mm,width_mm\n0,0.45\n1,0.46\n2,0.47\n3,0.44\n"]
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.lagfit import read_width_profiles
+        from flowtwin.calibration.fits.lagfit import read_width_profiles
 
         target.count("read")
         read_width_profiles(path)
@@ -257,7 +257,7 @@ def orca_table_target() -> Target:
              b"0.045,15,5000\n", b'"0.04,5,1000\\n0.05,20,1000\\n0.03,5,3000\\n0.04,20,3000"']
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.adaptive_pa import read_orca_model
+        from flowtwin.calibration.tuning.adaptive_pa import read_orca_model
 
         target.count("read")
         read_orca_model(path)
