@@ -45,7 +45,6 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -74,6 +73,7 @@ from flowtwin.calibration.linefind import (
 from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
+from flowtwin.vision.loader import load_grey
 
 __all__ = ["KLineImageResult", "LineReading", "analyse_kline_image", "load_grey",
            "score_line"]
@@ -90,40 +90,6 @@ _MIN_MEASURED = 0.5
 #: Lines in the lag fit: measured along this fraction of their length (no gaps: where the
 #: nozzle ran empty the bead model is ill-defined [001 Fig. 12] and the width unknown).
 _FIT_MEASURED = 0.98
-
-
-def load_grey(image: str | os.PathLike[str] | npt.NDArray[Any]) -> tuple[
-        npt.NDArray[np.uint8], str]:
-    """A grey uint8 image from a file or an array, and its name for messages.
-
-    Raises
-    ------
-    VisionError
-        A file that cannot be read as an image, or an array that is not one.
-    """
-    if isinstance(image, np.ndarray):
-        arr = image
-        name = "<array>"
-    else:
-        name = os.fspath(image)
-        if not os.path.isfile(name):
-            raise VisionError("no such image file", source=name)
-        read = cv2.imread(name, cv2.IMREAD_UNCHANGED)
-        if read is None:
-            raise VisionError("cannot read the file as an image", source=name,
-                              allowed="PNG, JPEG, TIFF, BMP (a scan or a photo)")
-        arr = np.asarray(read)
-    if arr.ndim == 3 and arr.shape[2] in (3, 4):
-        arr = cv2.cvtColor(arr[:, :, :3], cv2.COLOR_BGR2GRAY)
-    if arr.ndim != 2:
-        raise VisionError("not a grey or colour image", source=name, value=arr.shape,
-                          allowed="shape (H, W) or (H, W, 3)")
-    if arr.dtype == np.uint16:
-        arr = (arr // 257).astype(np.uint8)
-    if arr.dtype != np.uint8:
-        raise VisionError("unsupported pixel type", source=name, value=str(arr.dtype),
-                          allowed="8- or 16-bit")
-    return np.ascontiguousarray(arr), name
 
 
 @dataclass(frozen=True)
