@@ -57,7 +57,7 @@ def test_known_lag_is_recovered_within_its_uncertainty(line: tuple[Pattern, LagM
     assert fit.k_err_s < 0.05 * 0.045          # a useful measurement, not a shrug
     assert fit.rms_mm == pytest.approx(NOISE_MM, rel=0.15)
     assert fit.n_points + fit.n_excluded == X.size
-    assert fit.machine_lag_s == pytest.approx(0.06, abs=0.002)   # SPEC §4 default
+    assert fit.machine_lag_s == pytest.approx(0.06, abs=0.002)   # docs/spec.md §4 default
 
 
 def test_reported_uncertainty_matches_the_scatter(line: tuple[Pattern, LagModel]) -> None:

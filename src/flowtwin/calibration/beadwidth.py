@@ -15,7 +15,7 @@ mm. Two measurements of the width of each column:
   to 1e-4 mm when sharp, at 12 px/mm and a 1.2 px blur the profile shape within 0.0012 mm
   RMS (plus a common 4 % scale).
 * ``"edges"``: the two strongest slopes of the Gaussian-smoothed profile across the bead,
-  to sub-sample precision (the derivative-extrema method of [003 §2.2], SPEC §3.7,
+  to sub-sample precision (the derivative-extrema method of [003 §2.2], docs/spec.md §3.7,
   vectorised over the columns). It needs no dark level, but a sharp image locks the edges
   to the pixel grid (±0.25 px) and blur pulls the edges of a narrow bead together: on the
   same renders its profile errs by 0.003–0.005 mm RMS with a shape-dependent bias.

@@ -1,6 +1,6 @@
 """Extrusion dynamics: commanded feed, firmware pressure advance, and the lag/slip integrator.
 
-Flow (SPEC §3.4, §3.6)::
+Flow (docs/spec.md §3.4, §3.6)::
 
     MoveTable + Timeline ─► nominal_feed ─► apply_advance (the firmware's, flowtwin.firmware)
         ─► integrate (state Δl: lag [001], no backflow, slip [000], grinding) ─► DynamicsResult

@@ -122,7 +122,7 @@ def _unowned(typingctx: Any, arr: Any) -> Any:  # pragma: no cover - compiled
 #: :func:`_unowned` as a numba intrinsic (typed for mypy as the identity on arrays).
 unowned = cast("Callable[[npt.NDArray[Any]], npt.NDArray[Any]]", intrinsic(_unowned))
 
-#: Regimes of the state equation (SPEC §3.4) on an interval of fixed sign of the feed.
+#: Regimes of the state equation (docs/spec.md §3.4) on an interval of fixed sign of the feed.
 FREE = 0   # Δl ≤ 0: column pulled back from the melt, no output, x' = α
 LAG = 1    # Δl > 0, constant coefficient: x' = α - x/K
 SLIP = 2   # Δl > 0, feeding forward with force-dependent slip: x' = α - (1/K + v s'/k) x

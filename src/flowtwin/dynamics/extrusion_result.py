@@ -1,7 +1,7 @@
 """Result types of the extrusion dynamics: per move, time series and summary.
 
 Volumes are mm³ of melt (filament length times the filament cross-section ``A_fil``),
-flows mm³/s, forces N, slip a fraction (SPEC §2).
+flows mm³/s, forces N, slip a fraction (docs/spec.md §2).
 """
 
 from __future__ import annotations

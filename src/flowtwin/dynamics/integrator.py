@@ -1,4 +1,4 @@
-"""Integrate the extrusion state equation over a commanded feed (SPEC §3.4).
+"""Integrate the extrusion state equation over a commanded feed (docs/spec.md §3.4).
 
 State ``Δl`` (mm of column compression) [001 Eq. 5]::
 

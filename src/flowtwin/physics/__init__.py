@@ -1,4 +1,4 @@
-"""Physics models of the extrusion system as small pure functions (SPEC §3).
+"""Physics models of the extrusion system as small pure functions (docs/spec.md §3).
 
 One concept per module, each function citing its seed equation:
 
@@ -12,9 +12,9 @@ One concept per module, each function citing its seed equation:
   :mod:`~flowtwin.physics.spline`, :mod:`~flowtwin.physics.pursuit` — strand shape and
   nozzle trajectory [004];
 * :mod:`~flowtwin.physics.defaults`, :mod:`~flowtwin.physics.operating_point` — the
-  documented default constants and their derivation (SPEC §4).
+  documented default constants and their derivation (docs/spec.md §4).
 
-Units are mm, s, N, MPa, MPa·s, °C; slip is a fraction (SPEC §2). See docs/physics.md.
+Units are mm, s, N, MPa, MPa·s, °C; slip is a fraction (docs/spec.md §2). See docs/physics.md.
 """
 
 __all__: list[str] = []

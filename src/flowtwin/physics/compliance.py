@@ -6,7 +6,7 @@ The column shortens under the feed force like two springs in series, a cold part
 
 ``Δl = F/A_fil·(l_RT/E_RT + l_hot/E_hot)``  [002], i.e. ``Δl = k·F``  [001 Eq. 2].
 
-Beyond the seeds (SPEC §3.2) a Bowden tube adds two series compliances, both linear in the
+Beyond the seeds (docs/spec.md §3.2) a Bowden tube adds two series compliances, both linear in the
 force and both off for a direct drive:
 
 * the tube wall stretches, because it carries the reaction of the feed force in tension:
@@ -168,7 +168,7 @@ def bowden_compliance_mm_per_n(tube_length_mm: npt.ArrayLike,
     """Extra compliance of a Bowden tube: wall stretch + helical clearance take-up.
 
     Add it to :func:`compliance_mm_per_n` (whose ``l_rt_mm`` must include the tube length
-    for the axial compression of the filament). Beyond the seeds (SPEC §3.2).
+    for the axial compression of the filament). Beyond the seeds (docs/spec.md §3.2).
 
     Parameters
     ----------

@@ -4,7 +4,7 @@ The column shortens by ``Δl = k·F`` [001 Eq. 2]; the force is the melt pressur
 filament, ``F = ΔP·A_in = R_hyd·Q_out·A_in`` (linear pressure drop); hence
 ``Δl = k·R_hyd·A_in²·Q_out/A_in``, which is [001 Eq. 5] ``Δl = K·Q_out/A_in`` with
 
-``K = k·R_hyd·A_in²``  (SPEC §3.4).
+``K = k·R_hyd·A_in²``  (docs/spec.md §3.4).
 
 Mass balance ``v_in − Q_out/A_in = dΔl/dt`` then gives ``v_in = K·dv*_out/dt + v*_out``
 [001 Eq. 10], the first-order low-pass ``H(s) = 1/(1 + K·s)`` [001 Eq. 15]. [002] derives the
@@ -44,7 +44,7 @@ FloatArray = npt.NDArray[np.float64]
 def lag_factor_s(compliance_mm_per_n: npt.ArrayLike,
                  resistance_mpa_s_per_mm3: npt.ArrayLike,
                  filament_area_mm2: npt.ArrayLike) -> FloatArray:
-    """Lag factor ``K = k·R_hyd·A_in²`` (SPEC §3.4; [001 Eq. 5]; time constant of [002]).
+    """Lag factor ``K = k·R_hyd·A_in²`` (docs/spec.md §3.4; [001 Eq. 5]; time constant of [002]).
 
     Units: mm/N · MPa·s/mm³ · mm⁴ = mm/N · N·s/mm⁵ · mm⁴ = s.
 

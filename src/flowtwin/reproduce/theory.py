@@ -241,7 +241,7 @@ def notes(ctx: ReproContext) -> list[str]:
         f"{s.material.e_rt_mpa:g} MPa and l_hot = {s.hotend.l_hot_mm:g} mm at E_hot = "
         f"{s.material.e_hot_mpa:g} MPa it is {100 * cold / (cold + hot):.0f} % of the "
         "compliance; the time-constant row uses the hot term only, as [002] does, and the "
-        "defaults keep both (SPEC §3.2).",
+        "defaults keep both (docs/spec.md §3.2).",
         f"Temperature sensitivity [002 μ(T) = μ0·exp(−bT)]: with the defaults, μ(205 °C)/"
         f"μ(215 °C) = {float(mu[0] / mu[1]):.2f}, and the time constant scales with μ.",
     ]

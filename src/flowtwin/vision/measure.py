@@ -1,6 +1,6 @@
 """The slip-camera pipeline: frames in, gear speed, filament speed, slip and width out.
 
-Per frame (SPEC §3.7, [003 §2.2]): skip blank frames and exact repeats, track the gear ROI
+Per frame (docs/spec.md §3.7, [003 §2.2]): skip blank frames and exact repeats, track the gear ROI
 (rotation about the gear axis, or tangential motion) and the ``after`` ROI (translation
 along the filament) with :class:`~flowtwin.vision.track.RoiTracker`, and measure the width
 in the ``before`` ROI (:func:`~flowtwin.vision.width.measure_width_px`, refused when the

@@ -3,7 +3,7 @@
 One row per delivered frame. Speeds of a row are over the step that *ends* at that
 frame (from the previous processed frame, ``dt_s`` earlier); the width is measured in the
 frame itself. Invalid values are NaN and the row's ``flags`` say why (:class:`Quality`).
-Slip is a fraction in the objects and a percentage in the files (SPEC §2).
+Slip is a fraction in the objects and a percentage in the files (docs/spec.md §2).
 """
 
 from __future__ import annotations

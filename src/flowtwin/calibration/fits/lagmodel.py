@@ -11,7 +11,7 @@ model predicts that width:
 2. The dynamics (:func:`flowtwin.dynamics.predict`) turn the commanded feed — with the
    firmware's pressure advance as the G-code sets it — into the melt flow
    ``Q_twin(t)``: the lag ``dΔl/dt = v_in − Δl/K`` with no backflow [001 Eqs. 10, 15,
-   Fig. 8] and, if asked, the drive's slip [000 Eqs. 6, 8] (SPEC §3.4). ``K`` is the free
+   Fig. 8] and, if asked, the drive's slip [000 Eqs. 6, 8] (docs/spec.md §3.4). ``K`` is the free
    parameter; the column compliance and slip law come from the machine profile.
 3. Dead time and gain (beyond the seeds; Bellini et al. 2004, cited in [001] after
    Eq. 15: ``G(s) = g·e^(−τs)/(1 + K·s)``) act on the output,
@@ -19,7 +19,7 @@ model predicts that width:
    the delay at the input, and the lag with no backflow is homogeneous in the feed, so
    the gain commutes with it too (slip makes the gain approximate).
 4. The bead laid at ``x = s(t)`` is ``w = Q(t)/(h·v(t)) + (1 − π/4)·h`` (the slicer bead
-   [001 Eq. 7] inverted, SPEC §3.5; :func:`flowtwin.physics.deposition.bead_width_mm`).
+   [001 Eq. 7] inverted, docs/spec.md §3.5; :func:`flowtwin.physics.deposition.bead_width_mm`).
 
 Without slip the dynamics are the exact exponential integrator (a few ms per line), so a
 least-squares fit can call the model a hundred times. [001] notes that the printed width
@@ -65,7 +65,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Set-up used when none is named: Tronvoll's printer [001] with SPEC §4's parts.
+#: Set-up used when none is named: Tronvoll's printer [001] with docs/spec.md §4's parts.
 DEFAULT_MACHINE = "tronvoll2019"
 
 #: Largest dead time the model accepts, s (the series starts this long before a line).

@@ -121,7 +121,7 @@ def apparent_viscosity_pa_s(feed_force_n: npt.ArrayLike, flow_mm3_s: npt.ArrayLi
 
     ``R₁`` is the hot end's hydraulic resistance per unit viscosity (cone + capillary, free
     extrusion: no bed back-pressure), so this is the inverse of
-    ``F = ΔP·A_fil`` with ``ΔP = R_hyd(μ)·Q`` (SPEC §3.3).
+    ``F = ΔP·A_fil`` with ``ΔP = R_hyd(μ)·Q`` (docs/spec.md §3.3).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 Every controller maps (time, measured slip) to a multiplier command in percent through
 ``update(state, t_s, slip) -> (new_state, pct)``; the state is an immutable value, so a
 controller can be replayed, tested step by step and reset by taking ``initial_state()``.
-Slip is a fraction (SPEC §2: 0.10 = 10 %).
+Slip is a fraction (docs/spec.md §2: 0.10 = 10 %).
 
 * :class:`GreeffController` — Greeff & Schilling's proof-of-concept loop [003 §2.3]:
   "the measured slippage in percentage, if more than a threshold, is averaged over time and

@@ -1,7 +1,7 @@
 """The twin printer's extruder: one step of the extrusion state equation, and its parameters.
 
 The twin runs in (real, accelerated or simulated) time and meets every multiplier change
-as it comes, so it advances the state equation of SPEC §3.4 step by step instead of over a
+as it comes, so it advances the state equation of docs/spec.md §3.4 step by step instead of over a
 whole planned feed like :func:`flowtwin.dynamics.integrate`. Over one step the commanded
 filament speed ``v`` (the gear surface speed ``ω·r``) is constant, and in every regime the
 equation is linear in the state ``x = Δl`` (mm of column compression), so each regime
@@ -128,7 +128,7 @@ class StepFlux:
 
 def step_extrusion(state: ExtruderState, v_mm_s: float, dt_s: float,
                    p: StepParams) -> tuple[ExtruderState, StepFlux]:
-    """Advance the extrusion state equation (SPEC §3.4) by ``dt_s`` at constant ``v_mm_s``.
+    """Advance the extrusion state equation (docs/spec.md §3.4) by ``dt_s`` at constant ``v_mm_s``.
 
     Parameters
     ----------

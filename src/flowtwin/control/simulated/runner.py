@@ -14,7 +14,7 @@ in steps of at most ``step_s``:
   time while the nozzle is colder than the set point, ``M109 R`` also while it is hotter
   (by more than ``window_c``);
 * **extruder**: the commanded gear surface speed of the step,
-  ``v = ΔE(τ)·flow/Δt``, drives the state equation of SPEC §3.4
+  ``v = ΔE(τ)·flow/Δt``, drives the state equation of docs/spec.md §3.4
   (:func:`~flowtwin.control.simulated.extruder.step_extrusion`) with the parameters of the
   machine at the nozzle's temperature and the move's layer height — so slip follows the
   machine's physics: it grows as the nozzle cools and falls when ``M220`` lowers the
