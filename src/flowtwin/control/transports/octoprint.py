@@ -21,7 +21,6 @@ the printer (that would stop a print).
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from typing import Any
@@ -37,7 +36,7 @@ from flowtwin.control.printer import (
 )
 from flowtwin.control.transports._net import PushSocket, guarded_client, websocket_url
 from flowtwin.control.transports.credentials import ApiKey
-from flowtwin.errors import PrinterConnectionError
+from flowtwin.errors import GcodeError, PrinterConnectionError
 from flowtwin.firmware import (
     Channel,
     Firmware,
@@ -45,18 +44,29 @@ from flowtwin.firmware import (
     parse_factor_report,
     query_command,
 )
+from flowtwin.gcode.words import parse_line
 
-__all__ = ["OctoPrintPrinter", "normalize_sent"]
+__all__ = ["OctoPrintPrinter", "SentKey", "normalize_sent"]
 
-_LINE_NO_RE = re.compile(r"^N-?\d+\s+")
-_CHECKSUM_RE = re.compile(r"\*\d+\s*$")
+#: A sent command as :func:`normalize_sent` keys it: code and sorted parameters.
+SentKey = tuple[str, tuple[tuple[str, float | str], ...]]
 _MAX_LINES = 5000
 
 
-def normalize_sent(line: str) -> str:
-    """``"N12 M221 S95*87"`` -> ``"M221 S95"`` (line number, checksum, case, spaces)."""
-    text = _CHECKSUM_RE.sub("", _LINE_NO_RE.sub("", line.strip()))
-    return " ".join(text.split()).upper()
+def normalize_sent(line: str) -> SentKey | None:
+    """The command of a line OctoPrint logs as sent, parsed by the reader's word parser.
+
+    :func:`flowtwin.gcode.words.parse_line` drops the line number, the checksum and the
+    case, so ``"N12 M221 S95*87"`` and ``"M221 S95"`` give the same key: the command and
+    its parameters in name order. ``None`` for a line that is not a G-code command.
+    """
+    try:
+        parsed = parse_line(line.strip(), source="OctoPrint terminal")
+    except GcodeError:
+        return None
+    if not parsed.code:
+        return None
+    return parsed.code, tuple(sorted(parsed.params.items()))
 
 
 class OctoPrintPrinter:
@@ -207,7 +217,8 @@ class OctoPrintPrinter:
                     entry = lines[i - first]
                     i += 1
                     if sent_at is None:
-                        if entry.startswith("Send: ") and normalize_sent(entry[6:]) == want:
+                        if (entry.startswith("Send: ") and want is not None
+                                and normalize_sent(entry[6:]) == want):
                             sent_at = i
                         continue
                     if entry.startswith("Recv: "):
