@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import typer
 
@@ -16,6 +16,7 @@ from flowtwin.calibration.csvdata import read_table
 from flowtwin.calibration.fits.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
 from flowtwin.calibration.fits.viscosity_fit import (
     VISCOSITY_COLUMNS,
+    ViscosityLawName,
     fit_viscosity_law,
     sweep_from_table,
 )
@@ -40,6 +41,7 @@ from flowtwin.cli._common import console, err_console, print_json, table_from_ro
 from flowtwin.cli.calibrate_image import from_image_cmd
 from flowtwin.cli.calibrate_pattern import register_patterns
 from flowtwin.errors import CalibrationError
+from flowtwin.physics.strand import StrandModel
 from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
 
@@ -98,11 +100,13 @@ def _fit_viscosity_cmd(
     sweep = sweep_from_table(table, hotend=_load_hotend(hotend),
                              filament_diameter_mm=filament_diameter, drive=drive_profile,
                              roller=roller)
-    if law not in ("exponential", "arrhenius", "wlf"):
+    laws: dict[str, ViscosityLawName] = {
+        "exponential": "exponential", "arrhenius": "arrhenius", "wlf": "wlf"}
+    law_name = laws.get(law)
+    if law_name is None:
         raise CalibrationError("unknown viscosity law", field="--law", value=law,
                                allowed="exponential, arrhenius, wlf")
-    fit = fit_viscosity_law(sweep, law=law, t_ref_c=t_ref,  # type: ignore[arg-type]
-                            wlf_c2_k=wlf_c2)
+    fit = fit_viscosity_law(sweep, law=law_name, t_ref_c=t_ref, wlf_c2_k=wlf_c2)
     values = fit.profile_table()
     text = render_fragment("viscosity", values, stderr=fit.stderr, header=[
         f"flowtwin calibrate fit-viscosity: {law} law fitted to {data.name}",
@@ -140,14 +144,17 @@ def _fit_strand_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
-    if model not in ("best", "tractrix", "parabola", "catenary"):
+    models: dict[str, StrandModel | Literal["best"]] = {
+        "best": "best", **{m.value: m for m in StrandModel}}
+    strand_model = models.get(model)
+    if strand_model is None:
         raise CalibrationError("unknown strand model", field="--model", value=model,
                                allowed="best, tractrix, parabola, catenary")
     if not height_mm > 0:
         raise CalibrationError("nozzle height must be positive", field="--height-mm",
                                value=height_mm, allowed="> 0 mm")
     x, z = strand_points(read_table(data, STRAND_COLUMNS, min_rows=4))
-    cal = fit_strand(x, z, height_mm=height_mm, model=model)  # type: ignore[arg-type]
+    cal = fit_strand(x, z, height_mm=height_mm, model=strand_model)
     errors = {**cal.stderr, "lag_mm": cal.lag_stderr_mm}
     text = render_fragment("strand", cal.profile_table(), stderr=errors, header=[
         f"flowtwin calibrate fit-strand: {cal.fit.model.value} [004] fitted to {data.name}",
