@@ -304,7 +304,7 @@ def image_target() -> Target:
         return mutate_bytes(rng, rng.choice(seeds))
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.kimage import load_grey
+        from flowtwin.calibration.image.kimage import load_grey
 
         target.count("load")
         load_grey(path)

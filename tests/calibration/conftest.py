@@ -13,9 +13,13 @@ import pytest
 
 from flowtwin.calibration.fits.kfit import kline_for_machine
 from flowtwin.calibration.fits.lagmodel import LagParams
+from flowtwin.calibration.image.twin_render import (
+    ImageConditions,
+    RenderedImage,
+    render_pattern_image,
+)
 from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
-from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
 from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode

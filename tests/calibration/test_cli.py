@@ -16,9 +16,9 @@ from typer.testing import CliRunner
 
 from flowtwin.calibration.fits.kfit import kline_for_machine
 from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
+from flowtwin.calibration.image.twin_render import ImageConditions
 from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.calibration.patterns.pattern import PrintSettings
-from flowtwin.calibration.render import ImageConditions
 from flowtwin.cli.calibrate import register
 from flowtwin.errors import CalibrationError, DataError, VisionError
 from flowtwin.gcode.reader import read_gcode

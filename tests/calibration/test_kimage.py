@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.fits.kfit import kline_for_machine
-from flowtwin.calibration.kimage import analyse_kline_image
+from flowtwin.calibration.image.kimage import analyse_kline_image
+from flowtwin.calibration.image.twin_render import ImageConditions, RenderedImage
 from flowtwin.calibration.patterns.catalog import generate_pattern
 from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
-from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine

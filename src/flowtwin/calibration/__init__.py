@@ -15,8 +15,8 @@ PA tower, extrusion-multiplier blocks, a max-volumetric-speed ramp and a flow li
 every firmware of :mod:`flowtwin.firmware`, every bead from [001 Eq. 7]. Fits: the lag ``K``
 (dead time, gain) from widths along test lines by fitting the twin
 (:mod:`~flowtwin.calibration.fits.lagfit`, :mod:`~flowtwin.calibration.fits.kfit`) or from an
-image of a K-line pattern (:mod:`~flowtwin.calibration.kimage`, tested on images from
-:mod:`~flowtwin.calibration.render`), the slip law from test-stand records
+image of a K-line pattern (:mod:`~flowtwin.calibration.image.kimage`, tested on images from
+:mod:`~flowtwin.calibration.image.twin_render`), the slip law from test-stand records
 (:mod:`~flowtwin.calibration.fits.slipfit`), the viscosity law from a temperature sweep
 (:mod:`~flowtwin.calibration.fits.viscosity_fit`), strand shape from profile points [004]
 (:mod:`~flowtwin.calibration.fits.strand_fit`), OrcaSlicer's adaptive pressure-advance table
@@ -71,12 +71,14 @@ from flowtwin.calibration.tuning.adaptive_pa import (
 #: importing the package (and ``flowtwin --help``) stays fast.
 _LAZY = {
     "fit_k": "fits.kfit", "kline_for_machine": "fits.kfit",
-    "KLineImageResult": "kimage", "LineReading": "kimage", "analyse_kline_image": "kimage",
+    "KLineImageResult": "image.kimage", "LineReading": "image.kimage",
+    "analyse_kline_image": "image.kimage",
     "LagFit": "fits.lagfit", "WidthProfile": "fits.lagfit", "fit_lag": "fits.lagfit",
     "read_width_profiles": "fits.lagfit",
     "LagModel": "fits.lagmodel", "LagParams": "fits.lagmodel", "TestLine": "fits.lagmodel",
     "lag_model": "fits.lagmodel",
-    "ImageConditions": "render", "RenderedImage": "render", "render_pattern_image": "render",
+    "ImageConditions": "image.twin_render", "RenderedImage": "image.twin_render",
+    "render_pattern_image": "image.twin_render",
     "SlipCalibration": "fits.slipfit", "fit_slip_records": "fits.slipfit",
     "AdvanceFit": "tuning.advance_settings", "adaptive_pa_table": "tuning.advance_settings",
     "best_pressure_advance": "tuning.advance_settings",
@@ -87,8 +89,12 @@ if TYPE_CHECKING:
     from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag, read_width_profiles
     from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, TestLine, lag_model
     from flowtwin.calibration.fits.slipfit import SlipCalibration, fit_slip_records
-    from flowtwin.calibration.kimage import KLineImageResult, LineReading, analyse_kline_image
-    from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
+    from flowtwin.calibration.image.kimage import KLineImageResult, LineReading, analyse_kline_image
+    from flowtwin.calibration.image.twin_render import (
+        ImageConditions,
+        RenderedImage,
+        render_pattern_image,
+    )
     from flowtwin.calibration.tuning.advance_settings import (
         AdvanceFit,
         adaptive_pa_table,

@@ -2,11 +2,11 @@
 
 ``analyse_kline_image`` reads a flatbed scan or a photo of the K-line pattern [001
 Fig. 10] (:func:`~flowtwin.calibration.patterns.kline.kline_pattern`), finds and registers its lines
-(:mod:`~flowtwin.calibration.linefind`), measures the bead width along every K-line, scores
+(:mod:`~flowtwin.calibration.image.linefind`), measures the bead width along every K-line, scores
 each line and fits the lag:
 
 * **Widths.** Each line is resampled on the bed's own coordinates through the homography
-  (:mod:`~flowtwin.calibration.beadwidth`: the strip is in mm, so rotation, scale and
+  (:mod:`~flowtwin.calibration.image.beadwidth`: the strip is in mm, so rotation, scale and
   perspective are gone) and the width of every ``step_mm`` along it measured from the
   bead's integrated darkness (blur-invariant; default) or from the extrema of the first
   derivative across the bead ([003 §2.2]). A stretch where the bead is missing (a gap) has
@@ -48,13 +48,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.beadwidth import (
-    area_widths,
-    dark_level,
-    edge_widths,
-    sample_strip,
-    window_widths,
-)
 from flowtwin.calibration.fits.kfit import pattern_firmware
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
 from flowtwin.calibration.fits.lagmodel import (
@@ -64,7 +57,14 @@ from flowtwin.calibration.fits.lagmodel import (
     lag_model,
     printed_runs,
 )
-from flowtwin.calibration.linefind import (
+from flowtwin.calibration.image.beadwidth import (
+    area_widths,
+    dark_level,
+    edge_widths,
+    sample_strip,
+    window_widths,
+)
+from flowtwin.calibration.image.linefind import (
     Registration,
     find_lines,
     local_scale,
@@ -336,7 +336,7 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
         Spacing of the width samples along the lines, mm.
     method
         ``"area"`` (integrated darkness; blur-invariant) or ``"edges"`` (derivative
-        extrema [003 §2.2]); see :mod:`~flowtwin.calibration.beadwidth`.
+        extrema [003 §2.2]); see :mod:`~flowtwin.calibration.image.beadwidth`.
     fit
         Fit the twin's lag to all lines.
     fit_dead_time, fit_gain

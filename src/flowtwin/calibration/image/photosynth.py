@@ -1,6 +1,6 @@
 """An independent renderer of photos of printed line patterns (validation only).
 
-Different code, and a different model, from :mod:`flowtwin.calibration.render` (which
+Different code, and a different model, from :mod:`flowtwin.calibration.image.twin_render` (which
 draws the twin's widths and warps the drawing): nothing here calls the planner or the
 twin, so the analysis is tested on images it did not make.
 
