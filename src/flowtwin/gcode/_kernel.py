@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, emit, emit_arc, row_kind
+from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, ARC_HUGE, emit, emit_arc, row_kind
 from flowtwin.gcode._bytes import (
     MAX_ABS_VALUE,
     _is_word_end,
@@ -73,6 +73,7 @@ ERR_NUMBER = 1      # a letter not followed by a valid number
 ERR_CHECKSUM = 2    # '*' checksum does not match
 ERR_ARC = 3         # arc without centre / radius, or radius too small
 ERR_FEED = 4        # F <= 0 or not finite
+ERR_ARC_HUGE = 5    # an arc of more than MAX_ARC_SEGMENTS chords
 ERR_VALUE = 5       # non-finite or absurd coordinate
 
 # --- lines left to Python (column 4 of ``other``) -------------------------------------
@@ -402,9 +403,9 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
                              -(val[9] * unit) if mask & _J else 0.0,
                              (mask & _R) != 0, val[17] * unit,
                              state[S_ARC_MODE] == 0.0, state[S_ARC_PARAM], e_acc)
-            if n_new == ARC_BAD:
+            if n_new == ARC_BAD or n_new == ARC_HUGE:
                 state[S_ERR_LINE] = lineno
-                state[S_ERR_CODE] = ERR_ARC
+                state[S_ERR_CODE] = ERR_ARC if n_new == ARC_BAD else ERR_ARC_HUGE
                 state[S_LINE] = line
                 return ST_ERROR, start, n_out, n_other, n_vals
             if n_new == ARC_FULL:

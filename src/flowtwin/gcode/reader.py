@@ -28,6 +28,7 @@ import numpy as np
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode import _kernel as kernel
+from flowtwin.gcode._arc import MAX_ARC_SEGMENTS
 from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode._commands import (
     EVENT_CODES,
@@ -160,16 +161,17 @@ class _Reader:
         end = buf.find(b"\n", pos)
         text = buf[pos: end if end >= 0 else len(buf)].decode("utf-8", "replace").rstrip("\r")
         code = int(self.state[kernel.S_ERR_CODE])
-        if code == kernel.ERR_CHECKSUM:
-            return GcodeError("checksum does not match the line", source=self.name,
-                              line=line, value=text,
-                              allowed="'*' followed by the XOR of all bytes before it")
-        if code == kernel.ERR_ARC:
-            return GcodeError("arc needs I/J (centre offset) or an R at least half the chord",
-                              source=self.name, line=line, value=text)
-        if code == kernel.ERR_FEED:
-            return GcodeError("feed rate must be positive", source=self.name, line=line,
-                              field="F", value=text, allowed="F > 0 (mm/min)")
+        known = {kernel.ERR_CHECKSUM: ("checksum does not match the line", None,
+                                  "'*' followed by the XOR of all bytes before it"),
+                 kernel.ERR_ARC: ("arc needs I/J (centre offset) or an R at least half the chord",
+                             None, None),
+                 kernel.ERR_ARC_HUGE: ("arc too long: a broken I/J or R", None,
+                                  f"<= {MAX_ARC_SEGMENTS} segments"),
+                 kernel.ERR_FEED: ("feed rate must be positive", "F", "F > 0 (mm/min)")}
+        if code in known:
+            message, field_name, allowed = known[code]
+            return GcodeError(message, source=self.name, line=line, field=field_name,
+                              value=text, allowed=allowed)
         # a malformed number: let the exact parser name the word
         parse_line(text, source=self.name, line=line, numeric=frozenset("XYZEFIJRKPS"))
         return GcodeError("malformed word", source=self.name, line=line, value=text,
