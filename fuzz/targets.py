@@ -75,24 +75,26 @@ def _text_or_bytes(rng: random.Random, data: bytes) -> bytes:
 def gcode_target(seed: int) -> Target:
     """G-code text: read, plan (Klipper and Marlin), simulate; samples compensate and CLI."""
     pool = LinePool(_corpus(), random.Random(seed))
-    machine: list[Any] = []
+    loaded: dict[str, Any] = {}
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planner.plan_file import plan_gcode
+        from flowtwin.planner.plan_file import load_printer, plan_gcode
         from flowtwin.profiles.machine import load_machine
         from flowtwin.simulation import simulate
 
+        if not loaded:  # profiles once per worker: the documents are what is fuzzed
+            loaded["machine"] = load_machine("tronvoll2019")
+            loaded["printers"] = [load_printer(n) for n in ("generic-klipper", "generic-marlin")]
+        data = path.read_bytes()  # the file is read once; the readers take its bytes
         target.count("read")
-        read_gcode(path)
+        read_gcode(data)
         target.count("plan")
-        result = plan_gcode(path, printer=rng.choice(("generic-klipper", "generic-marlin")))
+        result = plan_gcode(data, printer=rng.choice(loaded["printers"]))
         result.summary()
         result.per_layer()
-        if not machine:
-            machine.append(load_machine("tronvoll2019"))
         target.count("simulate")
-        simulate(path, machine=machine[0]).summary()
+        simulate(data, machine=loaded["machine"]).summary()
         if rng.random() < 0.002:
             from flowtwin.compensation import compensate
 
