@@ -1,6 +1,6 @@
 """flowtwin: the digital twin of the extrusion system of a filament 3D printer.
 
-Data flows one way (SPEC §5)::
+Data flows one way (docs/spec.md §5)::
 
     G-code text -> reader -> moves -> planner -> timeline -> dynamics -> deposition -> result
 
@@ -13,7 +13,8 @@ numerical stack)::
     sim = flowtwin.simulate("print.gcode", machine="tronvoll2019")       # + the physics
     report = flowtwin.compensate("print.gcode", "fixed.gcode", slip=flowtwin.SlipOptions())
 
-Internal units are mm, s, N, MPa and °C (SPEC §2); names carry units where ambiguous.
+Internal units are mm, s, N, MPa and °C (docs/spec.md §2); names carry units where
+ambiguous.
 """
 
 from flowtwin._lazy import lazy_exports
@@ -24,7 +25,13 @@ __version__ = "0.1.0"
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (~10 ms)
 if TYPE_CHECKING:
     from flowtwin.batch import read_results, run_batch, run_sweep
-    from flowtwin.calibration import fit_k, generate_pattern, verify_pattern
+    from flowtwin.calibration import (
+        adaptive_pa_table,
+        best_pressure_advance,
+        fit_k,
+        generate_pattern,
+        verify_pattern,
+    )
     from flowtwin.compensation import (
         AdvanceOptions,
         CompensationReport,
@@ -32,14 +39,12 @@ if TYPE_CHECKING:
         PaceOptions,
         SlipOptions,
         TrajectoryOptions,
-        adaptive_pa_table,
-        best_pressure_advance,
         compensate,
     )
     from flowtwin.gcode.generator import PrintSpec, write_print
     from flowtwin.gcode.reader import ReadOptions, iter_move_chunks, read_gcode
-    from flowtwin.planning import PlanResult, load_printer
-    from flowtwin.planning import plan_gcode as plan
+    from flowtwin.planner.plan_file import PlanResult, load_printer
+    from flowtwin.planner.plan_file import plan_gcode as plan
     from flowtwin.profiles import Machine, load_builtin, load_machine, load_profile
     from flowtwin.reproduce import run as reproduce
     from flowtwin.simulation import SimulationResult, StreamResult, simulate, simulate_stream
@@ -49,8 +54,8 @@ if TYPE_CHECKING:
 #: Entry point -> where it lives (``module:name`` where the name differs).
 _ENTRY_POINTS = {
     # read and plan
-    "plan": "flowtwin.planning:plan_gcode", "PlanResult": "flowtwin.planning",
-    "load_printer": "flowtwin.planning",
+    "plan": "flowtwin.planner.plan_file:plan_gcode", "PlanResult": "flowtwin.planner.plan_file",
+    "load_printer": "flowtwin.planner.plan_file",
     "read_gcode": "flowtwin.gcode.reader", "iter_move_chunks": "flowtwin.gcode.reader",
     "ReadOptions": "flowtwin.gcode.reader",
     # predict
@@ -62,8 +67,8 @@ _ENTRY_POINTS = {
     "AdvanceOptions": "flowtwin.compensation", "SlipOptions": "flowtwin.compensation",
     "GuardOptions": "flowtwin.compensation", "PaceOptions": "flowtwin.compensation",
     "TrajectoryOptions": "flowtwin.compensation",
-    "best_pressure_advance": "flowtwin.compensation",
-    "adaptive_pa_table": "flowtwin.compensation",
+    "best_pressure_advance": "flowtwin.calibration",
+    "adaptive_pa_table": "flowtwin.calibration",
     # machines
     "Machine": "flowtwin.profiles", "load_machine": "flowtwin.profiles",
     "load_profile": "flowtwin.profiles", "load_builtin": "flowtwin.profiles",

@@ -38,8 +38,8 @@ def warm_up() -> float:
     """Run plan and simulate on a small print in every common configuration; return the
     seconds it took (compilation, or loading from the cache when it is warm)."""
     from flowtwin.gcode.generator import PrintSpec, write_print
-    from flowtwin.plan_stream import plan_stream
-    from flowtwin.planning import plan_gcode
+    from flowtwin.planner.plan_file import plan_gcode
+    from flowtwin.planner.plan_stream import plan_stream
     from flowtwin.simulation import simulate, simulate_stream
 
     t0 = time.perf_counter()

@@ -27,7 +27,7 @@ def test_every_entry_point_resolves(name: str) -> None:
 
 def test_entry_points_are_the_api_functions() -> None:
     from flowtwin.compensation import compensate
-    from flowtwin.planning import plan_gcode
+    from flowtwin.planner.plan_file import plan_gcode
     from flowtwin.simulation import simulate
 
     assert flowtwin.plan is plan_gcode

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import flowtwin.plan_stream
+import flowtwin.planner.plan_stream
 from flowtwin.cli.main import main
 from flowtwin.errors import DataError, ProfileError
-from flowtwin.plan_stream import plan_stream, should_stream
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
+from flowtwin.planner.plan_stream import plan_stream, should_stream
 
 #: Time figures come from the windows' clocks, shifted by constant offsets: they agree to
 #: the rounding of ~1e4 s clocks (1e-12 relative); everything else is equal.
@@ -121,7 +121,7 @@ def test_cli_streams_large_files_with_the_same_output(corpus_dir: Path,
         return json.loads(capsys.readouterr().out)  # type: ignore[no-any-return]
 
     whole = run()
-    monkeypatch.setattr(flowtwin.plan_stream, "STREAM_ABOVE_BYTES", 1024)
+    monkeypatch.setattr(flowtwin.planner.plan_stream, "STREAM_ABOVE_BYTES", 1024)
     auto = run()
     forced_whole = run("--no-stream")
     assert forced_whole == whole

@@ -12,8 +12,8 @@ import pytest
 
 from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.gcode.moves import MoveKind
+from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.planner.totals import PlanTotals
-from flowtwin.planning import PlanResult, plan_gcode
 
 
 def _direct_per_layer(plan: PlanResult) -> list[dict[str, float | int]]:

@@ -150,7 +150,7 @@ def test_cli_streams_large_files_with_the_same_output(corpus_dir: Path,
     JSON object (the same keys; figures to the stream's rounding)."""
     import json
 
-    import flowtwin.plan_stream
+    import flowtwin.planner.plan_stream
     from flowtwin.cli.main import main
 
     path = corpus_dir / "orcaslicer_2.3.0b2.gcode"
@@ -163,7 +163,7 @@ def test_cli_streams_large_files_with_the_same_output(corpus_dir: Path,
 
     whole = run("--no-fit")
     whole.pop("verdict")  # the verdict (windowed figures, places) needs the whole tables
-    monkeypatch.setattr(flowtwin.plan_stream, "STREAM_ABOVE_BYTES", 1024)
+    monkeypatch.setattr(flowtwin.planner.plan_stream, "STREAM_ABOVE_BYTES", 1024)
     auto = run()
     assert auto.keys() == whole.keys()
     _assert_same(whole, auto)

@@ -6,7 +6,7 @@ is lost. The model behind it is chosen by :data:`Engine`:
 
 * ``"simulate"`` (default) — :func:`flowtwin.simulation.simulate`, the whole-print twin
   (print time, commanded and delivered volume, width, force, grinding and ooze figures);
-* ``"plan"`` — :func:`flowtwin.planning.plan_gcode` only (print time, filament, moves,
+* ``"plan"`` — :func:`flowtwin.planner.plan_file.plan_gcode` only (print time, filament, moves,
   layers): faster, for time estimates.
 
 A row is flat: the job's identity (``index``, ``row_id``, ``file``, one column per swept
@@ -204,15 +204,15 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
 
     Notes
     -----
-    Files above :data:`flowtwin.plan_stream.STREAM_ABOVE_BYTES` are read, planned and
+    Files above :data:`flowtwin.planner.plan_stream.STREAM_ABOVE_BYTES` are read, planned and
     simulated streamed (bounded memory; the same summary keys and figures).
     """
-    from flowtwin.plan_stream import should_stream
+    from flowtwin.planner.plan_stream import should_stream
 
     large = isinstance(source, str) and should_stream(source, printer=machine.printer)
     if engine == "plan":
-        from flowtwin.plan_stream import plan_stream
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
+        from flowtwin.planner.plan_stream import plan_stream
 
         planned = (plan_stream(source, printer=machine.printer).run() if large
                    else plan_gcode(source, printer=machine.printer))

@@ -1,8 +1,8 @@
 """``flowtwin compensate`` and ``flowtwin tune``: fix the G-code, or set the firmware.
 
 Thin layer over :func:`flowtwin.compensation.compensate`,
-:func:`flowtwin.compensation.best_pressure_advance` and
-:func:`flowtwin.compensation.adaptive_pa_table`.
+:func:`flowtwin.calibration.tuning.advance_settings.best_pressure_advance` and
+:func:`flowtwin.calibration.tuning.advance_settings.adaptive_pa_table`.
 """
 
 from __future__ import annotations
@@ -198,8 +198,11 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
-        from flowtwin.calibration.adaptive_pa import write_orca_model
-        from flowtwin.compensation import adaptive_pa_table, best_pressure_advance
+        from flowtwin.calibration.tuning.adaptive_pa import write_orca_model
+        from flowtwin.calibration.tuning.advance_settings import (
+            adaptive_pa_table,
+            best_pressure_advance,
+        )
 
         fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
         out: dict[str, object] = {"best": fit.as_dict()}

@@ -34,7 +34,7 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
 def _demo(out_dir: Path, *, machine: str, show_progress: bool
           ) -> tuple[dict[str, object], SimulationResult, Verdict]:
     from flowtwin.gcode.generator import PrintSpec, write_print
-    from flowtwin.planning import plan_gcode
+    from flowtwin.planner.plan_file import plan_gcode
     from flowtwin.profiles import load_machine
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -70,7 +70,7 @@ def register(app: typer.Typer) -> None:
         if json_out:
             print_json(summary)
             return
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
         from flowtwin.profiles import load_machine
 
         render_plan(plan_gcode(out / "demo.gcode", printer=load_machine(profile).printer))

@@ -11,8 +11,8 @@ from flowtwin.cli._common import console, err_console, fmt_duration, print_json,
 from flowtwin.defaults import DEFAULT_PRINTER
 
 if TYPE_CHECKING:
-    from flowtwin.plan_stream import PlanStream
-    from flowtwin.planning import PlanResult
+    from flowtwin.planner.plan_file import PlanResult
+    from flowtwin.planner.plan_stream import PlanStream
 
 __all__ = ["register", "render_plan"]
 
@@ -51,7 +51,7 @@ def render_plan(result: PlanResult | PlanStream, *, layers: bool = True,
             ["layer", "z (mm)", "time", "filament (mm)", "moves"],
             [(r["layer"], f"{r['z_mm']:.3f}", fmt_duration(float(r["time_s"])),
               f"{r['filament_mm']:.2f}", r["moves"]) for r in shown]))
-    from flowtwin.planning import PlanResult
+    from flowtwin.planner.plan_file import PlanResult
 
     warnings = (result.table.warnings + result.timeline.warnings
                 if isinstance(result, PlanResult) else result.warnings)
@@ -83,8 +83,8 @@ def register(app: typer.Typer) -> None:
             "default: for files over 32 MB).")] = None,
     ) -> None:
         """Plan a G-code file as Klipper or Marlin would: time, filament, moves, layers."""
-        from flowtwin.plan_stream import plan_stream, should_stream
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
+        from flowtwin.planner.plan_stream import plan_stream, should_stream
 
         result: PlanResult | PlanStream
         if stream is None:

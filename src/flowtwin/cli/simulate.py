@@ -59,7 +59,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
         advance_fit = None
         if fit and len(result.plan.table) <= FIT_MAX_MOVES and gcode != "-":
             stage("fit pressure advance")
-            from flowtwin.compensation import best_pressure_advance
+            from flowtwin.calibration.tuning.advance_settings import best_pressure_advance
 
             try:
                 advance_fit = best_pressure_advance(gcode, machine=machine,
@@ -108,7 +108,7 @@ def _spot_rows(spots: tuple[Spot, ...]) -> list[tuple[object, ...]]:
 
 def _large(gcode: Path, profile: str, klipper_config: Path | None) -> bool:
     """Whether the file is large enough to simulate streamed (the plan's rule)."""
-    from flowtwin.plan_stream import is_large, should_stream
+    from flowtwin.planner.plan_stream import is_large, should_stream
     from flowtwin.profiles.machine import load_machine
 
     if not is_large(str(gcode)):

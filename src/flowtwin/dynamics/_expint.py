@@ -16,7 +16,9 @@ with ``φ_k = φ_k(-T/K) = Σ_{i≥0} (-T/K)^i / (i+k)!`` (the φ-functions of e
 integrators, since ``∫_0^T e^{-(T-s)/K} s^j ds = j! T^{j+1} φ_{j+1}(-T/K)``). For
 ``T/K ≤ 2`` the φ's come from the series of φ5 and the stable backward recurrence
 ``φ_k = 1/k! + x φ_{k+1}``; beyond, from ``φ0 = e^x`` and ``φ_{k+1} = (φ_k - 1/k!)/x``
-(error growth ≤ Π(k+1)/|x| < 4). Both are exact to rounding: no internal step.
+(error growth ≤ Π(k+1)/|x| < 4). Both are exact to rounding: no internal step. This is
+the lag step of :mod:`flowtwin.physics.lag` (``lag_linear``) extended to cubic inputs and
+inlined for speed; ``tests/dynamics/test_lag_primitive.py`` holds it to that primitive.
 
 Gauss–Legendre collocation for the slip loop
 ---------------------------------------------
@@ -122,7 +124,7 @@ def _unowned(typingctx: Any, arr: Any) -> Any:  # pragma: no cover - compiled
 #: :func:`_unowned` as a numba intrinsic (typed for mypy as the identity on arrays).
 unowned = cast("Callable[[npt.NDArray[Any]], npt.NDArray[Any]]", intrinsic(_unowned))
 
-#: Regimes of the state equation (SPEC §3.4) on an interval of fixed sign of the feed.
+#: Regimes of the state equation (docs/spec.md §3.4) on an interval of fixed sign of the feed.
 FREE = 0   # Δl ≤ 0: column pulled back from the melt, no output, x' = α
 LAG = 1    # Δl > 0, constant coefficient: x' = α - x/K
 SLIP = 2   # Δl > 0, feeding forward with force-dependent slip: x' = α - (1/K + v s'/k) x

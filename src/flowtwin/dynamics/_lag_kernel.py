@@ -1,4 +1,4 @@
-"""Compiled integrator of the extrusion state equation (SPEC §3.4) over a commanded feed.
+"""Compiled integrator of the extrusion state equation (docs/spec.md §3.4) over a commanded feed.
 
 Private: called by :func:`flowtwin.dynamics.integrator.integrate`, which validates and
 casts everything first. One pass over the segments, O(number of segments + events).

@@ -1,8 +1,8 @@
 """Totals of a planned print, added chunk by chunk: per tool, per feature, per layer.
 
 :class:`PlanTotals` takes the moves of a print with their phases in move order, in one
-piece (:meth:`flowtwin.planning.PlanResult.summary`) or in consecutive pieces (a streamed
-plan, :mod:`flowtwin.plan_stream`), and keeps only sums whose size is the number of tools,
+piece (:meth:`flowtwin.planner.plan_file.PlanResult.summary`) or in consecutive pieces (a streamed
+plan, :mod:`flowtwin.planner.plan_stream`), and keeps only sums whose size is the number of tools,
 features and layers. Each piece is one compiled pass over its moves
 (:mod:`flowtwin.planner._totals_kernel`); the sums continue across pieces with the same
 additions in the same order, so a print added in pieces gives the same figures, to the

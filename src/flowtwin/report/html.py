@@ -25,7 +25,7 @@ import numpy as np
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.errors import GcodeError
-from flowtwin.gcode.source import open_source
+from flowtwin.gcode.inputs import open_source
 from flowtwin.report.payload import Variant, build_payload
 from flowtwin.report.spots import Spot, locate_spots, result_windowed
 from flowtwin.report.variants import comparison_variants, prediction_variant
@@ -33,8 +33,8 @@ from flowtwin.report.verdict import Verdict, build_verdict
 from flowtwin.simulation import SimulationResult
 
 if TYPE_CHECKING:
+    from flowtwin.calibration.tuning.advance_settings import AdvanceFit
     from flowtwin.compensation.pipeline import CompensationReport
-    from flowtwin.compensation.settings import AdvanceFit
 
 __all__ = ["comparison_html", "report_html", "source_text", "write_comparison", "write_report"]
 

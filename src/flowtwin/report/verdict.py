@@ -32,7 +32,7 @@ from flowtwin.simulation import SimulationResult
 from flowtwin.simulation.windowed import WindowedFlow
 
 if TYPE_CHECKING:
-    from flowtwin.compensation.settings import AdvanceFit
+    from flowtwin.calibration.tuning.advance_settings import AdvanceFit
 
 __all__ = ["FLOW_OK", "FLOW_VISIBLE", "SLIP_NOTABLE", "Advice", "FeatureFlow", "GrindingRisk",
            "Spot", "Verdict", "build_verdict"]

@@ -10,7 +10,7 @@ from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.dynamics import AdvanceSettings, predict, printer_advance
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Firmware
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.parameters import move_parameters

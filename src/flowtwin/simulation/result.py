@@ -14,7 +14,7 @@ from flowtwin.atomic import atomic_open
 from flowtwin.dynamics import DynamicsResult
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
-from flowtwin.planning import PlanResult
+from flowtwin.planner.plan_file import PlanResult
 from flowtwin.simulation import _summary_kernel as sk
 from flowtwin.simulation._deposit_kernel import bead_metrics
 from flowtwin.simulation.parameters import MoveParameters
@@ -44,7 +44,7 @@ class SimulationResult:
     Attributes
     ----------
     plan
-        The read and planned G-code (:class:`~flowtwin.planning.PlanResult`).
+        The read and planned G-code (:class:`~flowtwin.planner.plan_file.PlanResult`).
     machine_name
         Name of the set-up.
     parameters

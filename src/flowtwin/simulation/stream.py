@@ -61,7 +61,7 @@ from flowtwin.dynamics import (
 )
 from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
-from flowtwin.firmware import Firmware, PlannerFamily
+from flowtwin.firmware import Firmware, PaChange, PlannerFamily, read_pa_command
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.reader import iter_move_chunks
 from flowtwin.physics.melt_history import MeltState
@@ -69,10 +69,10 @@ from flowtwin.planner.from_profile import klipper_settings, marlin_settings, rea
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.planner.marlin import plan_marlin
+from flowtwin.planner.plan_file import PlanResult
 from flowtwin.planner.timeline import Timeline
 from flowtwin.planner.totals import PlanTotals
 from flowtwin.planner.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
-from flowtwin.planning import PlanResult
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.aggregate import Aggregates
@@ -294,15 +294,15 @@ def _trim(feed: CommandedFeed, t_a: float, t_b: float) -> CommandedFeed:
                    phase=feed.phase[keep])
 
 
-def _sets_advance(ev: Event) -> bool:
-    """Whether a command may switch pressure advance on (Klipper, Prusa)."""
-    if ev.code == "SET_PRESSURE_ADVANCE":
-        v = ev.params.get("ADVANCE")
-        return not (isinstance(v, float) and v == 0.0) or "SMOOTH_TIME" in ev.params
-    if ev.code == "M572":
-        v = ev.params.get("S")
-        return not (isinstance(v, float) and v == 0.0)
-    return False
+def _advance_change(advance: AdvanceSettings, ev: Event) -> PaChange | None:
+    """What the G-code's advance command ``ev`` sets, read by the firmware model as the
+    dynamics read it (:func:`flowtwin.firmware.read_pa_command`: the firmware's own syntax,
+    the modelled tool, values the firmware accepts), or ``None``."""
+    fw = advance.firmware
+    if not advance.use_gcode or ev.code != fw.pa_syntax.code:
+        return None
+    return read_pa_command(fw, ev, tool=0 if advance.tool is None else advance.tool,
+                           source="", warnings=[])
 
 
 class _Simulator:
@@ -336,13 +336,18 @@ class _Simulator:
         self.spans.extend(spans)
         self.n_buf += sum(len(s.moves) for s in spans)
         if self.smoothing:
+            assert self.advance is not None  # smoothing needs an advance
             for span in spans:
                 for ev in span.events:
+                    change = _advance_change(self.advance, ev)
+                    if change is None:
+                        continue
                     # smoothing acts only while advance is on: a profile value or a command
-                    self.pa_seen = self.pa_seen or _sets_advance(ev)
-                    w = ev.params.get("SMOOTH_TIME" if ev.code == "SET_PRESSURE_ADVANCE"
-                                      else "W" if ev.code == "M572" else "")
-                    if isinstance(w, float) and 0.0 < w <= 2.0 * _REST_S:
+                    # that may switch it on (a factor other than 0, or a new window)
+                    self.pa_seen = self.pa_seen or change.k_s != 0.0 \
+                        or change.smooth_time_s is not None
+                    w = change.smooth_time_s
+                    if w is not None and 0.0 < w <= 2.0 * _REST_S:
                         self.rest_s = max(self.rest_s, 0.5 * w)
 
     def run(self, *, final: bool, progress: Callable[[int], None] | None) -> None:

@@ -1,6 +1,6 @@
 """Virtual filament-drive test stand and the evaluation of test-stand records [000 §3–4].
 
-SPEC §3.8. The stand runs the measurement procedure of Nienhaus et al. [000 §3] on a drive
+docs/spec.md §3.8. The stand runs the measurement procedure of Nienhaus et al. [000 §3] on a drive
 model (:mod:`~flowtwin.teststand.model`, :mod:`~flowtwin.teststand.simulate`) and writes
 records in a CSV schema a real stand can also produce (:mod:`~flowtwin.teststand.records`,
 docs/teststand.md). The evaluation (:mod:`~flowtwin.teststand.analysis`,
