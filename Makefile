@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean services fuzz
+.PHONY: install demo test bench lint clean services fuzz browser
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,7 +25,12 @@ demo: $(STAMP)
 services: $(STAMP)
 	$(PY) tests/control/services/install.py octoprint moonraker
 
-test: $(STAMP) services
+# a real browser for the report tests: Debian's chromium (apt-get) and Playwright for
+# Python pointed at it (a no-op once installed)
+browser: $(STAMP)
+	$(PY) tests/report/browser_install.py
+
+test: $(STAMP) services browser
 	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 $(VENV)/.peers-stamp: $(STAMP) benchmarks/peers.txt

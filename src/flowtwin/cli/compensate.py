@@ -142,6 +142,9 @@ def register(app: typer.Typer) -> None:
             "--max-flow", help="Guard: largest volumetric flow, mm³/s.")] = None,
         max_shift: Annotated[float, typer.Option(
             "--max-shift", help="Trajectory: largest path displacement, mm.")] = 0.5,
+        report_out: Annotated[Path | None, typer.Option(
+            "--report", help="Also write the before/after report: an .html file, or a folder "
+            "(report.html in it).")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Rewrite a G-code so the printer extrudes what it means (nothing without a flag)."""
@@ -155,10 +158,23 @@ def register(app: typer.Typer) -> None:
             trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None,
             pace=PaceOptions(min_speed_mm_s=pace_min_speed, max_slowdown=pace_max_slowdown)
             if pace else None)
+        written = None
+        if report_out is not None:
+            from flowtwin.report import write_comparison
+
+            target = report_out if report_out.suffix.lower() in (".html", ".htm") else \
+                report_out / "report.html"
+            target.parent.mkdir(parents=True, exist_ok=True)
+            written = write_comparison(report, target)
         if json_out:
-            print_json(report.summary())
+            out = report.summary()
+            if written is not None:
+                out["report"] = str(written)
+            print_json(out)
         else:
             render_report(report)
+            if written is not None:
+                console.print(f"wrote {written}")
 
     @app.command("tune")
     def tune_cmd(

@@ -14,7 +14,8 @@ from flowtwin.cli.plan import render_plan
 from flowtwin.cli.simulate import render_simulation, run_simulation
 from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.planning import plan_gcode
-from flowtwin.simulation import DEFAULT_MACHINE
+from flowtwin.report.verdict import Verdict
+from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult
 
 __all__ = ["register", "run_demo"]
 
@@ -24,8 +25,13 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
     """Generate the built-in print into ``out_dir``, plan and simulate it, write the report.
 
     Writes ``demo.gcode``, ``plan.json``, ``summary.json`` and ``report.html``; returns the
-    plan and simulation summaries with the written paths.
+    plan and simulation summaries, the verdict and the written paths.
     """
+    return _demo(out_dir, machine=machine, show_progress=show_progress)[0]
+
+
+def _demo(out_dir: Path, *, machine: str, show_progress: bool
+          ) -> tuple[dict[str, object], SimulationResult, Verdict]:
     out_dir.mkdir(parents=True, exist_ok=True)
     gcode = out_dir / "demo.gcode"
     write_print(gcode, PrintSpec())
@@ -36,12 +42,13 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
     plan_summary["per_layer"] = plan.per_layer()
     atomic_write_text(out_dir / "plan.json",
                       json.dumps(plan_summary, indent=2, allow_nan=False, default=str) + "\n")
-    sim = run_simulation(str(gcode), machine=machine, klipper_config=None, out_dir=out_dir,
-                         series=None, pressure_advance=True, slicer_limits=False,
-                         show_progress=show_progress)
-    return {"plan": plan_summary, "simulation": sim.summary(),
-            "outputs": {name: str(out_dir / name) for name in
-                        ("demo.gcode", "plan.json", "summary.json", "report.html")}}
+    sim, verdict = run_simulation(str(gcode), machine=machine, klipper_config=None,
+                                  out_dir=out_dir, series=None, pressure_advance=True,
+                                  slicer_limits=False, show_progress=show_progress)
+    return ({"plan": plan_summary, "simulation": sim.summary(), "verdict": verdict.as_dict(),
+             "outputs": {name: str(out_dir / name) for name in
+                         ("demo.gcode", "plan.json", "summary.json", "report.html")}},
+            sim, verdict)
 
 
 def register(app: typer.Typer) -> None:
@@ -56,14 +63,12 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Generate the built-in example print, plan and simulate it, write report.html."""
-        summary = run_demo(out, machine=profile, show_progress=not json_out)
+        summary, sim, verdict = _demo(out, machine=profile, show_progress=not json_out)
         if json_out:
             print_json(summary)
             return
         from flowtwin.profiles import load_machine
 
         render_plan(plan_gcode(out / "demo.gcode", printer=load_machine(profile).printer))
-        from flowtwin.simulation import simulate
-
-        render_simulation(simulate(out / "demo.gcode", machine=profile))
+        render_simulation(sim, verdict)
         console.print("\nwrote " + ", ".join(str(v) for v in summary["outputs"].values()))  # type: ignore[attr-defined]

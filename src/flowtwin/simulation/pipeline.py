@@ -90,4 +90,5 @@ def simulate(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     metrics = deposition_metrics(plan, dyn, params)
     warnings = [*params.warnings, *dyn.warnings]
     return SimulationResult(plan=plan, machine_name=m.name, parameters=params, dynamics=dyn,
-                            metrics=metrics, advance=label, warnings=warnings)
+                            metrics=metrics, advance=label, warnings=warnings,
+                            nozzle_diameter_mm=float(m.hotend.nozzle_diameter_mm))

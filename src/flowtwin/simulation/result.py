@@ -57,6 +57,9 @@ class SimulationResult:
         Pressure advance the prediction includes (e.g. ``"klipper K=0.04 s"`` or ``"off"``).
     warnings
         Everything the user must know (extrapolations, ignored commands).
+    nozzle_diameter_mm
+        Nozzle diameter of the simulated hot end, mm (the window of the flow figures a
+        user can act on, :mod:`flowtwin.simulation.windowed`); ``nan``: unknown.
     """
 
     plan: PlanResult
@@ -66,6 +69,12 @@ class SimulationResult:
     metrics: npt.NDArray[np.void]
     advance: str
     warnings: list[str] = field(default_factory=list)
+    nozzle_diameter_mm: float = math.nan
+
+    def _repr_html_(self) -> str:
+        """The report (verdict, toolpath viewer, plots) in a notebook cell."""
+        from flowtwin.report.notebook import simulation_repr
+        return simulation_repr(self)
 
     # ---- aggregates -----------------------------------------------------------------------
     def _extruding(self) -> npt.NDArray[np.bool_]:
