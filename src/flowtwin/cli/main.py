@@ -24,7 +24,8 @@ __all__ = ["app", "main"]
 
 #: Modules under ``flowtwin.cli`` that contribute commands (each has ``register(app)``).
 COMMAND_MODULES = ("plan", "simulate", "compensate", "demo", "batch", "profiles",
-                   "calibrate", "teststand", "reproduce", "control", "vision", "limits")
+                   "calibrate", "teststand", "reproduce", "control", "vision", "limits",
+                   "postprocess")
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
