@@ -160,6 +160,8 @@ class PostprocessResult:
                         "klipper_config": (None if self.choice.klipper_config is None
                                            else str(self.choice.klipper_config)),
                         "profile": m.printer.model_dump(mode="json"),
+                        "silent_profile": (None if self.choice.silent is None else
+                                           self.choice.silent.model_dump(mode="json")),
                         "notes": list(self.choice.notes)},
             "setup": {"name": m.name, "drive": m.drive.name, "hotend": m.hotend.name,
                       "nozzle_diameter_mm": m.hotend.nozzle_diameter_mm,
@@ -305,12 +307,7 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
         result = simulate(work, machine=choice.machine, klipper_config=choice.klipper_config,
                           pressure_advance=not opts.advance)
         times = PlanTimes.of(result.plan.table, result.plan.timeline)
-        silent = None
-        if choice.silent is not None:
-            from flowtwin.planning import plan_gcode
-
-            sp = plan_gcode(work, printer=choice.silent)
-            silent = PlanTimes.of(sp.table, sp.timeline)
+        silent = None if choice.silent is None else _silent_times(work, choice)
         step("verdict")
         verdict = build_verdict(result)
         step("times")
@@ -351,6 +348,27 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
         warnings=tuple(str(w) for w in warnings))
     _write_sidecar(out)
     return out
+
+
+#: Commands that set Marlin-style machine limits.
+_LIMIT_CODES = frozenset({"M201", "M203", "M204", "M205"})
+
+
+def _silent_times(work: Path, choice: PrinterChoice) -> PlanTimes:
+    """Times in PrusaSlicer's silent (stealth) mode: the slicer's second machine limits,
+    and, as PrusaSlicer's estimator has it (``GCodeProcessor::process_M201`` …), the
+    file's limit commands before its first move set the normal mode only."""
+    from dataclasses import replace
+
+    from flowtwin.gcode.reader import read_gcode
+    from flowtwin.planner.from_profile import marlin_settings, read_options
+    from flowtwin.planner.marlin import plan_marlin
+
+    assert choice.silent is not None
+    table = read_gcode(work, options=read_options(choice.silent))
+    table = replace(table, events=[e for e in table.events
+                                   if not (e.move_index == 0 and e.code in _LIMIT_CODES)])
+    return PlanTimes.of(table, plan_marlin(table, marlin_settings(choice.silent)))
 
 
 def _compensate(src: Path, dst: Path, choice: PrinterChoice, opts: PostprocessOptions
