@@ -23,6 +23,7 @@ import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,10 @@ from flowtwin.postprocess.printer import PrinterChoice, resolve_printer
 from flowtwin.postprocess.scan import FLOWTWIN_MARK
 from flowtwin.postprocess.slicer import SlicerContext
 from flowtwin.postprocess.times import PlanTimes, TimeEdits, format_dhms
+
+if TYPE_CHECKING:
+    from flowtwin.compensation import CompensationReport
+    from flowtwin.simulation import SimulationResult
 
 __all__ = ["FAIL_ON", "PostprocessOptions", "PostprocessResult", "json_clean", "postprocess",
            "sidecar_path"]
@@ -183,8 +188,21 @@ class PostprocessResult:
         if self.failures:
             out.append("flowtwin: export stopped (--fail-on):")
             out += [f"  {f}" for f in self.failures]
-        out.append(f"flowtwin: {self.sentences[0]}" if self.sentences else "flowtwin:")
-        out += [f"  {s}" for s in self.sentences[1:4]]
+        c = self.compensation
+        if c is None:
+            out.append(f"flowtwin: {self.sentences[0]}" if self.sentences else "flowtwin:")
+            out += [f"  {s}" for s in self.sentences[1:4]]
+        else:
+            # the verdict's flow figures measure the file against its own E (which holds
+            # the baked advance): against the slicer's intent the compensation's count
+            names = ", ".join(str(n) for n in c["transformations"]) or "nothing"  # type: ignore[attr-defined]
+            out.append(f"flowtwin: compensated ({names}); against the slicer's intent the RMS "
+                       f"flow error goes {_pct(c['rms_flow_error_before'], '')} → "
+                       f"{_pct(c['rms_flow_error_after'], '')}, the worst over "
+                       f"{c['peak_window_mm']} mm of path "
+                       f"{_pct(c['peak_overextrusion_window_before'])} → "
+                       f"{_pct(c['peak_overextrusion_window_after'])}.")
+            out += [f"  {s}" for s in self.sentences[1:2]]
         n = int(self.melt.get("moves", 0))  # type: ignore[call-overload]
         if n:
             out.append(f"  {self.melt['text']}")
@@ -193,6 +211,12 @@ class PostprocessResult:
                    f"the slicer said {t.get('slicer_estimate') or 'nothing'}.")
         out.append(f"  Details: {self.sidecar}" + (f", {self.report}" if self.report else ""))
         return out
+
+
+def _pct(v: object, sign: str = "+") -> str:
+    if isinstance(v, int | float) and math.isfinite(v):
+        return f"{100 * float(v):{sign}.1f} %"
+    return "–"
 
 
 def sidecar_path(output: Path) -> Path:
@@ -299,13 +323,20 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
                                  config_source=cfg_source)
         work = path
         comp_summary = None
+        comp_report = None
+        result = None
         if opts.compensations:
             step("compensate")
             work = Path(tmp) / ("compensated" + "".join(path.suffixes[-2:]))
-            comp_summary = _compensate(path, work, choice, opts)
-        step("simulate")
-        result = simulate(work, machine=choice.machine, klipper_config=choice.klipper_config,
-                          pressure_advance=not opts.advance)
+            comp_report, result = _compensate(path, work, choice, opts)
+            comp_summary = comp_report.summary()
+            comp_summary.pop("slowed_lines", None)
+            comp_summary.pop("paced_lines", None)
+        if result is None:
+            step("simulate")
+            result = simulate(work, machine=choice.machine,
+                              klipper_config=choice.klipper_config,
+                              pressure_advance=not opts.advance)
         times = PlanTimes.of(result.plan.table, result.plan.timeline)
         silent = None if choice.silent is None else _silent_times(work, choice)
         step("verdict")
@@ -319,7 +350,7 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
         report = None
         if opts.report:
             step("report")
-            report = _write_report(result, verdict, comp_summary, output)
+            report = _write_report(result, verdict, comp_report, output)
         written = False
         if not failures:
             step("write")
@@ -372,17 +403,18 @@ def _silent_times(work: Path, choice: PrinterChoice) -> PlanTimes:
 
 
 def _compensate(src: Path, dst: Path, choice: PrinterChoice, opts: PostprocessOptions
-                ) -> dict[str, object]:
-    """The compensations asked for, through the public API (defaults for every option)."""
+                ) -> tuple[CompensationReport, SimulationResult | None]:
+    """The compensations asked for, through the public API (defaults for every option):
+    the report and its simulation of the written file (``None``: simulate it)."""
     from flowtwin.compensation import compensate
 
     rep = compensate(src, dst, machine=choice.machine, klipper_config=choice.klipper_config,
                      advance=opts.advance or None, slip=opts.slip or None,
                      pace=opts.pace or None, guard=opts.guard or None)
-    summary = rep.summary()
-    summary.pop("slowed_lines", None)
-    summary.pop("paced_lines", None)
-    return summary
+    after = getattr(rep, "compensated_result", None)
+    if after is not None and Path(after.plan.table.source) != dst:
+        after = None
+    return rep, after
 
 
 def _time_edits(work: Path, result: object, times: PlanTimes, silent: PlanTimes | None,
@@ -428,15 +460,19 @@ def _failures(fail_on: frozenset[str], verdict: object, melt: dict[str, object],
     return out
 
 
-def _write_report(result: object, verdict: object, comp: dict[str, object] | None,
-                  output: Path) -> Path:
-    from flowtwin.report import write_report
+def _write_report(result: SimulationResult, verdict: object,
+                  comp: CompensationReport | None, output: Path) -> Path:
+    """The HTML report beside the output: before / after for a compensated file (when the
+    compensation kept its simulations), else the simulation's report."""
+    from flowtwin.report import write_comparison, write_report
     from flowtwin.report.verdict import Verdict
-    from flowtwin.simulation import SimulationResult
 
-    assert isinstance(result, SimulationResult) and isinstance(verdict, Verdict)
-    return write_report(result, output.with_name(output.name + REPORT_SUFFIX),
-                        verdict=verdict)
+    assert isinstance(verdict, Verdict)
+    target = output.with_name(output.name + REPORT_SUFFIX)
+    if comp is not None and comp.original_result is not None and \
+            comp.compensated_result is not None and comp.piece_row is not None:
+        return write_comparison(comp, target)
+    return write_report(result, target, verdict=verdict)
 
 
 def _write_sidecar(result: PostprocessResult) -> None:
