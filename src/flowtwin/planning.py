@@ -69,17 +69,12 @@ class PlanResult:
         written = (m["kind"] & MoveKind.FW_RETRACT) == 0
         keys, inv, counts = np.unique(layer, return_inverse=True, return_counts=True)
         fil = np.bincount(inv, weights=np.where(written, m["de"], 0.0), minlength=len(keys))
-        # Z of each layer's first extrusion (for layers the slicer gave no Z)
-        ext = np.flatnonzero((m["kind"] & MoveKind.EXTRUDE) != 0)
-        first_z = np.full(len(keys), np.nan)
-        if ext.size:
-            ext_layers, first = np.unique(inv[ext], return_index=True)
-            first_z[ext_layers] = m["z"][ext[first]]
         for k, key in enumerate(keys.tolist()):
             z = (self.table.layer_z[key] if 0 <= key < len(self.table.layer_z)
                  else float("nan"))
             if z != z:  # NaN: take the Z of the layer's first extrusion
-                z = float(first_z[k])
+                sel = (layer == key) & ((m["kind"] & MoveKind.EXTRUDE) != 0)
+                z = float(m["z"][sel][0]) if np.any(sel) else float("nan")
             rows.append({"layer": int(key), "z_mm": z, "time_s": times.get(key, 0.0),
                          "filament_mm": float(fil[k]), "moves": int(counts[k])})
         return rows
