@@ -47,8 +47,9 @@ def test_prusaslicer_runs_flowtwin_and_the_written_times_are_flowtwins_plan(
     slicer_says = re.search(r"estimated printing time \(normal mode\) = (.*)",
                             reference.read_text()).group(1)
     out = tmp_path / "part.gcode"
-    proc = pph.slice_part(prusa_slicer, part_stl, out,
-                          post_process=f"{flowtwin_exe} postprocess --klipper-config {cfg}")
+    # the README's line
+    proc = pph.slice_part(prusa_slicer, part_stl, out, post_process=(
+        f"{flowtwin_exe} postprocess --klipper-config {cfg} --fail-on grinding"))
     assert proc.returncode == 0, proc.stdout + proc.stderr
     text = out.read_text()
     plan = pph.flowtwin_json(flowtwin_exe, "plan", str(out), "--klipper-config", str(cfg))
