@@ -63,8 +63,12 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option(
             "--json", help="Print the sidecar's JSON object on stdout.")] = False,
     ) -> None:
-        """Write firmware-exact times into a sliced G-code and check it with the twin
-        (a slicer post-processing script; see docs/postprocess.md)."""
+        """Write firmware-exact times into a sliced G-code and check it with the twin.
+
+        The slicer's post-processing script (PrusaSlicer, SuperSlicer, OrcaSlicer, Bambu
+        Studio): the G-code is edited in place, the verdict goes to stderr and
+        <output>.flowtwin.json; see docs/postprocess.md.
+        """
         from flowtwin.postprocess import PostprocessOptions, postprocess
         from flowtwin.postprocess.run import json_clean
 
