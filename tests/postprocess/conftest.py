@@ -11,7 +11,9 @@ import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 
 HERE = Path(__file__).resolve().parent
@@ -121,3 +123,23 @@ def pph() -> object:
     """The helpers of this module (``slice_part``, ``flowtwin_json``, ``dhms``, …) for the
     tests, which cannot import a conftest under ``--import-mode=importlib``."""
     return sys.modules[__name__]
+
+
+def percent(elapsed_s: float, total_s: float) -> int:
+    """PrusaSlicer's ``M73 P``: ``⌊100·t/T⌋``, 100 at the end (the test's own copy; 1e-9
+    guards against 100·t/T falling just below an integer in floating point)."""
+    return 100 if elapsed_s >= total_s else int(100 * elapsed_s / total_s + 1e-9)
+
+
+def elapsed_at(plan: Any, line: int) -> float:
+    """When the printer reaches ``line`` (the test's own definition): the end of the last
+    move from an earlier line, plus the dwells of earlier lines since that move (the
+    planner names each dwell's line in its reason)."""
+    lines = np.asarray(plan.table.moves["line"])
+    k = int(np.searchsorted(lines, line))
+    t = float(plan.timeline.end_time_s[k - 1]) if k else 0.0
+    for move, seconds, reason in plan.timeline.dwell_s:
+        m = re.search(r"line (\d+)$", reason)
+        if min(move, lines.size) == k and m and int(m.group(1)) < line:
+            t += seconds
+    return t

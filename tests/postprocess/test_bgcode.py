@@ -14,7 +14,6 @@ import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pybgcode
 import pytest
 
@@ -54,20 +53,18 @@ def _profile(data: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def _progress_ok(text: str, plan_path: Path, profile: Path, letters: tuple[str, str]) -> int:
+def _progress_ok(text: str, plan_path: Path, profile: Path, letters: tuple[str, str],
+                 pph: Any) -> int:
     """Check every ``M73 <P> <R>`` line against the plan with ``profile``; return how many."""
     plan = plan_gcode(plan_path, printer=profile)
     total = plan.timeline.total_time_s
-    lines = np.asarray(plan.table.moves["line"])
-    t0 = np.asarray(plan.timeline.phases["t_start"])
     n = 0
     pat = re.compile(rf"M73 {letters[0]}(\d+) {letters[1]}(\d+)$")
     for number, line in enumerate(text.splitlines(), start=1):
         m = pat.match(line)
         if m:
-            k = int(np.searchsorted(lines, number))
-            e = float(t0[k]) if k < lines.size else total
-            assert (int(m.group(1)), int(m.group(2))) == (int(100 * e / total),
+            e = pph.elapsed_at(plan, number)
+            assert (int(m.group(1)), int(m.group(2))) == (pph.percent(e, total),
                                                           int((total - e + 0.5) / 60)), line
             n += 1
     return n
@@ -101,8 +98,8 @@ def test_bgcode_in_bgcode_out_with_the_planners_times(flowtwin_exe: str, pph: An
     assert text.count(f"; estimated printing time (normal mode) = {pph.dhms(total)}\n") == 2
     assert text.count(f"; estimated printing time (silent mode) = {pph.dhms(total_s)}\n") == 2
     assert "; postprocessed by flowtwin" in text and "Prusa (Buddy) planner" in text
-    assert _progress_ok(text, back, normal, ("P", "R")) > 50
-    assert _progress_ok(text, stealth, silent, ("Q", "S")) > 50
+    assert _progress_ok(text, back, normal, ("P", "R"), pph) > 50
+    assert _progress_ok(text, stealth, silent, ("Q", "S"), pph) > 50
     # the same file processed as text gives the same G-code commands
     pph.flowtwin_json(flowtwin_exe, "postprocess", str(text_in))
 

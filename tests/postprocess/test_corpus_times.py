@@ -24,8 +24,9 @@ pytestmark = [pytest.mark.corpus]
 class Plan:
     """The planner's times of a file: total, layer 0, before layer 0, elapsed at a line."""
 
-    def __init__(self, path: Path, **kw: Any) -> None:
+    def __init__(self, path: Path, pph: Any, **kw: Any) -> None:
         p = plan_gcode(path, **kw)
+        self.plan, self.pph = p, pph
         self.total = p.timeline.total_time_s
         self.lines = np.asarray(p.table.moves["line"])
         self.t0 = np.asarray(p.timeline.phases["t_start"])
@@ -33,8 +34,7 @@ class Plan:
         self.first, self.before = rows.get(0, 0.0), rows.get(-1, 0.0)
 
     def at(self, line: int) -> float:
-        k = int(np.searchsorted(self.lines, line))
-        return float(self.t0[k]) if k < self.lines.size else self.total
+        return float(self.pph.elapsed_at(self.plan, line))
 
 
 def _dhms(s: float) -> str:
@@ -62,10 +62,10 @@ def test_time_lines_of_every_slicer_carry_the_planners_figures(
     cfg = klipper_dir / "B.cfg"
     src = pph.corpus_copy(name, tmp_path / f"{name}.gcode")
     original = src.read_text(errors="replace").splitlines()
-    before = Plan(src, klipper_config=cfg)
+    before = Plan(src, pph, klipper_config=cfg)
     r = postprocess(src, PostprocessOptions(klipper_config=cfg), env={})
     assert r.written and set(r.times["rewritten"]) == FILES[name]  # type: ignore[arg-type]
-    p = Plan(src, klipper_config=cfg)
+    p = Plan(src, pph, klipper_config=cfg)
     assert p.total == before.total and np.array_equal(p.t0, before.t0)
     text = src.read_text(errors="replace").splitlines()
     assert len(text) == len(original) + 1          # one line added: flowtwin's, at the end
@@ -97,7 +97,7 @@ def test_time_lines_of_every_slicer_carry_the_planners_figures(
                                line):
             assert m.group(1) == _dhms(p.first)
         elif m := re.match(r"M73 P(\d+) R(\d+)", line):
-            assert (int(m.group(1)), int(m.group(2))) == (int(100 * e / p.total),
+            assert (int(m.group(1)), int(m.group(2))) == (pph.percent(e, p.total),
                                                           int((p.total - e + 0.5) / 60))
         else:
             assert line == old, number       # nothing else changed
@@ -115,7 +115,7 @@ def test_a_marlin_file_without_progress_lines_gets_m73_and_the_verdict_follows_t
     r = postprocess(src, PostprocessOptions(setup="tronvoll2019"), env={})
     assert r.choice.firmware.value == "marlin" and r.written
     text = src.read_text().splitlines()
-    p = Plan(src, printer=r.choice.machine.printer)
+    p = Plan(src, pph, printer=r.choice.machine.printer)
     progress = [(k, ln) for k, ln in enumerate(text, start=1) if ln.startswith("M73 ")]
     assert len(progress) == r.times["progress_added"]
     layers = {row["layer"] for row in r.times["per_layer"]} - {-1}  # type: ignore[attr-defined]
@@ -123,7 +123,7 @@ def test_a_marlin_file_without_progress_lines_gets_m73_and_the_verdict_follows_t
     assert progress[0][1].startswith("M73 P0 R") and progress[-1][1] == "M73 P100 R0"
     for number, line in progress:
         e = p.at(number)
-        assert line == f"M73 P{int(100 * e / p.total)} R{int((p.total - e + 0.5) / 60)}"
+        assert line == f"M73 P{pph.percent(e, p.total)} R{int((p.total - e + 0.5) / 60)}"
     # the verdict names lines of the written file: the twin's verdict of the untouched
     # file, its lines moved past the M73 lines added before them
     new_number, k = {}, 0

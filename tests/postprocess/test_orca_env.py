@@ -19,7 +19,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 from flowtwin.planning import plan_gcode
@@ -80,14 +79,11 @@ def test_orca_environment_plans_with_the_slicers_limits(
     assert f"; estimated first layer printing time (normal mode) = {pph.dhms(first)}\n" in text
     # every M73 P R line by PrusaSlicer's formulas (OrcaSlicer inherited them)
     p = plan_gcode(gcode, printer=profile)
-    lines = np.asarray(p.table.moves["line"])
-    t0 = np.asarray(p.timeline.phases["t_start"])
     n = 0
     for number, line in enumerate(text.splitlines(), start=1):
         if line.startswith("M73 P"):
-            k = int(np.searchsorted(lines, number))
-            e = float(t0[k]) if k < lines.size else total
-            assert line == f"M73 P{int(100 * e / total)} R{int((total - e + 0.5) / 60)}"
+            e = pph.elapsed_at(p, number)
+            assert line == f"M73 P{pph.percent(e, total)} R{int((total - e + 0.5) / 60)}"
             n += 1
     assert n == original.count("\nM73 P") > 100
 

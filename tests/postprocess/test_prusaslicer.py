@@ -13,7 +13,6 @@ import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 from flowtwin.planning import plan_gcode
@@ -21,20 +20,16 @@ from flowtwin.planning import plan_gcode
 pytestmark = [pytest.mark.slow]
 
 
-def _m73_expected(path: Path, cfg: Path) -> tuple[float, dict[int, tuple[int, int]]]:
+def _m73_expected(path: Path, cfg: Path, pph: Any) -> tuple[float, dict[int, tuple[int, int]]]:
     """Total time and, per ``M73 P R`` line of ``path``, the (percent, minutes) the planner
-    gives there: PrusaSlicer's formulas on the time at which the printer reaches the line
-    (the start of the first move at or after it)."""
+    gives there: PrusaSlicer's formulas on the time at which the printer reaches the line."""
     plan = plan_gcode(path, klipper_config=cfg)
     total = plan.timeline.total_time_s
-    lines = np.asarray(plan.table.moves["line"])
-    t0 = np.asarray(plan.timeline.phases["t_start"])
     out = {}
     for number, text in enumerate(path.read_text().splitlines(), start=1):
         if re.match(r"M73 P\d", text):
-            k = int(np.searchsorted(lines, number))
-            e = float(t0[k]) if k < lines.size else total
-            out[number] = (int(100 * e / total), int((total - e + 0.5) / 60))
+            e = pph.elapsed_at(plan, number)
+            out[number] = (pph.percent(e, total), int((total - e + 0.5) / 60))
     return total, out
 
 
@@ -63,7 +58,7 @@ def test_prusaslicer_runs_flowtwin_and_the_written_times_are_flowtwins_plan(
                       r".*Klipper planner.*printer\.cfg", text, re.MULTILINE)
     assert len(mark) == 1 and abs(float(mark[0]) - total) < 0.005
     # every progress line: PrusaSlicer's M73 formulas on the planner's time line
-    plan_total, expected = _m73_expected(out, cfg)
+    plan_total, expected = _m73_expected(out, cfg, pph)
     assert abs(plan_total - total) < 1e-9 and len(expected) > 20
     for number, line in enumerate(text.splitlines(), start=1):
         if number in expected:

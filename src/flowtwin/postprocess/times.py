@@ -27,7 +27,7 @@ KISSlicer                       ``; Estimated Build Time:   2.50 minutes``      
 Simplify3D                      ``;   Build time: 0 hours 39 minutes``              total
 ==============================  =================================================  =========
 
-``M73`` follows PrusaSlicer's ``GCodeProcessor``: percent ``⌊100·t/T⌋``, minutes
+``M73`` follows PrusaSlicer's ``GCodeProcessor``: percent ``⌊100·t/T⌋`` (100 at the end), minutes
 ``⌊(T − t + 0.5)/60⌋``. A file without ``M73 P`` gets ``M73 P R`` lines (before the first move,
 at the first move of every layer, after the last move) when its firmware shows them
 (Marlin-family firmwares; Klipper's front ends read the time comments instead).
@@ -66,6 +66,19 @@ def format_dhms(seconds: float) -> str:
     return f"{s}s"
 
 
+#: Added before rounding a percentage down, so that 100·t/T at t = T (99.99999999999999 in
+#: floating point) gives 100, and no exact value falls below its integer.
+_PCT_EPS = 1e-9
+
+
+def _percent(elapsed_s: float, total_s: float, decimals: int = 0) -> str:
+    """``⌊100·t/T⌋`` (at ``decimals`` places), 100 at or after the end."""
+    if total_s <= 0 or elapsed_s >= total_s:
+        return f"{100:.{decimals}f}"
+    scale = 10 ** decimals
+    return f"{math.floor(100.0 * elapsed_s / total_s * scale + _PCT_EPS) / scale:.{decimals}f}"
+
+
 def _minutes(seconds: float) -> int:
     """Whole minutes as PrusaSlicer's ``M73 R`` writes them."""
     return int((max(seconds, 0.0) + 0.5) / 60.0)
@@ -90,20 +103,42 @@ class PlanTimes:
     before_first_layer_s: float
     move_lines: npt.NDArray[np.int64]
     t_start: npt.NDArray[np.float64]
+    dwell_move: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    dwell_line: npt.NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    dwell_s: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def of(cls, table: MoveTable, timeline: Timeline) -> PlanTimes:
         """The times of a planned move table."""
         layers = time_by_layer(timeline, table)
+        n = len(table)
+        lines = [_reason_line(reason) for _, _, reason in timeline.dwell_s]
         return cls(total_s=float(timeline.total_time_s), first_layer_s=layers.get(0, 0.0),
                    before_first_layer_s=layers.get(-1, 0.0),
                    move_lines=np.asarray(table.moves["line"], dtype=np.int64),
-                   t_start=np.asarray(timeline.phases["t_start"], dtype=np.float64))
+                   t_start=np.asarray(timeline.phases["t_start"], dtype=np.float64),
+                   dwell_move=np.minimum(np.array([d[0] for d in timeline.dwell_s],
+                                                  dtype=np.int64), n),
+                   dwell_line=np.array(lines, dtype=np.int64),
+                   dwell_s=np.array([d[1] for d in timeline.dwell_s], dtype=np.float64))
 
     def elapsed_at(self, line: int) -> float:
-        """Print time when the printer reaches ``line``, s (the total after the last move)."""
+        """Print time when the printer reaches ``line``, s: the start of the first move at or
+        after it, less the dwells between the line and that move (the total after the last
+        move, less the dwells after the line)."""
         k = int(np.searchsorted(self.move_lines, line, side="left"))
-        return float(self.t_start[k]) if k < self.t_start.shape[0] else self.total_s
+        t = float(self.t_start[k]) if k < self.t_start.shape[0] else self.total_s
+        if self.dwell_s.size:
+            later = (self.dwell_move == k) & (self.dwell_line >= line)
+            if np.any(later):
+                t -= float(np.sum(self.dwell_s[later]))
+        return t
+
+
+def _reason_line(reason: str) -> int:
+    """The G-code line a planner's dwell came from (its reason ends in ``line N``)."""
+    m = re.search(r"line (\d+)\s*$", reason)
+    return int(m.group(1)) if m else -1
 
 
 @dataclass(slots=True)
@@ -206,10 +241,7 @@ def _m73(text: str, line: int, normal: PlanTimes, silent: PlanTimes,
         times = silent if up in ("Q", "S", "D") else normal
         e = times.elapsed_at(line)
         if up in ("P", "Q"):
-            pct = 100.0 * e / times.total_s if times.total_s > 0 else 100.0
-            pct = min(pct, 100.0)
-            d = _decimals(token)
-            v = f"{math.floor(pct * 10 ** d) / 10 ** d:.{d}f}"
+            v = _percent(e, times.total_s, _decimals(token))
         elif up in ("R", "S"):
             v = str(_minutes(times.total_s - e))
         elif up in ("C", "D") and stop_line is not None:
@@ -229,8 +261,7 @@ def _m73(text: str, line: int, normal: PlanTimes, silent: PlanTimes,
 def progress_lines(times: PlanTimes, line: int) -> str:
     """The ``M73 P R`` line for the moment the printer reaches ``line``."""
     e = times.elapsed_at(line)
-    pct = int(100.0 * e / times.total_s) if times.total_s > 0 else 100
-    return f"M73 P{min(pct, 100)} R{_minutes(times.total_s - e)}"
+    return f"M73 P{_percent(e, times.total_s)} R{_minutes(times.total_s - e)}"
 
 
 class _Builder:
