@@ -42,10 +42,23 @@ def _slicer_env(text: str, output: Path) -> dict[str, str]:
     return env
 
 
+#: A fresh interpreter that loads only the ``postprocess`` command, as a lazy command table
+#: does (``flowtwin`` itself imports every command module on this branch).
+LEAN = ("import sys, typer\n"
+        "from flowtwin.cli import postprocess as p\n"
+        "app = typer.Typer(add_completion=False)\n"
+        "p.register(app)\n"
+        "app.callback()(lambda: None)\n"
+        "app(args=sys.argv[1:])\n")
+
+
 def _run(args: list[str], gcode: Path, env: dict[str, str]) -> tuple[float, float, float]:
-    """(wall s, CPU s, peak RSS MB) of one fresh ``flowtwin`` process."""
+    """(wall s, CPU s, peak RSS MB) of one fresh process: ``flowtwin ARGS FILE``, or the
+    lean entry when ``args`` starts with ``"lean"``."""
+    exe = [sys.executable, "-c", LEAN] if args[:1] == ["lean"] else [FLOWTWIN]
+    args = args[1:] if args[:1] == ["lean"] else args
     t0 = time.perf_counter()
-    proc = subprocess.Popen([FLOWTWIN, *args, str(gcode)], env=env,
+    proc = subprocess.Popen([*exe, *args, str(gcode)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
@@ -75,6 +88,28 @@ def _series(label: str, args: list[str], src: bytes, folder: Path, env: dict[str
     return out
 
 
+def _in_process(src: bytes, folder: Path, env: dict[str, str], runs: int
+                ) -> dict[str, object]:
+    """The work alone: ``postprocess()`` called in this process after a warm-up call."""
+    from flowtwin.postprocess import postprocess
+
+    walls, cpus = [], []
+    for i in range(runs + 1):
+        gcode = folder / "inproc.gcode"
+        gcode.write_bytes(src)
+        c0, t0 = time.process_time(), time.perf_counter()
+        postprocess(gcode, env={**env, "SLIC3R_PP_OUTPUT_NAME": str(gcode)})
+        if i:
+            walls.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
+    out = {"wall_best_s": min(walls), "wall_median_s": statistics.median(walls),
+           "cpu_median_s": statistics.median(cpus), "runs": runs}
+    print(f"{'in process, after imports and a warm-up':<44} wall best "
+          f"{out['wall_best_s']:.2f} s, median {out['wall_median_s']:.2f} s; CPU "
+          f"{out['cpu_median_s']:.2f} s")
+    return out
+
+
 def run(quick: bool = False) -> dict[str, object]:
     """Time ``flowtwin postprocess`` on the Benchy (see the module docstring)."""
     runs = 3 if quick else 7
@@ -87,6 +122,10 @@ def run(quick: bool = False) -> dict[str, object]:
         results["times_and_verdict"] = _series(
             "postprocess (slicer settings), 180 k lines", ["postprocess"], text, folder, env,
             runs)
+        results["lean_entry"] = _series(
+            "same, lean entry (only the command loaded)", ["lean", "postprocess"], text,
+            folder, env, runs)
+        results["in_process"] = _in_process(text, folder, env, runs)
         results["klipper"] = _series(
             "postprocess --klipper-config, 180 k lines",
             ["postprocess", "--klipper-config", str(KLIPPER_CFG)], text, folder, env, runs)
