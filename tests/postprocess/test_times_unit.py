@@ -70,3 +70,14 @@ def test_a_second_run_changes_nothing(name: str, pph: Any, tmp_path: Path) -> No
     assert gcode.read_bytes() == once
     assert second.times["progress_added"] == 0 or first.times["progress_added"] == 0 or \
         second.times["rewritten"].get("M73") == first.times["progress_added"]  # type: ignore[attr-defined]
+
+
+def test_a_sidecar_that_cannot_be_written_does_not_fail_the_export(pph: Any,
+                                                                    tmp_path: Path) -> None:
+    gcode = pph.corpus_copy("kisslicer_1.1.0.5_thinbox_small", tmp_path / "k.gcode")
+    (tmp_path / "k.gcode.flowtwin.json").mkdir()      # in the way
+    r = postprocess(gcode, PostprocessOptions(), env={})
+    assert r.written and not r.sidecar_written
+    assert "sidecar not written" in r.warnings[-1] and "k.gcode.flowtwin.json" in r.warnings[-1]
+    assert "; postprocessed by flowtwin" in gcode.read_text()
+    assert any(line.startswith("  warning: sidecar not written") for line in r.stderr_lines())

@@ -131,6 +131,8 @@ class PostprocessResult:
         Files written beside the output (``report``: ``None`` unless asked for).
     warnings
         Notes on the printer and the planner's and simulation's warnings.
+    sidecar_written
+        False when the sidecar could not be written (the reason is the last warning).
     """
 
     gcode: Path
@@ -148,6 +150,7 @@ class PostprocessResult:
     sidecar: Path
     report: Path | None
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    sidecar_written: bool = True
 
     def as_dict(self) -> dict[str, object]:
         """The sidecar's content."""
@@ -209,7 +212,11 @@ class PostprocessResult:
         out.append(f"  Print time {format_dhms(float(t['total_s']))} "  # type: ignore[arg-type]
                    f"({self.choice.firmware.label} planner, {self.choice.source}); "
                    f"the slicer said {t.get('slicer_estimate') or 'nothing'}.")
-        out.append(f"  Details: {self.sidecar}" + (f", {self.report}" if self.report else ""))
+        if self.sidecar_written:
+            out.append(f"  Details: {self.sidecar}"
+                       + (f", {self.report}" if self.report else ""))
+        else:
+            out.append(f"  warning: {self.warnings[-1]}")
         return out
 
 
@@ -377,7 +384,13 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
         settings_source=settings.source if settings else "none",
         compensation=comp_summary, sidecar=sidecar_path(output), report=report,
         warnings=tuple(str(w) for w in warnings))
-    _write_sidecar(out)
+    problem = _write_sidecar(out)
+    if problem is not None:
+        # the G-code is done; a sidecar that cannot be written is not worth failing it
+        from dataclasses import replace
+
+        out = replace(out, sidecar_written=False,
+                      warnings=(*out.warnings, f"sidecar not written: {problem}"))
     return out
 
 
@@ -475,13 +488,19 @@ def _write_report(result: SimulationResult, verdict: object,
     return write_report(result, target, verdict=verdict)
 
 
-def _write_sidecar(result: PostprocessResult) -> None:
+def _write_sidecar(result: PostprocessResult) -> str | None:
+    """Write the sidecar; the error message when it cannot be written."""
     import json
 
     from flowtwin.atomic import atomic_write_text
+    from flowtwin.errors import FlowtwinError
 
-    atomic_write_text(result.sidecar, json.dumps(json_clean(result.as_dict()), indent=1,
-                                                 allow_nan=False) + "\n")
+    try:
+        atomic_write_text(result.sidecar, json.dumps(json_clean(result.as_dict()), indent=1,
+                                                     allow_nan=False) + "\n")
+    except FlowtwinError as exc:
+        return str(exc)
+    return None
 
 
 def json_clean(value: object) -> object:
