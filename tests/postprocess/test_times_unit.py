@@ -81,3 +81,23 @@ def test_a_sidecar_that_cannot_be_written_does_not_fail_the_export(pph: Any,
     assert "sidecar not written" in r.warnings[-1] and "k.gcode.flowtwin.json" in r.warnings[-1]
     assert "; postprocessed by flowtwin" in gcode.read_text()
     assert any(line.startswith("  warning: sidecar not written") for line in r.stderr_lines())
+
+
+def test_a_prusa_file_without_progress_lines_gets_both_modes(pph: Any, tmp_path: Path) -> None:
+    src = pph.corpus_copy("prusaslicer_2.8.1_minicube_small", tmp_path / "src.gcode")
+    gcode = tmp_path / "mk4s.gcode"
+    gcode.write_text("".join(ln for ln in src.read_text().splitlines(keepends=True)
+                             if not ln.startswith("M73 ")))
+    r = postprocess(gcode, PostprocessOptions(), env={})
+    assert r.choice.silent is not None
+    text = gcode.read_text().splitlines()
+    normal = [k for k, ln in enumerate(text) if ln.startswith("M73 P")]
+    silent = [k for k, ln in enumerate(text) if ln.startswith("M73 Q")]
+    layers = {row["layer"] for row in r.times["per_layer"]} - {-1}  # type: ignore[attr-defined]
+    assert len(normal) == len(silent) == len(layers) + 2
+    assert r.times["progress_added"] == 2 * len(normal)
+    assert [k + 1 for k in normal] == silent                  # each P R line, then its Q S
+    total, quiet = float(r.times["total_s"]), float(r.times["silent_total_s"])  # type: ignore[arg-type]
+    assert text[normal[0]] == f"M73 P0 R{int((total + 0.5) / 60)}"
+    assert text[silent[0]] == f"M73 Q0 S{int((quiet + 0.5) / 60)}"
+    assert (text[normal[-1]], text[silent[-1]]) == ("M73 P100 R0", "M73 Q100 S0")

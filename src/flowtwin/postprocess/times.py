@@ -28,9 +28,10 @@ Simplify3D                      ``;   Build time: 0 hours 39 minutes``          
 ==============================  =================================================  =========
 
 ``M73`` follows PrusaSlicer's ``GCodeProcessor``: percent ``⌊100·t/T⌋`` (100 at the end), minutes
-``⌊(T − t + 0.5)/60⌋``. A file without ``M73 P`` gets ``M73 P R`` lines (before the first move,
-at the first move of every layer, after the last move) when its firmware shows them
-(Marlin-family firmwares; Klipper's front ends read the time comments instead).
+``⌊(T − t + 0.5)/60⌋``. A file without ``M73 P`` gets ``M73 P R`` lines (and ``Q S`` for a
+printer with a silent mode) before the first move, at the first move of every layer and
+after the last move when its firmware shows them (Marlin-family firmwares; Klipper's front
+ends read the time comments instead).
 """
 
 from __future__ import annotations
@@ -258,10 +259,12 @@ def _m73(text: str, line: int, normal: PlanTimes, silent: PlanTimes,
     return m.group("lead") + params + m.group("rest")
 
 
-def progress_lines(times: PlanTimes, line: int) -> str:
-    """The ``M73 P R`` line for the moment the printer reaches ``line``."""
+def progress_lines(times: PlanTimes, line: int, letters: str = "PR") -> str:
+    """The ``M73 P R`` line (``letters="QS"``: silent mode's) for the moment the printer
+    reaches ``line``."""
     e = times.elapsed_at(line)
-    return f"M73 P{_percent(e, times.total_s)} R{_minutes(times.total_s - e)}"
+    return (f"M73 {letters[0]}{_percent(e, times.total_s)} "
+            f"{letters[1]}{_minutes(times.total_s - e)}")
 
 
 class _Builder:
@@ -310,9 +313,10 @@ def time_edits(scan: ScanResult, normal: PlanTimes, *, silent: PlanTimes | None 
         lines of an earlier run, or are added after the last line (so that no line of the
         file moves).
     progress_at
-        Lines before which to add ``M73 P R`` when the file has none (a line after the last
-        one adds it at the end), or ``None``.
+        Lines before which to add ``M73 P R`` (and ``M73 Q S`` with ``silent``) when the
+        file has none (a line after the last one adds them at the end), or ``None``.
     """
+    silent_mode = silent is not None
     silent = silent or normal
     out = TimeEdits()
     b = _Builder()
@@ -357,11 +361,14 @@ def time_edits(scan: ScanResult, normal: PlanTimes, *, silent: PlanTimes | None 
             b.after.setdefault(scan.lines, []).extend(header)
     if progress_at and not has_progress:
         for line in progress_at:
-            entry = progress_lines(normal, line)
+            entries = [progress_lines(normal, line)]
+            if silent_mode:
+                entries.append(progress_lines(silent, line, "QS"))
             if line > scan.lines:
-                b.after.setdefault(scan.lines, []).insert(0, entry)
+                after = b.after.setdefault(scan.lines, [])
+                after[0:0] = entries
             else:
-                b.before.setdefault(line, []).append(entry)
-            out.progress_added += 1
+                b.before.setdefault(line, []).extend(entries)
+            out.progress_added += len(entries)
     out.edits, out.original_index = b.build(texts)
     return out
