@@ -15,6 +15,8 @@ from flowtwin.firmware import Firmware
 from flowtwin.postprocess import PostprocessOptions, SlicerContext
 from flowtwin.postprocess.printer import firmware_of_flavor, resolve_printer
 
+pytestmark = [pytest.mark.corpus]
+
 CLI = [sys.executable, "-c", "from flowtwin.cli.main import main; main()"]
 
 #: What Debian's PrusaSlicer 2.5 sets for a Marlin 2 printer (measured, NOTES.md), trimmed.

@@ -12,6 +12,8 @@ from flowtwin.planning import plan_gcode
 from flowtwin.postprocess import PostprocessOptions, postprocess
 from flowtwin.postprocess.times import format_dhms
 
+pytestmark = [pytest.mark.corpus]
+
 
 @pytest.mark.parametrize(("seconds", "text"), [
     (0.4, "0s"), (59.6, "1m 0s"), (61, "1m 1s"), (3600, "1h 0m 0s"), (4561.5, "1h 16m 2s"),
