@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean services browser fuzz
+.PHONY: install demo test bench lint clean services browser fuzz slicer
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,7 +33,12 @@ services: $(STAMP)
 browser: $(STAMP)
 	$(PY) tests/report/browser_install.py
 
-test: $(STAMP) services browser
+# a real slicer for the post-processing tests: Debian's prusa-slicer and openscad
+# (apt-get; a no-op once installed)
+slicer: $(STAMP)
+	$(PY) tests/postprocess/slicer_install.py
+
+test: $(STAMP) services browser slicer
 	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 $(VENV)/.peers-stamp: $(STAMP) benchmarks/peers.txt

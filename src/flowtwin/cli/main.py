@@ -60,6 +60,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                   "test-stand records."),
     "vision": ("vision", "Measure filament speed, gear speed, slip and width from a camera "
                "[003]."),
+    "postprocess": ("postprocess", "Write firmware-exact times into a sliced G-code and check "
+                    "it with the twin."),
 }
 
 #: The command modules, each once, in the order of :data:`COMMANDS`.

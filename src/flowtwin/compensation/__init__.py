@@ -10,15 +10,20 @@ Firmware settings (the best advance factor, an adaptive table) are calibration's
 See ``docs/compensation.md``.
 """
 
-from flowtwin.compensation.advance import AdvanceLaw, AdvanceOptions
-from flowtwin.compensation.guard import GuardOptions
-from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
-from flowtwin.compensation.metrics import FlowFigures, flow_figures
-from flowtwin.compensation.pace import PaceOptions, PaceReport
-from flowtwin.compensation.pipeline import CompensationReport, compensate
-from flowtwin.compensation.refine import RefineOptions
-from flowtwin.compensation.slip import SlipOptions
-from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from flowtwin.compensation.advance import AdvanceLaw, AdvanceOptions
+    from flowtwin.compensation.guard import GuardOptions
+    from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
+    from flowtwin.compensation.metrics import FlowFigures, flow_figures
+    from flowtwin.compensation.pace import PaceOptions, PaceReport
+    from flowtwin.compensation.pipeline import CompensationReport, compensate
+    from flowtwin.compensation.refine import RefineOptions
+    from flowtwin.compensation.slip import SlipOptions
+    from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 
 __all__ = [
     "AdvanceLaw",
@@ -37,3 +42,23 @@ __all__ = [
     "extruder_limits",
     "flow_figures",
 ]
+
+# names resolve on first use: importing one submodule (the verdict's
+# flowtwin.compensation.guard) does not load the whole pipeline
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "AdvanceLaw": "flowtwin.compensation.advance",
+    "AdvanceOptions": "flowtwin.compensation.advance",
+    "CompensationReport": "flowtwin.compensation.pipeline",
+    "ExtruderLimits": "flowtwin.compensation.limits",
+    "FlowFigures": "flowtwin.compensation.metrics",
+    "GuardOptions": "flowtwin.compensation.guard",
+    "PaceOptions": "flowtwin.compensation.pace",
+    "PaceReport": "flowtwin.compensation.pace",
+    "RefineOptions": "flowtwin.compensation.refine",
+    "SlipOptions": "flowtwin.compensation.slip",
+    "TrajectoryOptions": "flowtwin.compensation.trajectory",
+    "TrajectoryReport": "flowtwin.compensation.trajectory",
+    "compensate": "flowtwin.compensation.pipeline",
+    "extruder_limits": "flowtwin.compensation.limits",
+    "flow_figures": "flowtwin.compensation.metrics",
+})
