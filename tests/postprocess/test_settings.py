@@ -19,7 +19,8 @@ pytestmark = [pytest.mark.corpus]
 
 CLI = [sys.executable, "-c", "from flowtwin.cli.main import main; main()"]
 
-#: What Debian's PrusaSlicer 2.5 sets for a Marlin 2 printer (measured on Debian bookworm; docs/postprocess.md), trimmed.
+#: What Debian's PrusaSlicer 2.5 sets for a Marlin 2 printer (measured on Debian bookworm,
+#: docs/postprocess.md), trimmed.
 PRUSA_ENV = {
     "SLIC3R_PP_HOST": "File", "SLIC3R_PP_OUTPUT_NAME": "/tmp/out.gcode",
     "SLIC3R_GCODE_FLAVOR": "marlin2", "SLIC3R_PRINTER_MODEL": "MK3S",
