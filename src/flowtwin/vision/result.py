@@ -223,6 +223,11 @@ class VisionSummary:
         OpenCV that measured.
     processing_fps
         Frames per second of this run (decoding included).
+    width_note
+        Why every width of the run was refused (None if they were not): edges that are
+        not a clean silhouette, or a ``before`` ROI in the gear's contact zone.
+    width_blur_px
+        The edges' blur σ fitted over the clip (optics and pixel), px (NaN if no edges).
     """
 
     gear_speed_mm_s: float
@@ -268,6 +273,8 @@ class VisionSummary:
     timestamp_source: str
     opencv_version: str
     processing_fps: float
+    width_note: str | None = None
+    width_blur_px: float = math.nan
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (NaN becomes None)."""

@@ -149,7 +149,8 @@ def _gear_speed(rows: RowLog, config: VisionConfig, gear: GearSetup, k_cal: floa
 
 
 def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: float,
-           gear: GearSetup) -> VisionResult:
+           gear: GearSetup, *, width_note: str | None = None, blur_px: float | None = None
+           ) -> VisionResult:
     """Turn the rows of the pipeline loop into a :class:`VisionResult`.
 
     Parameters
@@ -164,6 +165,10 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
         Processing time of the loop, s.
     gear
         Gear axis used (and how it was found).
+    width_note
+        Why every width of the clip was refused (:mod:`flowtwin.vision.clip_width`).
+    blur_px
+        The clip's edge blur, px (None if no edges were found).
 
     Returns
     -------
@@ -234,7 +239,8 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
     summary = _summary(series, config, info, gear, gear_span=np.asarray(rows.gear_span),
                        fil_span=np.asarray(rows.fil_span), period=period, dropped=dropped,
                        k_cal=k_cal, scale_source=scale_source, gear_mode=gear_mode,
-                       radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s)
+                       radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s,
+                       width_note=width_note, blur_px=blur_px)
     return VisionResult(series, summary)
 
 
@@ -269,7 +275,8 @@ def _slip_note(gear_state: str, fil_state: str, g: float, f: float, steps: int,
 def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: GearSetup, *,
              gear_span: F64, fil_span: F64, period: float, dropped: int, k_cal: float,
              scale_source: str, gear_mode: str, radius_mm: float | None,
-             radius_source: str | None, elapsed_s: float) -> VisionSummary:
+             radius_source: str | None, elapsed_s: float, width_note: str | None,
+             blur_px: float | None) -> VisionSummary:
     p = config.tracking
     fl = s.flags
     g_ok = ((fl & int(GEAR_INVALID)) == 0) & np.isfinite(s.gear_speed_mm_s)
@@ -305,7 +312,8 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
     n_steps = max(n_frames - 1, 0)
     warnings = _warnings(s, config, gear, gear_mode=gear_mode, gear_state=gear_state,
                          g_ok=g_ok, f_ok=f_ok, w_ok=w_ok, n_steps=n_steps,
-                         n_frames=n_frames, slip_steps=steps, slip=slip)
+                         n_frames=n_frames, slip_steps=steps, slip=slip,
+                         width_note=width_note)
     frames_expected = info.frames_expected
     return VisionSummary(
         gear_speed_mm_s=g_mean, filament_speed_mm_s=f_mean, slip=slip, slip_pct=100.0 * slip,
@@ -333,7 +341,8 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
         warnings=tuple(warnings),
         source=info.description, source_kind=info.kind,
         timestamp_source=info.timestamp_source, opencv_version=cv2.__version__,
-        processing_fps=n / elapsed_s if elapsed_s > 0 else NAN)
+        processing_fps=n / elapsed_s if elapsed_s > 0 else NAN,
+        width_note=width_note, width_blur_px=NAN if blur_px is None else blur_px)
 
 
 def _count(fl: npt.NDArray[np.int64], flag: Quality) -> int:
@@ -343,7 +352,7 @@ def _count(fl: npt.NDArray[np.int64], flag: Quality) -> int:
 def _warnings(s: VisionSeries, config: VisionConfig, gear: GearSetup, *, gear_mode: str,
               gear_state: str, g_ok: npt.NDArray[np.bool_], f_ok: npt.NDArray[np.bool_],
               w_ok: npt.NDArray[np.bool_], n_steps: int, n_frames: int, slip_steps: int,
-              slip: float) -> list[str]:
+              slip: float, width_note: str | None) -> list[str]:
     """What a user must not miss (see the module docstring)."""
     frac = config.tracking.min_valid_fraction
     fl = s.flags
@@ -358,7 +367,9 @@ def _warnings(s: VisionSeries, config: VisionConfig, gear: GearSetup, *, gear_mo
                        f"({100.0 * ok.sum() / n_steps:.0f} %): {_count(fl, low)} without "
                        f"texture, {_count(fl, bad)} with too few or disagreeing tracks, "
                        f"{_count(fl, stale)} stale")
-    if n_frames and int(w_ok.sum()) < frac * n_frames:
+    if width_note is not None:
+        out.append(f"width refused in every frame: {width_note}")
+    elif n_frames and int(w_ok.sum()) < frac * n_frames:
         out.append(f"width valid in only {int(w_ok.sum())} of {n_frames} frames "
                    f"({_count(fl, Quality.WIDTH_AMBIGUOUS)} refused as ambiguous, the others "
                    "without a plausible pair of filament edges)")

@@ -1,0 +1,522 @@
+"""Where a filament's silhouette edge really is: a blurred, shaded-cylinder edge model.
+
+The derivative extremum of [003 §2.2] is the edge only for a blurred *step*. A filament
+is a cylinder lit from the camera (ring light or coaxial lamp of a microscope). Seen
+along the view direction (orthographic; the camera's working distance is many radii),
+a surface point at ``x`` from the axis has its normal at ``u = (x − x_c)/R`` across, so
+the cosine between normal and view (= light) direction is ``√(1 − u²)``. Any reflectance
+that is a smooth function ``f(cos θ)`` of that cosine — Lambertian, a diffuse plus a
+specular lobe, ambient light — expands about the limb (``cos θ = 0``) as
+``f(0) + f′(0)·√(1 − u²) + O(1 − u²)``. With ``d`` the distance inward from the
+silhouette (``1 − u² = 2d/R − d²/R²``) the radiance just inside the edge is
+
+    L(d) = A + B·√d + C·d + O(d^1.5),         d ≥ 0,
+
+a step ``A`` (the limb's own radiance over the background's), a square-root rise with an
+infinite slope at the silhouette, and a smooth part. The silhouette — the true edge, the
+tangent of the grazing rays — is at ``d = 0``. The camera sees ``L`` (and the background
+``b₀ + b₁·x``) through the optics' point spread (Gaussian, σ) and its pixels (a 1-px box;
+its variance 1/12 px² adds to σ² here, ``blur_px`` is the total). The square-root term's
+infinite slope pulls the blurred profile's steepest point *inward*, by a fraction of σ
+that grows with ``B/A``: on a filament whose limb is dark (``A`` small, the real clip of
+[003]) the derivative extremum lies about one σ inside, 2–3 px in width.
+
+Convolved with a Gaussian of standard deviation σ, with ``z = s/σ`` and ``s`` the signed
+distance from the edge (positive inside):
+
+* the background ``b₀ + b₁·s`` stays itself;
+* the step ``H(s)`` becomes ``Φ(z)``;
+* the ramp ``s·H(s)`` becomes ``σ·(z·Φ(z) + φ(z))``;
+* ``√s·H(s)`` becomes ``√σ·S(z)`` with ``S(z) = ∫₀^∞ √t φ(z − t) dt
+  = Γ(3/2)/√(2π) · e^(−z²/4) · D_(−3/2)(−z)`` (``D`` the parabolic cylinder function;
+  ``S(z) → √z·(1 − 1/(8z²) − 15/(128z⁴))`` for large ``z``).
+
+For given (edge position, σ) the profile is linear in (b₀, b₁, A, C, B): a linear least
+squares. The edge position and σ are found by a search over both (variable projection),
+σ shared by the two edges of the filament (one focal plane), and refined to 0.01 px.
+The fit is made on the *edge-aligned mean profile*: the rows kept on the edge's straight
+line, each shifted by its whole-pixel offset from the line, averaged column by column
+(every row contributes to every column, so row-to-row changes of background and
+brightness average out instead of mixing into the profile), at the mean sub-pixel
+offset.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.special import gamma, ndtr, pbdv
+
+__all__ = ["EdgeFit", "EdgeProfile", "Silhouette", "aligned_profile", "blurred_sqrt_edge",
+           "edge_profiles", "fit_edge_pair", "fit_silhouette"]
+
+F64 = npt.NDArray[np.float64]
+
+_INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
+_Z_LO, _Z_HI, _DZ = -9.0, 12.0, 0.005
+_Z = np.arange(_Z_LO, _Z_HI + 0.5 * _DZ, _DZ)
+_S_TABLE = (gamma(1.5) * _INV_SQRT_2PI * np.exp(-0.25 * _Z * _Z)
+            * pbdv(-1.5, -_Z)[0]).astype(np.float64)
+
+#: Search grid of the total blur (σ of the Gaussian including the pixel), px.
+_SIGMAS: F64 = 0.35 * 1.22 ** np.arange(12.0)          # 0.35 … 3.1 px
+#: Search grid of the edge offset from the reference line, px, and the fine steps
+#: around its best point.
+_OFFSETS = np.arange(-3.0, 3.0001, 0.25)
+_FINE = np.arange(-0.25, 0.2501, 0.05)
+#: An edge found this close to the end of the search range did not converge.
+_EDGE_LIMIT = 2.7
+
+
+def blurred_sqrt_edge(z: F64) -> F64:
+    """``S(z) = ∫₀^∞ √t φ(z − t) dt``: a unit square-root rise seen through a unit Gaussian.
+
+    Parameters
+    ----------
+    z
+        Signed distance from the edge over σ (positive inside), any shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``S(z)``, same shape (closed form through the parabolic cylinder function
+        ``D_(−3/2)``, tabulated; the asymptotic series beyond ``z = 12``).
+    """
+    z = np.asarray(z, dtype=np.float64)
+    u = (np.clip(z, _Z_LO, _Z_HI) - _Z_LO) * (1.0 / _DZ)
+    k = np.minimum(u.astype(np.intp), _Z.size - 2)
+    f = u - k
+    out = _S_TABLE[k] * (1.0 - f) + _S_TABLE[k + 1] * f
+    big = z > _Z_HI
+    if np.any(big):
+        zb = z[big]
+        out[big] = np.sqrt(zb) * (1.0 - 1.0 / (8.0 * zb * zb) - 15.0 / (128.0 * zb ** 4))
+    return out
+
+
+def _edge_columns(s: F64, sigma: F64) -> F64:
+    """The model's edge columns ``(Φ, ramp, √-rise)`` for signed distances ``s`` (inside
+    > 0) and blurs ``sigma`` (broadcast together), shape ``broadcast + (3,)``. The
+    background columns ``(1, s)`` span the same space as ``(1, x)`` for every edge
+    position and are projected out once (:func:`_sse_grid`)."""
+    s, sigma = np.broadcast_arrays(s, sigma)
+    z = s / sigma
+    cdf = ndtr(z)
+    pdf = _INV_SQRT_2PI * np.exp(-0.5 * z * z)
+    return np.stack([cdf, sigma * (z * cdf + pdf), np.sqrt(sigma) * blurred_sqrt_edge(z)],
+                    axis=-1)
+
+
+@dataclass(frozen=True, slots=True)
+class EdgeProfile:
+    """An edge-aligned mean profile across one filament edge.
+
+    Attributes
+    ----------
+    offset_px
+        Position of each sample relative to the edge's reference line, px, shape ``(n,)``
+        (increasing).
+    value_dn
+        Mean grey level of the rows at each position, DN, shape ``(n,)``.
+    inside
+        ``+1`` when the filament lies at larger offsets (its left edge), ``−1`` otherwise.
+    rows
+        Number of rows averaged.
+    weight
+        1 for samples the fit uses, 0 for samples left out (e.g. beyond another
+        object's edge outside the filament); ``None``: all used.
+    """
+
+    offset_px: F64
+    value_dn: F64
+    inside: int
+    rows: int
+    weight: F64 | None = None
+
+    @property
+    def weights(self) -> F64:
+        """Sample weights (1 used, 0 left out), shape ``(n,)``."""
+        return np.ones(self.offset_px.size) if self.weight is None else self.weight
+
+
+def aligned_profile(grey: npt.NDArray[np.float32], rows: npt.NDArray[np.intp], slope: float,
+                    intercept: float, inside: int, out_px: int, in_px: int) -> EdgeProfile:
+    """Mean profile of ``rows`` across the edge line ``x = slope·y + intercept``.
+
+    Each row is shifted by its whole-pixel offset from the line, so that every row
+    contributes to every sample; the samples lie at the rows' mean sub-pixel offset.
+
+    Parameters
+    ----------
+    grey
+        Image crop, shape ``(H, W)``.
+    rows
+        Rows to average (on the edge line), indices into ``grey``.
+    slope, intercept
+        The edge line in crop coordinates, ``x = slope·y + intercept``.
+    inside
+        ``+1``: the filament is on the right of this edge; ``−1``: on its left.
+    out_px, in_px
+        Extent of the profile outside and inside the filament, whole px (less where the
+        crop ends sooner).
+
+    Returns
+    -------
+    EdgeProfile
+        The profile (empty when the edge leaves the crop).
+    """
+    line = slope * rows.astype(np.float64) + intercept
+    k = np.rint(line).astype(np.intp)
+    w = grey.shape[1]
+    if k.size == 0:
+        return EdgeProfile(np.zeros(0), np.zeros(0), inside, 0)
+    # the extent every row has inside the crop (a ROI may end a few px outside the edge)
+    room_left, room_right = int(k.min()), int(w - 1 - k.max())
+    if inside > 0:
+        js = np.arange(-min(out_px, room_left), min(in_px, room_right) + 1)
+    else:
+        js = np.arange(-min(in_px, room_left), min(out_px, room_right) + 1)
+    if js.size < 2:
+        return EdgeProfile(np.zeros(0), np.zeros(0), inside, 0)
+    vals = grey[rows[:, None], k[:, None] + js[None, :]].astype(np.float64).mean(axis=0)
+    return EdgeProfile(js.astype(np.float64) + float(np.mean(k - line)), vals, inside,
+                       int(rows.size))
+
+
+@dataclass(frozen=True, slots=True)
+class EdgeFit:
+    """The fitted edge model of one edge.
+
+    Attributes
+    ----------
+    offset_px
+        Silhouette position relative to the profile's reference line, px (NaN when the
+        fit failed).
+    blur_px
+        Gaussian σ of the fit (optics and pixel together), px.
+    step_dn
+        Radiance step at the silhouette, ``A``, DN (signed: positive for a filament
+        brighter than the background).
+    rise_dn
+        Square-root rise over the first pixel inside, ``B``, DN.
+    rms_dn
+        Residual root-mean-square of the fit, DN.
+    contrast_dn
+        Model's filament-minus-background contrast 3σ inside the edge, DN.
+    ok
+        The fit converged inside the search range.
+    """
+
+    offset_px: float
+    blur_px: float
+    step_dn: float
+    rise_dn: float
+    rms_dn: float
+    contrast_dn: float
+    ok: bool
+
+
+def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, polarity: float = 0.0
+              ) -> tuple[F64, F64]:
+    """Residual sum of squares and edge coefficients ``(A, C, B)`` on a (σ, edge) grid.
+
+    Variable projection: the background line ``(1, t)`` is eliminated once by weighted
+    least squares, leaving a 3×3 system per grid point. With a ``polarity`` (+1 bright
+    filament, −1 dark) the step and the rise must have its sign, ``polarity·A ≥ 0`` and
+    ``polarity·B ≥ 0`` (front light: the limb is not darker than the background behind
+    it, and the shading brightens inward); the constrained optimum is the best of the
+    unconstrained one and those with ``A``, ``B`` or both set to zero, among those that
+    satisfy the constraints (a convex problem: its optimum lies on one of these faces).
+
+    Parameters
+    ----------
+    t, y, w
+        Positions (inside the filament at larger ``t``), values and weights of ``P``
+        profiles, shape ``(P, n)``.
+    sigmas
+        Blurs, shape ``(S,)``.
+    taus
+        Edge positions per profile, shape ``(P, K)``.
+    polarity
+        Sign constraint on ``A`` and ``B`` (0: none).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        SSE, shape ``(P, S, K)``, and coefficients, shape ``(P, S, K, 3)``.
+    """
+    sw = w.sum(axis=1)
+    tc = t - ((w * t).sum(axis=1) / sw)[:, None]
+    wtc = w * tc
+    ntt = (wtc * tc).sum(axis=1)
+
+    def project(v: F64, shape: tuple[int, ...]) -> F64:
+        # v: (P, ..., n, a) -> weighted residual from its line in t
+        ww = w.reshape(shape)
+        mean = (ww * v).sum(axis=-2, keepdims=True) / sw.reshape(shape[:1] + (1,) * (
+            len(shape) - 1))
+        slope = (wtc.reshape(shape) * v).sum(axis=-2, keepdims=True) / ntt.reshape(
+            shape[:1] + (1,) * (len(shape) - 1))
+        return ww * (v - mean - tc.reshape(shape) * slope)
+
+    p, n = t.shape
+    yp = project(y[:, :, None], (p, n, 1))[:, :, 0]                   # (P, n)
+    s = t[:, None, None, :] - taus[:, None, :, None]                   # (P, 1, K, n)
+    cols = project(_edge_columns(s, sigmas[None, :, None, None]), (p, 1, 1, n, 1))
+    ct = np.swapaxes(cols, -1, -2)                                     # (P, S, K, 3, n)
+    g = ct @ cols
+    h = (ct @ yp[:, None, None, :, None])[..., 0]
+    g = g + 1e-9 * np.trace(g, axis1=-2, axis2=-1)[..., None, None] * np.eye(3)
+    yy = (yp * yp).sum(axis=1)[:, None, None]
+    coef = np.linalg.solve(g, h[..., None])[..., 0]
+    sse = yy - np.sum(h * coef, axis=-1)
+    if polarity:
+        feasible = (polarity * coef[..., 0] >= 0) & (polarity * coef[..., 2] >= 0)
+        sse = np.where(feasible, sse, np.inf)
+        for keep in ((1, 2), (0, 1), (1,)):
+            idx = np.array(keep)
+            sub = np.linalg.solve(g[..., idx[:, None], idx[None, :]], h[..., idx, None])[..., 0]
+            c = np.zeros_like(coef)
+            c[..., idx] = sub
+            ok = (polarity * c[..., 0] >= 0) & (polarity * c[..., 2] >= 0)
+            s_sub = np.where(ok, yy - np.sum(h[..., idx] * sub, axis=-1), np.inf)
+            better = s_sub < sse
+            sse = np.where(better, s_sub, sse)
+            coef = np.where(better[..., None], c, coef)
+    return np.maximum(sse, 0.0), coef
+
+
+def _parabola(a: float, b: float, c: float) -> float:
+    den = a - 2.0 * b + c
+    return 0.5 * (a - c) / den if den > 0 else 0.0
+
+
+def _best(sse: F64, taus: F64) -> tuple[F64, F64, F64]:
+    """Per profile and σ: the smallest SSE over the edge positions, its position
+    (parabola between grid points) and its grid index; shapes ``(P, S)``."""
+    k = np.argmin(sse, axis=-1)
+    n = taus.shape[-1]
+    best = np.take_along_axis(sse, k[..., None], axis=-1)[..., 0]
+    a = np.take_along_axis(sse, np.clip(k - 1, 0, n - 1)[..., None], axis=-1)[..., 0]
+    c = np.take_along_axis(sse, np.clip(k + 1, 0, n - 1)[..., None], axis=-1)[..., 0]
+    den = a - 2.0 * best + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where((den > 0) & (k > 0) & (k < n - 1), 0.5 * (a - c) / den, 0.0)
+    step = taus[:, 1] - taus[:, 0]
+    pos = np.take_along_axis(taus[:, None, :], k[..., None], axis=-1)[..., 0] \
+        + np.clip(frac, -0.5, 0.5) * step[:, None]
+    return best, pos, k
+
+
+def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | None = None,
+                  polarity: float = 0.0) -> tuple[EdgeFit, EdgeFit]:
+    """Fit the shaded-cylinder edge model to the two edges of one filament.
+
+    Parameters
+    ----------
+    left, right
+        Edge-aligned profiles (:func:`aligned_profile`) of the two edges.
+    blur_px
+        The blur (σ, optics and pixel), px, if known; ``None``: fitted, shared by both
+        edges.
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one: the step
+        and the rise must have that sign (:func:`_sse_grid`); 0: no constraint.
+
+    Returns
+    -------
+    tuple of EdgeFit
+        The two edges' fits; ``offset_px`` is relative to each profile's reference line.
+    """
+    profiles = (left, right)
+    n = max(p.offset_px.size for p in profiles)
+    t = np.zeros((2, n))
+    y = np.zeros((2, n))
+    w = np.zeros((2, n))
+    for i, p in enumerate(profiles):
+        m = p.offset_px.size
+        t[i, :m] = p.inside * p.offset_px
+        t[i, m:] = t[i, m - 1] if m else 0.0
+        y[i, :m] = p.value_dn
+        w[i, :m] = p.weights
+    sigmas: F64 = _SIGMAS if blur_px is None else np.array([float(blur_px)])
+    # coarse: offsets every 0.25 px, every σ of the grid; σ shared by the two edges
+    taus: F64 = np.broadcast_to(_OFFSETS, (2, _OFFSETS.size))
+    sse, pos, _ = _best(_sse_grid(t, y, w, sigmas, taus, polarity)[0], taus)
+    i = int(np.argmin(sse.sum(axis=0)))
+    start = pos[:, i]
+    if blur_px is not None:
+        sigma = float(blur_px)
+    else:
+        # fine: σ between the neighbours of the best, edges ±0.25 px in 0.05 px
+        fine_s = np.geomspace(_SIGMAS[max(i - 1, 0)], _SIGMAS[min(i + 1, len(_SIGMAS) - 1)],
+                              7)
+        taus = start[:, None] + _FINE[None, :]
+        sse, pos, _ = _best(_sse_grid(t, y, w, fine_s, taus, polarity)[0], taus)
+        total = sse.sum(axis=0)
+        k = int(np.argmin(total))
+        sigma = float(fine_s[k])
+        if 0 < k < len(fine_s) - 1:
+            frac = _parabola(float(total[k - 1]), float(total[k]), float(total[k + 1]))
+            sigma *= float(fine_s[1] / fine_s[0]) ** frac
+        start = pos[:, k]
+    taus = start[:, None] + _FINE[None, :]
+    sse_g, coef_g = _sse_grid(t, y, w, np.array([sigma]), taus, polarity)
+    _, pos, kk = _best(sse_g, taus)
+    out = []
+    for j, p in enumerate(profiles):
+        k = int(kk[j, 0])
+        out.append(_fit_result(p, float(pos[j, 0]), sigma, float(sse_g[j, 0, k]),
+                               coef_g[j, 0, k], int(w[j].sum())))
+    return out[0], out[1]
+
+
+def _fit_result(p: EdgeProfile, tau: float, sigma: float, sse: float, coef: F64,
+                n_used: int) -> EdgeFit:
+    """The fit of one edge (``tau`` along the inside direction) and its checks."""
+    a, c, b = (float(v) for v in coef)
+    rms = math.sqrt(sse / max(n_used - 7, 1))
+    # model contrast 3σ inside: step + ramp + rise, the background's slope removed
+    d = 3.0 * sigma
+    contrast = a + c * d + b * math.sqrt(d)
+    ok = abs(tau) < _EDGE_LIMIT and math.isfinite(a + b + c)
+    return EdgeFit(p.inside * tau, sigma, a, b, rms, contrast, ok)
+
+
+#: Extent of the edge profiles: outside the filament (background) and inside, px.
+OUT_PX = 6
+IN_PX = 10
+#: Outside the edge, samples beyond the point where the profile turns back from the
+#: background by this fraction of the edge's contrast (another object: a gear rim) are
+#: left out.
+_TURN_BACK = 0.15
+
+
+def _outside_weights(p: EdgeProfile, polarity: float) -> F64:
+    """Weights that leave out the background beyond another object's edge.
+
+    Going outward from the edge, the profile of a bright filament (``polarity`` +1)
+    falls to the background and stays there; where it rises again by more than
+    :data:`_TURN_BACK` of the edge's contrast, something else begins, and from there on
+    the samples are not background.
+    """
+    t = p.inside * p.offset_px
+    v = polarity * p.value_dn
+    w = p.weights.copy()
+    out = np.flatnonzero(t < 0)
+    if out.size == 0:
+        return w
+    order = out[np.argsort(-t[out])]                     # from the edge outward
+    inner = v[(t >= 2.0) & (t <= 6.0)]
+    contrast = (float(np.median(inner)) if inner.size else float(v.max())) \
+        - float(v[out].min())
+    tol = max(3.0, _TURN_BACK * abs(contrast))
+    low = np.minimum.accumulate(v[order])
+    back = np.flatnonzero(v[order][1:] > low[:-1] + tol)
+    if back.size:
+        w[order[back[0] + 1:]] = 0.0
+    return w
+
+
+@dataclass(frozen=True, slots=True)
+class Silhouette:
+    """The two silhouette edges of a filament, fitted (see the module docstring).
+
+    Attributes
+    ----------
+    left, right
+        The fits; ``offset_px`` is the silhouette minus the reference line, px.
+    profiles
+        The edge-aligned profiles the fits were made on (kept to refit with another
+        blur).
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+    ok
+        Both fits converged with enough background beside each edge.
+    reason
+        Why not, if not ``ok``.
+    """
+
+    left: EdgeFit
+    right: EdgeFit
+    profiles: tuple[EdgeProfile, EdgeProfile]
+    polarity: float
+    ok: bool
+    reason: str = ""
+
+
+def edge_profiles(grey: npt.NDArray[np.float32], rows: tuple[npt.NDArray[np.intp],
+                  npt.NDArray[np.intp]], lines: tuple[tuple[float, float],
+                                                     tuple[float, float]],
+                  polarity: float) -> tuple[EdgeProfile, EdgeProfile]:
+    """The two edges' aligned profiles, with the background beyond other objects left
+    out.
+
+    Parameters
+    ----------
+    grey
+        Image crop, shape ``(H, W)``.
+    rows
+        Rows on the left and on the right edge line.
+    lines
+        ``(slope, intercept)`` of the left and right edge lines, ``x = slope·y +
+        intercept`` in crop coordinates.
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+
+    Returns
+    -------
+    tuple of EdgeProfile
+        Left and right profiles.
+    """
+    out = []
+    for inside, r, (a, b) in ((1, rows[0], lines[0]), (-1, rows[1], lines[1])):
+        p = aligned_profile(grey, r, a, b, inside, OUT_PX, IN_PX)
+        if p.rows:
+            p = EdgeProfile(p.offset_px, p.value_dn, inside, p.rows,
+                            _outside_weights(p, polarity))
+        out.append(p)
+    return out[0], out[1]
+
+
+def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *,
+                   blur_px: float | None = None) -> Silhouette:
+    """Fit both edges (:func:`fit_edge_pair`) and check that the fits are usable.
+
+    Parameters
+    ----------
+    profiles
+        Left and right profiles (:func:`edge_profiles`).
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+    blur_px
+        Known blur σ (optics and pixel), px; ``None``: fitted.
+
+    Returns
+    -------
+    Silhouette
+        The fits, ``ok`` false with a reason when an edge has too little background
+        beside it or its fit ran to the end of the search range.
+    """
+    left, right = profiles
+    for name, p in (("left", left), ("right", right)):
+        t = p.inside * p.offset_px
+        if p.rows == 0 or int(np.sum((t < -1.0) & (p.weights > 0))) < 2:
+            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+                              f"too little background beside the {name} edge in the ROI")
+        if int(np.sum(t > 2.0)) < 4:
+            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+                              f"too little filament inside the {name} edge in the ROI")
+    fl, fr = fit_edge_pair(left, right, blur_px=blur_px, polarity=polarity)
+    for name, f in (("left", fl), ("right", fr)):
+        if not f.ok:
+            return Silhouette(fl, fr, profiles, polarity, False,
+                              f"the {name} edge does not fit a silhouette "
+                              f"({f.offset_px:+.1f} px from its derivative extremum)")
+    return Silhouette(fl, fr, profiles, polarity, True)
+
+
+_NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, False)
