@@ -3,11 +3,20 @@
 Per frame, :func:`~flowtwin.vision.width.measure_width_px` finds the filament's edges and
 fits their silhouettes (:mod:`flowtwin.vision.edge_model`). Over the recording:
 
-1. **One blur.** The optics' blur is the same in every frame (fixed focus; motion blur
-   runs along the filament, not across it), but a single frame's fit of it trades off
-   against the edge position. The blur is fitted freely in the first
-   :data:`BLUR_FRAMES` frames whose edges were found; their median is then the clip's
-   blur, those frames are refitted with it, and every later frame uses it.
+1. **One blur, one limb shape.** The optics' blur is the same in every frame (fixed
+   focus; motion blur runs along the filament, not across it), and so is the shape of
+   each edge's limb — the split between the step and the square-root rise,
+   ``atan2(B, A)``, set by the material and the lighting (a drifting gain scales both)
+   — but a single frame's fit of them trades off against the edge position (texture
+   at the limb, noise). The blur is fitted freely in the first :data:`BLUR_FRAMES`
+   frames whose edges were found, and their median fixed for the later frames; each
+   frame's limb shapes are fitted with it (the running values). At the end
+   (:meth:`ClipWidth.finish`) the blur and the shape of each edge are fitted jointly
+   over up to :data:`SHAPE_FRAMES` frames spread over the clip
+   (:func:`~flowtwin.vision.edge_model.clip_model`: the least residual summed over the
+   frames), and every frame is refitted with them: only the edges' positions, the
+   background and the amplitudes are per frame. (The widths are final when the run
+   ends.)
 2. **Rough edges.** A silhouette is straight: its rows' edge points scatter about the
    edge line by the noise only (0.2–0.5 px on the real clip of [003], up to 0.85 px on
    renderer 2 at 2 px blur). Where the gear's teeth cover the filament's edge, or teeth
@@ -27,11 +36,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.vision.edge_model import clip_model
 from flowtwin.vision.result import Quality
 from flowtwin.vision.roi import Roi
 from flowtwin.vision.summarize import RowLog
@@ -42,11 +52,13 @@ __all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REAC
 
 #: Frames whose blur is fitted freely before the clip's blur is fixed.
 BLUR_FRAMES = 15
+#: Frames (spread over the clip) whose residuals decide the clip's blur and limb shapes.
+SHAPE_FRAMES = 24
 #: Clip-median row scatter of the rougher edge above which, with :data:`ROUGH_RATIO`,
 #: the edges are not a silhouette, px.
 ROUGH_PX = 0.6
 #: ... when it is also this many times the other edge's.
-ROUGH_RATIO = 2.5
+ROUGH_RATIO = 2.0
 #: An edge scattering more than this is refused whatever the other does, px.
 ROUGH_MAX_PX = 1.5
 #: Height of the row bands of the frame-wide reference scan, rows.
@@ -55,7 +67,7 @@ REFERENCE_BAND_ROWS = 32
 #: many px or this fraction, whichever is larger (a filament's diameter changes little
 #: over the ~10 mm a microscope sees).
 REFERENCE_TOL_PX = 1.5
-REFERENCE_TOL_FRACTION = 0.012
+REFERENCE_TOL_FRACTION = 0.02
 #: How far the gear's teeth reach beyond the contact radius: the bite (~0.1 mm) and a
 #: margin for the knurl's depth, mm.
 TOOTH_REACH_MM = 0.25
@@ -116,14 +128,16 @@ class ClipWidth:
     min_edge_dn_px: float = 3.0
     blur_frames: int = BLUR_FRAMES
     blur_px: float | None = None
+    mix: tuple[float, float] | None = None
     reference_px: float | None = None
     reference_rows: tuple[int, ...] = ()
     _scanned: bool = False
-    _early: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
+    _stored: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
     _scatter: list[tuple[float, float]] = field(default_factory=list)
 
     def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
-        """Width of one frame's ``before`` crop (with the clip's blur once it is fixed)."""
+        """Width of one frame's ``before`` crop (with the clip's blur once it is fixed;
+        the limb shapes are fitted per frame until :meth:`finish`)."""
         return measure_width_px(crop, sigma_px=self.sigma_px,
                                 min_edge_dn_px=self.min_edge_dn_px,
                                 expected_px=self.expected_px, blur_px=self.blur_px)
@@ -154,23 +168,35 @@ class ClipWidth:
             self.reference_px = float(np.median(widths[agree]))
             self.reference_rows = tuple(y for (y, _), a in zip(found, agree, strict=True) if a)
 
-    def record(self, rows: RowLog, row: int, em: EdgeMeasurement) -> None:
-        """Note the measurement of row ``row`` (already added to ``rows``); when enough
-        frames were fitted freely, fix the clip's blur and refit them."""
+    def record(self, row: int, em: EdgeMeasurement) -> None:
+        """Note the measurement of row ``row``; once :attr:`blur_frames` frames were
+        fitted freely, fix the clip's blur (their median)."""
         self._scatter.append(em.edge_scatter_px)
-        if self.blur_px is None and em.silhouette is not None \
-                and math.isfinite(em.blur_px):
-            self._early.append((row, em))
-            if len(self._early) >= self.blur_frames:
-                self.fix_blur(rows)
-
-    def fix_blur(self, rows: RowLog) -> None:
-        """Fix the clip's blur from the frames fitted so far and refit them."""
-        if self.blur_px is not None or not self._early:
+        if em.silhouette is None or not math.isfinite(em.blur_px):
             return
-        self.blur_px = float(np.median([em.blur_px for _, em in self._early]))
-        for row, em in self._early:
-            new = refit_width(em, self.blur_px, self.roi.h, self.expected_px)
+        # keep what a refit needs, not the per-row diagnostics
+        empty = np.zeros(0)
+        self._stored.append((row, replace(em, row_left_px=empty, row_right_px=empty,
+                                          row_used=np.zeros(0, bool))))
+        if self.blur_px is None and len(self._stored) >= self.blur_frames:
+            self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
+
+    def _refit_all(self, rows: RowLog) -> None:
+        """The clip's blur (if not yet fixed) and limb shapes (medians over all frames),
+        and every frame refitted with them."""
+        if not self._stored:
+            return
+        if self.blur_px is None:
+            self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
+        ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
+        pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
+        if pick:
+            self.blur_px, self.mix = clip_model([em.silhouette.profiles for em in pick
+                                                 if em.silhouette is not None],
+                                                self.blur_px)
+        blur = self.blur_px
+        for row, em in self._stored:
+            new = refit_width(em, blur, self.roi.h, self.expected_px, self.mix)
             if new.ok:
                 rows.width[row] = new.width_px
                 rows.left[row] = new.left_px + self.roi.x
@@ -178,11 +204,12 @@ class ClipWidth:
                 rows.flags[row] &= ~_REFUSED
             else:
                 _refuse_row(rows, row)
-        self._early.clear()
+        self._stored.clear()
 
     def finish(self, rows: RowLog, gear_center_px: tuple[float, float] | None,
                mm_per_px: float | None) -> str | None:
-        """Fix the blur if not yet done and apply the clip-level refusals.
+        """Refit every frame with the clip's blur and limb shapes, then apply the
+        clip-level refusals.
 
         Parameters
         ----------
@@ -198,7 +225,7 @@ class ClipWidth:
         str or None
             Why every width was refused (None if they were not).
         """
-        self.fix_blur(rows)
+        self._refit_all(rows)
         note = self._rough_edges()
         if note is None:
             note = self._against_reference(rows)

@@ -50,8 +50,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import gamma, ndtr, pbdv
 
-__all__ = ["EdgeFit", "EdgeProfile", "Silhouette", "aligned_profile", "blurred_sqrt_edge",
-           "edge_profiles", "fit_edge_pair", "fit_silhouette"]
+__all__ = ["EdgeFit", "EdgeProfile", "Silhouette", "aligned_profile", "blurred_pow15_edge",
+           "blurred_sqrt_edge", "clip_model", "edge_profiles", "fit_edge_pair",
+           "fit_silhouette"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -60,6 +61,8 @@ _Z_LO, _Z_HI, _DZ = -9.0, 12.0, 0.005
 _Z = np.arange(_Z_LO, _Z_HI + 0.5 * _DZ, _DZ)
 _S_TABLE = (gamma(1.5) * _INV_SQRT_2PI * np.exp(-0.25 * _Z * _Z)
             * pbdv(-1.5, -_Z)[0]).astype(np.float64)
+_S3_TABLE = (gamma(2.5) * _INV_SQRT_2PI * np.exp(-0.25 * _Z * _Z)
+             * pbdv(-2.5, -_Z)[0]).astype(np.float64)
 
 #: Search grid of the total blur (σ of the Gaussian including the pixel), px.
 _SIGMAS: F64 = 0.35 * 1.22 ** np.arange(12.0)          # 0.35 … 3.1 px
@@ -69,6 +72,37 @@ _OFFSETS = np.arange(-3.0, 3.0001, 0.25)
 _FINE = np.arange(-0.25, 0.2501, 0.05)
 #: An edge found this close to the end of the search range did not converge.
 _EDGE_LIMIT = 2.7
+
+
+def _table(z: F64, table: F64) -> F64:
+    u = (np.clip(z, _Z_LO, _Z_HI) - _Z_LO) * (1.0 / _DZ)
+    k = np.minimum(u.astype(np.intp), _Z.size - 2)
+    f = u - k
+    return np.asarray(table[k] * (1.0 - f) + table[k + 1] * f, dtype=np.float64)
+
+
+def blurred_pow15_edge(z: F64) -> F64:
+    """``S₃(z) = ∫₀^∞ t^1.5 φ(z − t) dt``: the next term of a cylinder's shading seen
+    through a unit Gaussian, ``Γ(5/2)/√(2π) · e^(−z²/4) · D_(−5/2)(−z)`` (tabulated;
+    ``z^1.5·(1 + 3/(8z²) + 0.0703/z⁴)`` beyond ``z = 12``).
+
+    Parameters
+    ----------
+    z
+        Signed distance from the edge over σ (positive inside), any shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``S₃(z)``, same shape.
+    """
+    z = np.asarray(z, dtype=np.float64)
+    out = _table(z, _S3_TABLE)
+    big = z > _Z_HI
+    if np.any(big):
+        zb = z[big]
+        out[big] = zb ** 1.5 * (1.0 + 3.0 / (8.0 * zb * zb) + 0.0703125 / zb ** 4)
+    return out
 
 
 def blurred_sqrt_edge(z: F64) -> F64:
@@ -86,10 +120,7 @@ def blurred_sqrt_edge(z: F64) -> F64:
         ``D_(−3/2)``, tabulated; the asymptotic series beyond ``z = 12``).
     """
     z = np.asarray(z, dtype=np.float64)
-    u = (np.clip(z, _Z_LO, _Z_HI) - _Z_LO) * (1.0 / _DZ)
-    k = np.minimum(u.astype(np.intp), _Z.size - 2)
-    f = u - k
-    out = _S_TABLE[k] * (1.0 - f) + _S_TABLE[k + 1] * f
+    out = _table(z, _S_TABLE)
     big = z > _Z_HI
     if np.any(big):
         zb = z[big]
@@ -97,17 +128,27 @@ def blurred_sqrt_edge(z: F64) -> F64:
     return out
 
 
-def _edge_columns(s: F64, sigma: F64) -> F64:
-    """The model's edge columns ``(Φ, ramp, √-rise)`` for signed distances ``s`` (inside
-    > 0) and blurs ``sigma`` (broadcast together), shape ``broadcast + (3,)``. The
-    background columns ``(1, s)`` span the same space as ``(1, x)`` for every edge
+def _edge_columns(s: F64, sigma: F64, radius: F64) -> F64:
+    """The model's edge columns for signed distances ``s`` (inside > 0), blurs ``sigma``
+    and cylinder radii ``radius`` (broadcast together), shape ``broadcast + (3,)``:
+
+    * the step ``Φ``;
+    * ``cos²θ·R/2 = d − d²/(2R)`` blurred: ``σ(zΦ + φ) − σ²((z² + 1)Φ + zφ)/(2R)``;
+    * ``cos θ·√(R/2) = √d·√(1 − d/(2R)) ≈ √d − d^1.5/(4R)`` blurred:
+      ``√σ·S(z) − σ^1.5·S₃(z)/(4R)``.
+
+    The background columns ``(1, s)`` span the same space as ``(1, x)`` for every edge
     position and are projected out once (:func:`_sse_grid`)."""
-    s, sigma = np.broadcast_arrays(s, sigma)
+    s, sigma, radius = np.broadcast_arrays(s, sigma, radius)
     z = s / sigma
     cdf = ndtr(z)
     pdf = _INV_SQRT_2PI * np.exp(-0.5 * z * z)
-    return np.stack([cdf, sigma * (z * cdf + pdf), np.sqrt(sigma) * blurred_sqrt_edge(z)],
-                    axis=-1)
+    inv_r = 1.0 / radius
+    ramp = sigma * (z * cdf + pdf) - 0.5 * inv_r * sigma * sigma * ((z * z + 1.0) * cdf
+                                                                     + z * pdf)
+    rise = np.sqrt(sigma) * blurred_sqrt_edge(z) - 0.25 * inv_r * sigma ** 1.5 \
+        * blurred_pow15_edge(z)
+    return np.stack([cdf, ramp, rise], axis=-1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,6 +169,9 @@ class EdgeProfile:
     weight
         1 for samples the fit uses, 0 for samples left out (e.g. beyond another
         object's edge outside the filament); ``None``: all used.
+    radius_px
+        The filament's radius, px (half its width; a few per cent off do not matter),
+        for the shading's curvature terms; infinite: leading terms only.
     """
 
     offset_px: F64
@@ -135,6 +179,7 @@ class EdgeProfile:
     inside: int
     rows: int
     weight: F64 | None = None
+    radius_px: float = math.inf
 
     @property
     def weights(self) -> F64:
@@ -208,6 +253,8 @@ class EdgeFit:
         Model's filament-minus-background contrast 3σ inside the edge, DN.
     ok
         The fit converged inside the search range.
+    mix_rad
+        The limb's shape, ``atan2(B, A)``: 0 a pure step, π/2 a pure square-root rise.
     """
 
     offset_px: float
@@ -217,19 +264,19 @@ class EdgeFit:
     rms_dn: float
     contrast_dn: float
     ok: bool
+    mix_rad: float = math.nan
 
 
-def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, polarity: float = 0.0
-              ) -> tuple[F64, F64]:
+def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, a_min: F64 | None = None,
+              radius: F64 | None = None, mix: F64 | None = None) -> tuple[F64, F64]:
     """Residual sum of squares and edge coefficients ``(A, C, B)`` on a (σ, edge) grid.
 
     Variable projection: the background line ``(1, t)`` is eliminated once by weighted
-    least squares, leaving a 3×3 system per grid point. With a ``polarity`` (+1 bright
-    filament, −1 dark) the step and the rise must have its sign, ``polarity·A ≥ 0`` and
-    ``polarity·B ≥ 0`` (front light: the limb is not darker than the background behind
-    it, and the shading brightens inward); the constrained optimum is the best of the
-    unconstrained one and those with ``A``, ``B`` or both set to zero, among those that
-    satisfy the constraints (a convex problem: its optimum lies on one of these faces).
+    least squares, leaving a 3×3 system per grid point. With bounds, ``A ≥ a_min`` (the
+    limb's radiance, background plus step, is not negative) and ``B ≥ 0`` (lit from the
+    camera, the shading brightens inward); the constrained optimum is the best of the
+    unconstrained one and those with ``A = a_min``, ``B = 0`` or both, among those that
+    satisfy the bounds (a convex problem: its optimum lies on one of these faces).
 
     Parameters
     ----------
@@ -240,8 +287,14 @@ def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, polarity: float = 
         Blurs, shape ``(S,)``.
     taus
         Edge positions per profile, shape ``(P, K)``.
-    polarity
-        Sign constraint on ``A`` and ``B`` (0: none).
+    a_min
+        Lower bound of each profile's step, shape ``(P,)``; ``None``: no bounds.
+    radius
+        Cylinder radius of each profile, px, shape ``(P,)``; ``None``: infinite (the
+        leading terms only).
+    mix
+        A fixed shape of each profile's limb, ``(A, B) ∝ (cos α, sin α)``, angles ``α``
+        shape ``(P,)`` (the bounds are then not applied); ``None``: ``A`` and ``B`` free.
 
     Returns
     -------
@@ -265,7 +318,21 @@ def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, polarity: float = 
     p, n = t.shape
     yp = project(y[:, :, None], (p, n, 1))[:, :, 0]                   # (P, n)
     s = t[:, None, None, :] - taus[:, None, :, None]                   # (P, 1, K, n)
-    cols = project(_edge_columns(s, sigmas[None, :, None, None]), (p, 1, 1, n, 1))
+    r = np.full(p, np.inf) if radius is None else radius
+    cols = project(_edge_columns(s, sigmas[None, :, None, None], r[:, None, None, None]),
+                   (p, 1, 1, n, 1))
+    if mix is not None:
+        ca, sa = np.cos(mix)[:, None, None, None], np.sin(mix)[:, None, None, None]
+        two = np.stack([ca * cols[..., 0] + sa * cols[..., 2], cols[..., 1]], axis=-1)
+        tt = np.swapaxes(two, -1, -2)
+        g2 = tt @ two
+        h2 = (tt @ yp[:, None, None, :, None])[..., 0]
+        g2 = g2 + 1e-9 * np.trace(g2, axis1=-2, axis2=-1)[..., None, None] * np.eye(2)
+        c2 = np.linalg.solve(g2, h2[..., None])[..., 0]
+        sse2 = (yp * yp).sum(axis=1)[:, None, None] - np.sum(h2 * c2, axis=-1)
+        coef3 = np.stack([c2[..., 0] * ca[..., 0], c2[..., 1], c2[..., 0] * sa[..., 0]],
+                         axis=-1)
+        return np.maximum(sse2, 0.0), coef3
     ct = np.swapaxes(cols, -1, -2)                                     # (P, S, K, 3, n)
     g = ct @ cols
     h = (ct @ yp[:, None, None, :, None])[..., 0]
@@ -273,19 +340,29 @@ def _sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, polarity: float = 
     yy = (yp * yp).sum(axis=1)[:, None, None]
     coef = np.linalg.solve(g, h[..., None])[..., 0]
     sse = yy - np.sum(h * coef, axis=-1)
-    if polarity:
-        feasible = (polarity * coef[..., 0] >= 0) & (polarity * coef[..., 2] >= 0)
-        sse = np.where(feasible, sse, np.inf)
-        for keep in ((1, 2), (0, 1), (1,)):
-            idx = np.array(keep)
-            sub = np.linalg.solve(g[..., idx[:, None], idx[None, :]], h[..., idx, None])[..., 0]
-            c = np.zeros_like(coef)
-            c[..., idx] = sub
-            ok = (polarity * c[..., 0] >= 0) & (polarity * c[..., 2] >= 0)
-            s_sub = np.where(ok, yy - np.sum(h[..., idx] * sub, axis=-1), np.inf)
-            better = s_sub < sse
-            sse = np.where(better, s_sub, sse)
-            coef = np.where(better[..., None], c, coef)
+    if a_min is None:
+        return np.maximum(sse, 0.0), coef
+    lo = a_min[:, None, None]
+
+    def feasible(c: F64) -> npt.NDArray[np.bool_]:
+        return (c[..., 0] >= lo - 1e-9) & (c[..., 2] >= -1e-9)
+
+    sse = np.where(feasible(coef), sse, np.inf)
+    lo_b = np.broadcast_to(lo, sse.shape)
+    for fix_a, keep in ((False, (0, 1)), (True, (1, 2)), (True, (1,))):
+        idx = np.array(keep)
+        a = lo_b if fix_a else np.zeros_like(lo_b)
+        hh = h[..., idx] - a[..., None] * g[..., idx, 0]
+        sub = np.linalg.solve(g[..., idx[:, None], idx[None, :]], hh[..., None])[..., 0]
+        c = np.zeros_like(coef)
+        c[..., idx] = sub
+        if fix_a:
+            c[..., 0] = a
+        base = yy - 2.0 * a * h[..., 0] + a * a * g[..., 0, 0] if fix_a else yy
+        s_sub = np.where(feasible(c), base - np.sum(hh * sub, axis=-1), np.inf)
+        better = s_sub < sse
+        sse = np.where(better, s_sub, sse)
+        coef = np.where(better[..., None], c, coef)
     return np.maximum(sse, 0.0), coef
 
 
@@ -312,7 +389,8 @@ def _best(sse: F64, taus: F64) -> tuple[F64, F64, F64]:
 
 
 def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | None = None,
-                  polarity: float = 0.0) -> tuple[EdgeFit, EdgeFit]:
+                  bounded: bool = True, mix: tuple[float, float] | None = None
+                  ) -> tuple[EdgeFit, EdgeFit]:
     """Fit the shaded-cylinder edge model to the two edges of one filament.
 
     Parameters
@@ -322,9 +400,13 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
     blur_px
         The blur (σ, optics and pixel), px, if known; ``None``: fitted, shared by both
         edges.
-    polarity
-        +1 for a filament brighter than its background, −1 for a darker one: the step
-        and the rise must have that sign (:func:`_sse_grid`); 0: no constraint.
+    bounded
+        The limb's radiance (background plus step) must not be negative and the shading
+        must brighten inward (:func:`_sse_grid`); the background level is the mean of the
+        profile more than 1 px outside the edge line.
+    mix
+        Fixed limb shapes of the two edges, ``α`` with ``(A, B) ∝ (cos α, sin α)``
+        (:attr:`EdgeFit.mix_rad` of earlier fits); ``None``: free.
 
     Returns
     -------
@@ -342,10 +424,17 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
         t[i, m:] = t[i, m - 1] if m else 0.0
         y[i, :m] = p.value_dn
         w[i, :m] = p.weights
+    radius = np.array([p.radius_px for p in profiles])
+    mixes = None if mix is None else np.array(mix, dtype=np.float64)
+    a_min = None
+    if bounded and mix is None:
+        outside = (t < -1.0) & (w > 0)
+        a_min = np.array([-float(np.mean(y[i][outside[i]])) if outside[i].any() else -np.inf
+                          for i in range(2)])
     sigmas: F64 = _SIGMAS if blur_px is None else np.array([float(blur_px)])
     # coarse: offsets every 0.25 px, every σ of the grid; σ shared by the two edges
     taus: F64 = np.broadcast_to(_OFFSETS, (2, _OFFSETS.size))
-    sse, pos, _ = _best(_sse_grid(t, y, w, sigmas, taus, polarity)[0], taus)
+    sse, pos, _ = _best(_sse_grid(t, y, w, sigmas, taus, a_min, radius, mixes)[0], taus)
     i = int(np.argmin(sse.sum(axis=0)))
     start = pos[:, i]
     if blur_px is not None:
@@ -355,7 +444,7 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
         fine_s = np.geomspace(_SIGMAS[max(i - 1, 0)], _SIGMAS[min(i + 1, len(_SIGMAS) - 1)],
                               7)
         taus = start[:, None] + _FINE[None, :]
-        sse, pos, _ = _best(_sse_grid(t, y, w, fine_s, taus, polarity)[0], taus)
+        sse, pos, _ = _best(_sse_grid(t, y, w, fine_s, taus, a_min, radius, mixes)[0], taus)
         total = sse.sum(axis=0)
         k = int(np.argmin(total))
         sigma = float(fine_s[k])
@@ -364,7 +453,7 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
             sigma *= float(fine_s[1] / fine_s[0]) ** frac
         start = pos[:, k]
     taus = start[:, None] + _FINE[None, :]
-    sse_g, coef_g = _sse_grid(t, y, w, np.array([sigma]), taus, polarity)
+    sse_g, coef_g = _sse_grid(t, y, w, np.array([sigma]), taus, a_min, radius, mixes)
     _, pos, kk = _best(sse_g, taus)
     out = []
     for j, p in enumerate(profiles):
@@ -379,11 +468,12 @@ def _fit_result(p: EdgeProfile, tau: float, sigma: float, sse: float, coef: F64,
     """The fit of one edge (``tau`` along the inside direction) and its checks."""
     a, c, b = (float(v) for v in coef)
     rms = math.sqrt(sse / max(n_used - 7, 1))
+    mix = math.atan2(b, a)
     # model contrast 3σ inside: step + ramp + rise, the background's slope removed
     d = 3.0 * sigma
     contrast = a + c * d + b * math.sqrt(d)
     ok = abs(tau) < _EDGE_LIMIT and math.isfinite(a + b + c)
-    return EdgeFit(p.inside * tau, sigma, a, b, rms, contrast, ok)
+    return EdgeFit(p.inside * tau, sigma, a, b, rms, contrast, ok, mix)
 
 
 #: Extent of the edge profiles: outside the filament (background) and inside, px.
@@ -451,7 +541,8 @@ class Silhouette:
 def edge_profiles(grey: npt.NDArray[np.float32], rows: tuple[npt.NDArray[np.intp],
                   npt.NDArray[np.intp]], lines: tuple[tuple[float, float],
                                                      tuple[float, float]],
-                  polarity: float) -> tuple[EdgeProfile, EdgeProfile]:
+                  polarity: float, radius_px: float = math.inf
+                  ) -> tuple[EdgeProfile, EdgeProfile]:
     """The two edges' aligned profiles, with the background beyond other objects left
     out.
 
@@ -466,6 +557,8 @@ def edge_profiles(grey: npt.NDArray[np.float32], rows: tuple[npt.NDArray[np.intp
         intercept`` in crop coordinates.
     polarity
         +1 for a filament brighter than its background, −1 for a darker one.
+    radius_px
+        The filament's radius (half its width), px.
 
     Returns
     -------
@@ -477,13 +570,14 @@ def edge_profiles(grey: npt.NDArray[np.float32], rows: tuple[npt.NDArray[np.intp
         p = aligned_profile(grey, r, a, b, inside, OUT_PX, IN_PX)
         if p.rows:
             p = EdgeProfile(p.offset_px, p.value_dn, inside, p.rows,
-                            _outside_weights(p, polarity))
+                            _outside_weights(p, polarity), radius_px)
         out.append(p)
     return out[0], out[1]
 
 
 def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *,
-                   blur_px: float | None = None) -> Silhouette:
+                   blur_px: float | None = None, mix: tuple[float, float] | None = None
+                   ) -> Silhouette:
     """Fit both edges (:func:`fit_edge_pair`) and check that the fits are usable.
 
     Parameters
@@ -494,6 +588,8 @@ def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *
         +1 for a filament brighter than its background, −1 for a darker one.
     blur_px
         Known blur σ (optics and pixel), px; ``None``: fitted.
+    mix
+        Known limb shapes of the two edges (:func:`fit_edge_pair`); ``None``: fitted.
 
     Returns
     -------
@@ -510,7 +606,7 @@ def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *
         if int(np.sum(t > 2.0)) < 4:
             return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
                               f"too little filament inside the {name} edge in the ROI")
-    fl, fr = fit_edge_pair(left, right, blur_px=blur_px, polarity=polarity)
+    fl, fr = fit_edge_pair(left, right, blur_px=blur_px, mix=mix)
     for name, f in (("left", fl), ("right", fr)):
         if not f.ok:
             return Silhouette(fl, fr, profiles, polarity, False,
@@ -520,3 +616,91 @@ def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *
 
 
 _NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, False)
+
+
+#: Limb shapes ``α`` tried for a clip, rad (``α`` and ``α + π`` are the same shape).
+_MIXES = np.arange(-0.5 * math.pi, 0.5 * math.pi, 0.08)
+
+
+def _stack(profiles: list[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
+    """Positions (inside at larger ``t``), values, weights and radii of profiles, padded
+    to one length (padding has weight 0)."""
+    n = max(p.offset_px.size for p in profiles)
+    count = len(profiles)
+    t = np.zeros((count, n))
+    y = np.zeros((count, n))
+    w = np.zeros((count, n))
+    for i, p in enumerate(profiles):
+        m = p.offset_px.size
+        t[i, :m] = p.inside * p.offset_px
+        t[i, m:] = t[i, m - 1] if m else 0.0
+        y[i, :m] = p.value_dn
+        w[i, :m] = p.weights
+    return t, y, w, np.array([p.radius_px for p in profiles])
+
+
+def _shape_residuals(t: F64, y: F64, w: F64, radius: F64, sigma: float) -> F64:
+    """Residual of every profile at every limb shape of :data:`_MIXES`, each at its
+    own best edge position, with blur ``sigma``: shape ``(P, len(_MIXES))``."""
+    count = t.shape[0]
+    k = _MIXES.size
+    tt, yy, ww = (np.repeat(v, k, axis=0) for v in (t, y, w))
+    rr = np.repeat(radius, k)
+    mixes = np.tile(_MIXES, count)
+    sig = np.array([sigma])
+    taus = np.broadcast_to(_OFFSETS, (count * k, _OFFSETS.size))
+    _, pos, _ = _best(_sse_grid(tt, yy, ww, sig, taus, None, rr, mixes)[0], taus)
+    fine = pos[:, 0][:, None] + _FINE[None, :]
+    sse, _, _ = _best(_sse_grid(tt, yy, ww, sig, fine, None, rr, mixes)[0], fine)
+    return sse[:, 0].reshape(count, k)
+
+
+def _parabola_min(values: F64, grid: F64) -> tuple[float, float]:
+    """Grid point of the smallest value, refined by a parabola, and that value."""
+    k = int(np.argmin(values))
+    x = float(grid[k])
+    if 0 < k < values.size - 1:
+        x += _parabola(float(values[k - 1]), float(values[k]), float(values[k + 1])) \
+            * float(grid[1] - grid[0])
+    return x, float(values[k])
+
+
+def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]], blur_guess_px: float
+               ) -> tuple[float, tuple[float, float]]:
+    """The blur and the two edges' limb shapes of a clip, fitted jointly over its frames.
+
+    Each frame's edges keep their own positions, backgrounds and amplitudes; the blur σ
+    and the shapes ``α`` (``(A, B) ∝ (cos α, sin α)``) are the clip's: those that leave
+    the least residual summed over the frames. One frame's texture and noise trade the
+    blur, ``A`` and ``B`` against the edge position; summed over many frames they do
+    not.
+
+    Parameters
+    ----------
+    pairs
+        Left and right profiles of each frame (:func:`edge_profiles`).
+    blur_guess_px
+        A first blur (e.g. the median of single-frame fits): σ is searched from 0.6 to
+        1.6 times it.
+
+    Returns
+    -------
+    tuple
+        ``(σ, (α_left, α_right))``, px and rad.
+    """
+    t, y, w, radius = _stack([p for pair in pairs for p in pair])
+    log_grid = math.log(blur_guess_px) + np.log(1.12) * np.arange(-4, 5)
+    sigmas = np.exp(log_grid)
+
+    def total(sigma: float) -> tuple[float, tuple[float, float]]:
+        res = _shape_residuals(t, y, w, radius, sigma)
+        left, right = res[0::2].sum(axis=0), res[1::2].sum(axis=0)
+        al, vl = _parabola_min(left, _MIXES)
+        ar, vr = _parabola_min(right, _MIXES)
+        return vl + vr, (al, ar)
+
+    fits = [total(float(sg)) for sg in sigmas]
+    values = np.array([f[0] for f in fits])
+    log_sigma, _ = _parabola_min(values, log_grid)
+    sigma = math.exp(log_sigma)
+    return sigma, total(sigma)[1]

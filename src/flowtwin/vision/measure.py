@@ -204,7 +204,7 @@ class Pipeline:
         self.rows.add(frame.index, t_rel, NAN if dt is None else dt, flags, _step_tuple(g),
                       _step_tuple(f), width)
         if not (flags & Quality.WIDTH_INVALID) or not em.ok:
-            self.widths.record(self.rows, len(self.rows.t) - 1, em)
+            self.widths.record(len(self.rows.t) - 1, em)
         self._prev = img
         self._t_last = frame.t_s
 

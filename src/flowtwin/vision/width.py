@@ -214,7 +214,8 @@ def _subpixel(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> F64:
 def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
                      min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5,
                      expected_px: Sequence[tuple[float, float]] | None = None,
-                     blur_px: float | None = None) -> EdgeMeasurement:
+                     blur_px: float | None = None, mix: tuple[float, float] | None = None
+                     ) -> EdgeMeasurement:
     """Measure the filament width in a crop that spans both edges (see module docstring).
 
     Parameters
@@ -234,6 +235,9 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     blur_px
         The camera's blur σ (optics and pixel), px, when known (e.g. from earlier frames
         of the same recording); ``None``: fitted in this crop.
+    mix
+        The two edges' limb shapes when known from earlier frames
+        (:attr:`~flowtwin.vision.edge_model.EdgeFit.mix_rad`); ``None``: fitted.
 
     Returns
     -------
@@ -350,13 +354,15 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
                                "ambiguous", math.nan, row_left, row_right, row_used,
                                tuple(rejected))
     lines = (fit_l, fit_r)
+    y_mid = 0.5 * (h - 1)
+    half = 0.5 * ((fit_r[0] - fit_l[0]) * y_mid + fit_r[1] - fit_l[1])
     profiles = edge_profiles(crop.astype(np.float32), (rows[keep_l], rows[keep_r]), lines,
-                             sign)
+                             sign, half)
     spread = float(np.std(xr[both] - xl[both])) if both.sum() > 1 else math.nan
     diag = _Diagnostics(strength, used, spread, row_left, row_right, row_used,
                         tuple(rejected), lines, sign,
                         (_scatter(yf, xl, good_l, fit_l), _scatter(yf, xr, good_r, fit_r)))
-    return _silhouette_width(diag, profiles, h, expected_px, blur_px)
+    return _silhouette_width(diag, profiles, h, expected_px, blur_px, mix)
 
 
 @dataclass(frozen=True, slots=True)
@@ -383,7 +389,8 @@ def _scatter(y: F64, x: F64, good: npt.NDArray[np.bool_], line: tuple[float, flo
 
 def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile], h: int,
                       expected_px: Sequence[tuple[float, float]] | None,
-                      blur_px: float | None) -> EdgeMeasurement:
+                      blur_px: float | None, mix: tuple[float, float] | None = None
+                      ) -> EdgeMeasurement:
     """The width between the fitted silhouettes at the ROI's middle row, or a refusal."""
     (al, bl), (ar, br) = d.lines
     y_mid = 0.5 * (h - 1)
@@ -391,7 +398,7 @@ def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile]
     cos_t = math.cos(tilt)
     grad_left, grad_right = al * y_mid + bl, ar * y_mid + br
     gradient = (grad_right - grad_left) * cos_t
-    sil = fit_silhouette(profiles, d.polarity, blur_px=blur_px)
+    sil = fit_silhouette(profiles, d.polarity, blur_px=blur_px, mix=mix)
 
     def refuse(status: str, reason: str, width: float = math.nan) -> EdgeMeasurement:
         return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, d.strength, d.used,
@@ -413,8 +420,8 @@ def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile]
 
 
 def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
-                expected_px: Sequence[tuple[float, float]] | None = None
-                ) -> EdgeMeasurement:
+                expected_px: Sequence[tuple[float, float]] | None = None,
+                mix: tuple[float, float] | None = None) -> EdgeMeasurement:
     """The same measurement with the silhouettes refitted at a known blur.
 
     Parameters
@@ -428,6 +435,8 @@ def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
         Height of the crop, rows.
     expected_px
         Plausible widths, as for :func:`measure_width_px`.
+    mix
+        Known limb shapes, as for :func:`measure_width_px`.
 
     Returns
     -------
@@ -440,7 +449,7 @@ def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
     d = _Diagnostics(em.edge_dn_px, em.rows_used, em.row_spread_px, em.row_left_px,
                      em.row_right_px, em.row_used, em.rejected, em.lines, polarity,
                      em.edge_scatter_px)
-    return _silhouette_width(d, em.silhouette.profiles, h, expected_px, blur_px)
+    return _silhouette_width(d, em.silhouette.profiles, h, expected_px, blur_px, mix)
 
 
 def _fit_line(y: F64, x: F64) -> tuple[float, float]:
