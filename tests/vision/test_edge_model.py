@@ -12,7 +12,9 @@ from scipy.special import gamma, ndtr
 
 from flowtwin.vision.edge_model import (
     EdgeProfile,
+    blurred_pow15_edge,
     blurred_sqrt_edge,
+    clip_model,
     fit_edge_pair,
 )
 from flowtwin.vision.width import measure_width_px, refit_width
@@ -23,14 +25,21 @@ def test_blurred_square_root_against_quadrature_and_closed_forms() -> None:
     assert blurred_sqrt_edge(np.array([0.0]))[0] == pytest.approx(
         2 ** -0.25 * gamma(0.75) / math.sqrt(2 * math.pi), rel=1e-6)
     # against a brute-force quadrature (t = u² removes the singularity)
-    u = np.linspace(0.0, 6.0, 200001)
     for z in (-4.0, -1.3, 0.4, 2.0, 7.5, 11.9, 12.1, 30.0):
-        f = 2 * u * u * np.exp(-0.5 * (z - u * u) ** 2) / math.sqrt(2 * math.pi)
         top = math.sqrt(max(z, 0.0) + 9.0)
         uu = np.linspace(0.0, top, 200001)
         f = 2 * uu * uu * np.exp(-0.5 * (z - uu * uu) ** 2) / math.sqrt(2 * math.pi)
         ref = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(uu)))
         assert blurred_sqrt_edge(np.array([z]))[0] == pytest.approx(ref, rel=2e-5, abs=1e-9)
+    # the next term, ∫₀^∞ t^1.5 φ(z − t) dt: S₃(0) = 2^(1/4) Γ(5/4) / √(2π)
+    assert blurred_pow15_edge(np.array([0.0]))[0] == pytest.approx(
+        2 ** 0.25 * gamma(1.25) / math.sqrt(2 * math.pi), rel=1e-6)
+    for z in (-1.0, 3.0, 11.9, 12.1):
+        top = math.sqrt(max(z, 0.0) + 9.0)
+        uu = np.linspace(0.0, top, 200001)
+        f = 2 * uu ** 4 * np.exp(-0.5 * (z - uu * uu) ** 2) / math.sqrt(2 * math.pi)
+        ref = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(uu)))
+        assert blurred_pow15_edge(np.array([z]))[0] == pytest.approx(ref, rel=2e-5)
     # far inside it is √z; far outside nothing
     assert blurred_sqrt_edge(np.array([400.0]))[0] == pytest.approx(20.0, rel=1e-6)
     assert blurred_sqrt_edge(np.array([-20.0]))[0] == pytest.approx(0.0, abs=1e-15)
@@ -47,18 +56,31 @@ def _model_profile(x: np.ndarray, inside: int, edge: float, sigma: float, a: flo
 
 @pytest.mark.parametrize(("a", "b"), [(60.0, 0.0), (20.0, 35.0), (0.0, 40.0)])
 def test_fit_recovers_the_edge_of_a_model_profile(a: float, b: float) -> None:
+    """Exact model profiles: recovered to 0.12 px when one frame fits everything (a
+    pure square-root limb at 2 px blur leaves a long flat valley of the residual
+    along blur and position, searched on a grid); with 0.2 DN of noise, 0.06 px when
+    the blur and the limb shape are known, 0.3 px when one frame must fit them too
+    (they trade off against the position: why a clip fits them jointly)."""
     rng = np.random.default_rng(7)
     x = np.arange(-6.0, 11.0) + 0.23
+    mix = (math.atan2(b, a), math.atan2(b, 0.8 * a))
     for sigma in (0.7, 1.2, 2.0):
         left = _model_profile(x, 1, 0.37, sigma, a, b, 2.0, 40.0, 0.3)
         right = _model_profile(-x, -1, -0.61, sigma, a * 0.8, b, -1.0, 30.0, -0.2)
-        pl = EdgeProfile(x, left + rng.normal(0, 0.2, x.size), 1, 100)
-        pr = EdgeProfile(-x[::-1], (right + rng.normal(0, 0.2, x.size))[::-1], -1, 100)
-        fl, fr = fit_edge_pair(pl, pr)
-        assert fl.ok and fr.ok
+        exact = (EdgeProfile(x, left, 1, 100), EdgeProfile(-x[::-1], right[::-1], -1, 100))
+        fl, fr = fit_edge_pair(*exact)
+        assert fl.offset_px == pytest.approx(0.37, abs=0.12), sigma
+        assert fr.offset_px == pytest.approx(-0.61, abs=0.12), sigma
+        assert fl.blur_px == pytest.approx(sigma, rel=0.06)
+        noisy = (EdgeProfile(x, left + rng.normal(0, 0.2, x.size), 1, 100),
+                 EdgeProfile(-x[::-1], (right + rng.normal(0, 0.2, x.size))[::-1], -1, 100))
+        fl, fr = fit_edge_pair(*noisy, blur_px=sigma, mix=mix)
         assert fl.offset_px == pytest.approx(0.37, abs=0.06), sigma
         assert fr.offset_px == pytest.approx(-0.61, abs=0.06), sigma
-        assert fl.blur_px == pytest.approx(sigma, rel=0.1)
+        fl, fr = fit_edge_pair(*noisy)
+        assert fl.ok and fr.ok
+        assert fl.offset_px == pytest.approx(0.37, abs=0.3), sigma
+        assert fr.offset_px == pytest.approx(-0.61, abs=0.3), sigma
 
 
 def _cylinder(shade, *, radius: float = 70.4, xc: float = 101.3, blur: float = 1.2,
@@ -97,12 +119,17 @@ def test_width_of_a_shaded_cylinder_is_its_silhouette(name: str) -> None:
     """The silhouette is at ±R from the axis whatever the shading; the derivative
     extrema of the blurred image lie inside it, the fitted silhouettes do not."""
     shade = SHADES[name]
-    for blur, tol in ((0.6, 0.2), (1.2, 0.25), (2.0, 0.4)):
-        ms = [measure_width_px(_cylinder(shade, blur=blur, seed=s)) for s in range(3)]
-        assert all(m.ok for m in ms), name
-        clip_blur = float(np.median([m.blur_px for m in ms]))
+    for blur, tol in ((0.6, 0.15), (1.2, 0.3), (2.0, 0.3)):
+        ms = [measure_width_px(_cylinder(shade, blur=blur, seed=s)) for s in range(4)]
+        sils = [m.silhouette for m in ms if m.silhouette is not None]
+        assert len(sils) == 4, name
+        # as a clip does it: one blur and one limb shape for the frames, jointly
+        sigma, mix = clip_model([sl.profiles for sl in sils],
+                                [(sl.left, sl.right) for sl in sils],
+                                float(np.median([m.blur_px for m in ms])))
+        assert sigma == pytest.approx(math.hypot(blur, 1 / math.sqrt(12)), rel=0.12)
         for m in ms:
-            m = refit_width(m, clip_blur, 60)
+            m = refit_width(m, sigma, 60, mix=mix)
             assert m.width_px == pytest.approx(140.8, abs=tol), (name, blur)
     # the derivative method's inward bias, for contrast (grows with the shading rise)
     m = measure_width_px(_cylinder(SHADES["dark limb (the real clip)"], blur=1.2))

@@ -53,7 +53,7 @@ __all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REAC
 #: Frames whose blur is fitted freely before the clip's blur is fixed.
 BLUR_FRAMES = 15
 #: Frames (spread over the clip) whose residuals decide the clip's blur and limb shapes.
-SHAPE_FRAMES = 24
+SHAPE_FRAMES = 64
 #: Clip-median row scatter of the rougher edge above which, with :data:`ROUGH_RATIO`,
 #: the edges are not a silhouette, px.
 ROUGH_PX = 0.6
@@ -190,9 +190,10 @@ class ClipWidth:
             self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
         ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
         pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
-        if pick:
-            self.blur_px, self.mix = clip_model([em.silhouette.profiles for em in pick
-                                                 if em.silhouette is not None],
+        sils = [em.silhouette for em in pick if em.silhouette is not None]
+        if sils:
+            self.blur_px, self.mix = clip_model([sl.profiles for sl in sils],
+                                                [(sl.left, sl.right) for sl in sils],
                                                 self.blur_px)
         blur = self.blur_px
         for row, em in self._stored:
@@ -226,9 +227,9 @@ class ClipWidth:
             Why every width was refused (None if they were not).
         """
         self._refit_all(rows)
-        note = self._rough_edges()
+        note = self.rough_edges()
         if note is None:
-            note = self._against_reference(rows)
+            note = self.against_reference(rows)
         if note is None and gear_center_px is not None:
             note = self._in_contact_zone(rows, gear_center_px, mm_per_px)
         if note is not None:
@@ -238,7 +239,8 @@ class ClipWidth:
                     _refuse_row(rows, row)
         return note
 
-    def _rough_edges(self) -> str | None:
+    def rough_edges(self) -> str | None:
+        """Why the edges are not a clean silhouette over the clip (None if they are)."""
         sc = np.array([s for s in self._scatter if math.isfinite(s[0] + s[1])])
         if sc.size == 0:
             return None
@@ -252,7 +254,9 @@ class ClipWidth:
                     "marks in it; place the before ROI where the filament runs clear")
         return None
 
-    def _against_reference(self, rows: RowLog) -> str | None:
+    def against_reference(self, rows: RowLog) -> str | None:
+        """Why the ROI's width is not the filament's elsewhere in the frame (None if it
+        is, or if there is no reference)."""
         width = np.asarray(rows.width)
         width = width[np.isfinite(width)]
         if self.reference_px is None or width.size == 0:

@@ -619,7 +619,9 @@ _NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, Fa
 
 
 #: Limb shapes ``α`` tried for a clip, rad (``α`` and ``α + π`` are the same shape).
-_MIXES = np.arange(-0.5 * math.pi, 0.5 * math.pi, 0.08)
+_MIXES = np.arange(-0.5 * math.pi, 0.5 * math.pi, 0.1)
+#: Edge positions tried around each frame's own fit in the clip fit, px.
+_NEAR = np.arange(-0.6, 0.6001, 0.1)
 
 
 def _stack(profiles: list[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
@@ -639,19 +641,19 @@ def _stack(profiles: list[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
     return t, y, w, np.array([p.radius_px for p in profiles])
 
 
-def _shape_residuals(t: F64, y: F64, w: F64, radius: F64, sigma: float) -> F64:
+def _shape_residuals(t: F64, y: F64, w: F64, radius: F64, starts: F64, sigma: float
+                     ) -> F64:
     """Residual of every profile at every limb shape of :data:`_MIXES`, each at its
-    own best edge position, with blur ``sigma``: shape ``(P, len(_MIXES))``."""
+    own best edge position near ``starts`` (:data:`_NEAR`), with blur ``sigma``: shape
+    ``(P, len(_MIXES))``."""
     count = t.shape[0]
     k = _MIXES.size
     tt, yy, ww = (np.repeat(v, k, axis=0) for v in (t, y, w))
     rr = np.repeat(radius, k)
     mixes = np.tile(_MIXES, count)
-    sig = np.array([sigma])
-    taus = np.broadcast_to(_OFFSETS, (count * k, _OFFSETS.size))
-    _, pos, _ = _best(_sse_grid(tt, yy, ww, sig, taus, None, rr, mixes)[0], taus)
-    fine = pos[:, 0][:, None] + _FINE[None, :]
-    sse, _, _ = _best(_sse_grid(tt, yy, ww, sig, fine, None, rr, mixes)[0], fine)
+    taus = np.repeat(starts, k)[:, None] + _NEAR[None, :]
+    sse, _, _ = _best(_sse_grid(tt, yy, ww, np.array([sigma]), taus, None, rr, mixes)[0],
+                      taus)
     return sse[:, 0].reshape(count, k)
 
 
@@ -665,23 +667,26 @@ def _parabola_min(values: F64, grid: F64) -> tuple[float, float]:
     return x, float(values[k])
 
 
-def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]], blur_guess_px: float
+def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]],
+               fits: list[tuple[EdgeFit, EdgeFit]], blur_guess_px: float
                ) -> tuple[float, tuple[float, float]]:
     """The blur and the two edges' limb shapes of a clip, fitted jointly over its frames.
 
-    Each frame's edges keep their own positions, backgrounds and amplitudes; the blur σ
-    and the shapes ``α`` (``(A, B) ∝ (cos α, sin α)``) are the clip's: those that leave
-    the least residual summed over the frames. One frame's texture and noise trade the
-    blur, ``A`` and ``B`` against the edge position; summed over many frames they do
-    not.
+    Each frame's edges keep their own positions (searched ±0.6 px around the frame's
+    own fit), backgrounds and amplitudes; the blur σ and the shapes ``α`` (``(A, B) ∝
+    (cos α, sin α)``) are the clip's: those that leave the least residual summed over
+    the frames. One frame's texture and noise trade the blur, ``A`` and ``B`` against
+    the edge position; summed over many frames they do not.
 
     Parameters
     ----------
     pairs
         Left and right profiles of each frame (:func:`edge_profiles`).
+    fits
+        Each frame's own fits of them (:func:`fit_edge_pair`).
     blur_guess_px
-        A first blur (e.g. the median of single-frame fits): σ is searched from 0.6 to
-        1.6 times it.
+        A first blur (e.g. the median of single-frame fits): σ is searched from 0.68 to
+        1.46 times it.
 
     Returns
     -------
@@ -689,18 +694,19 @@ def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]], blur_guess_px: floa
         ``(σ, (α_left, α_right))``, px and rad.
     """
     t, y, w, radius = _stack([p for pair in pairs for p in pair])
-    log_grid = math.log(blur_guess_px) + np.log(1.12) * np.arange(-4, 5)
-    sigmas = np.exp(log_grid)
-
-    def total(sigma: float) -> tuple[float, tuple[float, float]]:
-        res = _shape_residuals(t, y, w, radius, sigma)
-        left, right = res[0::2].sum(axis=0), res[1::2].sum(axis=0)
-        al, vl = _parabola_min(left, _MIXES)
-        ar, vr = _parabola_min(right, _MIXES)
-        return vl + vr, (al, ar)
-
-    fits = [total(float(sg)) for sg in sigmas]
-    values = np.array([f[0] for f in fits])
-    log_sigma, _ = _parabola_min(values, log_grid)
+    starts = np.array([f.offset_px * p.inside for pair, fp in zip(pairs, fits, strict=True)
+                       for p, f in zip(pair, fp, strict=True)])
+    # the blur: least residual summed over the frames, each frame's shapes free (bounded)
+    outside = (t < -1.0) & (w > 0)
+    a_min = np.array([-float(np.mean(y[i][outside[i]])) if outside[i].any() else -np.inf
+                      for i in range(t.shape[0])])
+    log_grid = math.log(blur_guess_px) + np.log(1.1) * np.arange(-4, 5)
+    taus = starts[:, None] + _NEAR[None, :]
+    sse = _sse_grid(t, y, w, np.exp(log_grid), taus, a_min, radius)[0]     # (P, S, K)
+    log_sigma, _ = _parabola_min(sse.min(axis=2).sum(axis=0), log_grid)
     sigma = math.exp(log_sigma)
-    return sigma, total(sigma)[1]
+    # the shapes at that blur
+    res = _shape_residuals(t, y, w, radius, starts, sigma)
+    al, _ = _parabola_min(res[0::2].sum(axis=0), _MIXES)
+    ar, _ = _parabola_min(res[1::2].sum(axis=0), _MIXES)
+    return sigma, (al, ar)
