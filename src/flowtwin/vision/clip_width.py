@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.vision.edge_model import clip_model
-from flowtwin.vision.result import Quality
+from flowtwin.vision.readings import Quality
 from flowtwin.vision.roi import Roi
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_width
