@@ -25,9 +25,9 @@ def test_contact_rows_known_answer() -> None:
 
 
 def test_clean_edges_and_rough_ones() -> None:
-    # measured clip medians (docs/vision.md): clean silhouettes 0.25-0.5 px on the real
-    # clip, 0.67 px at 2 px blur on renderer 2; teeth over one edge 0.63-1.4 px against
-    # 0.2 px on the other; teeth marks 1.6-2.3 px
+    # measured clip medians (clip_width's docstring): clean silhouettes 0.25-0.5 px on
+    # the real clip, 0.67 px at 2 px blur on renderer 2; teeth over one edge 0.63-1.4 px
+    # against 0.2 px on the other; teeth marks 1.6-2.3 px
     assert is_clean((0.44, 0.35)) and is_clean((0.67, 0.55)) and is_clean((0.95, 0.75))
     assert not is_clean((0.63, 0.18)) and not is_clean((1.1, 0.19))
     assert not is_clean((1.6, 0.8)) and not is_clean((2.3, 1.0))

@@ -14,9 +14,9 @@ from flowtwin.vision.edge_model import (
     EdgeProfile,
     blurred_pow15_edge,
     blurred_sqrt_edge,
-    clip_model,
     fit_edge_pair,
 )
+from flowtwin.vision.silhouette import clip_model
 from flowtwin.vision.width import measure_width_px, refit_width
 
 

@@ -1,7 +1,7 @@
 """The width over a whole recording: one blur for the clip, and refusals a frame cannot make.
 
 Per frame, :func:`~flowtwin.vision.width.measure_width_px` finds the filament's edges and
-fits their silhouettes (:mod:`flowtwin.vision.edge_model`). Over the recording:
+fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
 
 1. **One blur, one limb shape.** The optics' blur is the same in every frame (fixed
    focus; motion blur runs along the filament, not across it), and so is the shape of
@@ -13,7 +13,7 @@ fits their silhouettes (:mod:`flowtwin.vision.edge_model`). Over the recording:
    frame's limb shapes are fitted with it (the running values). At the end
    (:meth:`ClipWidth.finish`) the blur and the shape of each edge are fitted jointly
    over up to :data:`SHAPE_FRAMES` frames spread over the clip
-   (:func:`~flowtwin.vision.edge_model.clip_model`: the least residual summed over the
+   (:func:`~flowtwin.vision.silhouette.clip_model`: the least residual summed over the
    frames), and every frame is refitted with them: only the edges' positions, the
    background and the amplitudes are per frame. (The widths are final when the run
    ends.)
@@ -41,9 +41,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.vision.edge_model import clip_model
 from flowtwin.vision.readings import Quality
 from flowtwin.vision.roi import Roi
+from flowtwin.vision.silhouette import clip_model
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_width
 

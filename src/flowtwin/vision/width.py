@@ -50,8 +50,9 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import VisionError
-from flowtwin.vision.edge_model import EdgeProfile, Silhouette, edge_profiles, fit_silhouette
+from flowtwin.vision.edge_model import EdgeProfile
 from flowtwin.vision.edge_pairs import Pair, band_pairs, outer_pairs
+from flowtwin.vision.silhouette import Silhouette, edge_profiles, fit_silhouette
 
 __all__ = ["STANDARD_DIAMETERS_MM", "EdgeMeasurement", "calibration_factor",
            "expected_width_px", "measure_width_px", "refit_width"]
@@ -131,7 +132,7 @@ class EdgeMeasurement:
         The derivative-extremum edge lines ``((slope, intercept), (slope, intercept))``,
         ``x = slope·y + intercept`` in crop coordinates (``None`` if not found).
     silhouette
-        The silhouette fit of the two edges (:mod:`flowtwin.vision.edge_model`), or
+        The silhouette fit of the two edges (:mod:`flowtwin.vision.silhouette`), or
         ``None``.
     edge_scatter_px
         Robust scatter (1.4826·MAD) of the rows' edge points about the left and the right
