@@ -331,3 +331,38 @@ def test_few_valid_gear_steps_are_a_loud_warning(tmp_path: Path) -> None:
     assert a.gear_mode == "tangential" and "not determined" in (a.gear_axis_note or "")
     assert any(w.startswith("gear speed valid in only") for w in a.warnings)
     assert math.isnan(a.slip)
+
+
+def test_a_turning_gear_without_an_axis_gets_no_speed_and_no_slip(tmp_path: Path) -> None:
+    """A 40×40 box on the teeth at 0.5 mm/s: the motion there does not pin the axis
+    down, so auto mode falls back to [003]'s tangential reading, which read −45 to
+    −64 pp of slip here. That reading is refused, not reported: the gear speed and the
+    slip are null with the reason, the rows flagged GEAR_NO_AXIS; asked for explicitly
+    (--gear-mode tangential) it is reported, with its warning."""
+    scene = SceneSpec(seed=8)
+    motion = MotionSeries.constant(duration_s=59 / FPS, gear_speed_mm_s=0.5, slip=0.12)
+    path, _ = _clip(tmp_path, "box", scene, motion)
+    cx, cy = scene.gear_center_px
+    r_tip = scene.gear_tip_radius_mm / scene.mm_per_px
+    box = Roi("gear", int(cx + 0.5 * r_tip), int(cy - 0.8 * r_tip), 40, 40)
+    base = scene.vision_config(rotation=None)
+    cfg = dataclasses.replace(base, rois=RoiSet(box, base.rois.before, base.rois.after))
+    res = measure(path, cfg)
+    s = res.summary
+    assert s.gear_mode == "tangential" and s.gear_axis_px is None
+    assert s.gear_note is not None and "no gear axis was found" in s.gear_note
+    assert s.gear_state == "moving" and math.isnan(s.gear_speed_mm_s)
+    assert math.isnan(s.slip) and s.slip_note == s.gear_note
+    assert s.to_dict()["slip_pct"] is None and s.to_dict()["gear_speed_mm_s"] is None
+    assert not np.isfinite(res.series.gear_speed_mm_s).any()
+    assert not np.isfinite(res.series.slip).any()
+    assert np.sum((res.series.flags & int(Quality.GEAR_NO_AXIS)) != 0) >= 40
+    assert any(w.startswith("gear speed and slip refused") for w in s.warnings)
+    # the filament and the width are unaffected
+    assert s.filament_speed_mm_s == pytest.approx(0.5 * 0.88, rel=0.01)
+    assert s.width_valid_frames == s.frames
+    # [003]'s method on request: a (biased) number and the warning
+    asked = measure(path, dataclasses.replace(cfg, gear_method="tangential")).summary
+    assert asked.gear_note is None and math.isfinite(asked.slip)
+    assert abs(asked.slip - 0.12) > 0.2
+    assert any("tangential mode" in w for w in asked.warnings)

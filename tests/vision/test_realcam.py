@@ -128,8 +128,10 @@ def test_speeds_and_time_varying_slip_with_the_axis_given_and_estimated(clip) ->
         slip_true = 1 - np.sum(f_true[both]) / np.sum(g_true[both])
         assert abs(s.slip - slip_true) <= 0.005, gear_roi
         # the slip's course in time (Gaussian window of [003 Eq. 5], 0.2 s) follows the
-        # truth smoothed the same way within 1 percentage point at every sample
-        ref = 1 - gaussian_smooth(t[1:], f_true, 0.2) / gaussian_smooth(t[1:], g_true, 0.2)
+        # truth smoothed the same way (same window, same valid samples) within 1
+        # percentage point at every sample (the limits: docs/vision.md)
+        ref = 1 - (gaussian_smooth(t[1:], np.where(fm, f_true, np.nan), 0.2)
+                   / gaussian_smooth(t[1:], np.where(gm, g_true, np.nan), 0.2))
         got = se.slip_smooth[1:]
         ok = np.isfinite(got)
         assert ok.sum() >= N_FRAMES - 3
@@ -141,29 +143,37 @@ def test_speeds_and_time_varying_slip_with_the_axis_given_and_estimated(clip) ->
 
 
 def test_width_with_a_known_scale_and_calibrated_across_rois(clip) -> None:
+    """The silhouettes of this front-lit, blurred (1.2 px) cylinder, fitted over the clip
+    (one blur and one limb shape per clip, docs/vision.md): with the scale known the
+    width is within 0.45 px of the truth in the median and 0.85 px in every frame on
+    this seed (5 seeds: docs/vision.md); the derivative extrema of [003 §2.2] lie
+    inside the silhouette (about −1.2 px here)."""
     frames, path = clip
     rois = _rois(SPEC)
     cam = RigCamera(SPEC, DRIVE)
-    with open_source(path) as src:
-        images = [fr.image for fr in src]
     k = SPEC.mm_per_px
 
     def widths(roi: Roi) -> tuple[np.ndarray, np.ndarray]:
-        got, true = [], []
-        for fr, img in zip(frames, images, strict=True):
-            m = measure_width_px(img[roi.slices])
-            assert m.ok
-            got.append(m.width_px)
-            true.append(cam.true_width_mm(fr.t_s, slice(roi.y, roi.y1)) / k)
-        return np.array(got), np.array(true)
+        cfg = VisionConfig(rois=RoiSet(rois["face"], roi, rois["after"]), mm_per_px=k,
+                           diameter_mm=SPEC.filament_diameter_mm,
+                           gear_center_px=SPEC.gear_center_px,
+                           gear_radius_mm=SPEC.drive_radius_mm)
+        res = measure(path, cfg)
+        assert res.summary.width_valid_frames == N_FRAMES and res.summary.width_note is None
+        assert res.summary.width_blur_px == pytest.approx(math.hypot(SPEC.blur_px, 0.29),
+                                                          abs=0.15)
+        true = np.array([cam.true_width_mm(fr.t_s, slice(roi.y, roi.y1)) / k
+                         for fr in frames])
+        return res.series.width_px, true
 
     got_a, true_a = widths(rois["before"])
     err = got_a - true_a
-    # the derivative extrema of a front-lit, blurred cylinder lie inside its silhouette
-    # (docs/vision.md): with the scale known the width reads low by about a pixel,
-    # steadily (spread well under 0.5 px)
-    assert -1.6 <= float(np.median(err)) <= -0.6 and float(np.ptp(err)) <= 0.6
-    # [003 Eq. 4] from ROI A absorbs it; ROI B then reads the true width within 0.5 px
+    assert abs(float(np.median(err))) <= 0.45 and float(np.max(np.abs(err))) <= 0.85
+    with open_source(path) as src:
+        img = next(iter(src)).image
+    m = measure_width_px(img[rois["before"].slices])
+    assert -1.6 <= m.gradient_width_px - true_a[0] <= -0.8
+    # [003 Eq. 4] from ROI A; ROI B then reads the true width within 0.5 px
     k_cal = calibration_factor(float(np.mean(true_a)) * k, float(np.mean(got_a)))
     got_b, true_b = widths(rois["before2"])
     assert np.max(np.abs(got_b * k_cal / k - true_b)) <= 0.5

@@ -139,13 +139,17 @@ def measure_cmd(
                      if math.isfinite(s.slip_pct) else f"undefined: {s.slip_note}")
         axis = ("-" if s.gear_axis_px is None else
                 f"({s.gear_axis_px[0]:.1f}, {s.gear_axis_px[1]:.1f}) px, {s.gear_axis_source}")
+        gear_text = (f"refused ({s.gear_state}, no gear axis)" if s.gear_note else
+                     f"{s.gear_speed_mm_s:.4f} mm/s ({s.gear_mode}, {s.gear_state})")
+        width_text = ("refused in every frame (see the warning)" if s.width_note else
+                      f"{s.width_mm:.4f} ± {s.width_std_mm:.4f} mm "
+                      f"({s.width_valid_frames} of {s.frames} frames)")
         rows = [
-            ("gear speed", f"{s.gear_speed_mm_s:.4f} mm/s ({s.gear_mode}, {s.gear_state})"),
+            ("gear speed", gear_text),
             ("gear axis", axis),
             ("filament speed", f"{s.filament_speed_mm_s:.4f} mm/s ({s.filament_state})"),
             ("slip", slip_text),
-            ("width", f"{s.width_mm:.4f} ± {s.width_std_mm:.4f} mm "
-                      f"({s.width_valid_frames} of {s.frames} frames)"),
+            ("width", width_text),
             ("volume flow", f"{s.volume_flow_mm3_s:.3f} mm³/s"),
             ("frames", f"{s.valid_frames} valid of {s.frames} ({s.dropped_frames} dropped, "
                        f"{s.blank_frames} blank, {s.duplicate_frames} duplicate)"),

@@ -23,12 +23,13 @@ import numpy.typing as npt
 from flowtwin.errors import VisionError
 from flowtwin.vision.axis import estimate_gear_axis
 from flowtwin.vision.capture import INTER_FRAME_CODECS, Frame, open_source
+from flowtwin.vision.clip_width import ClipWidth
 from flowtwin.vision.config import VisionConfig
 from flowtwin.vision.features import is_stale
 from flowtwin.vision.readings import Quality, VisionResult
 from flowtwin.vision.summarize import GearSetup, RowLog, SourceInfo, finish
 from flowtwin.vision.track import RoiTracker, StepEstimate
-from flowtwin.vision.width import EdgeMeasurement, expected_width_px, measure_width_px
+from flowtwin.vision.width import EdgeMeasurement, expected_width_px
 
 __all__ = ["Pipeline", "SourceInfo", "find_gear_axis", "measure", "measure_frames"]
 
@@ -133,6 +134,8 @@ class Pipeline:
             self.gear_tracker = RoiTracker(config.rois.gear, frame_size, p, axis=(0.0, sign),
                                            check_stale=check)
         self.expected_px = expected_width_px(config.mm_per_px, config.diameter_mm)
+        self.widths = ClipWidth(config.rois.before, self.expected_px, p.width_sigma_px,
+                                p.min_edge_dn_px)
         self.rows = RowLog.empty()
         self.last_width: EdgeMeasurement | None = None
         self._prev: npt.NDArray[np.uint8] | None = None
@@ -178,8 +181,9 @@ class Pipeline:
         f = self.filament_tracker.update(img, dt)
         before = self.config.rois.before
         before_crop = img[before.slices]
-        em = measure_width_px(before_crop, sigma_px=p.width_sigma_px,
-                              min_edge_dn_px=p.min_edge_dn_px, expected_px=self.expected_px)
+        em = self.widths.measure(before_crop)
+        if em.lines is not None:
+            self.widths.scan_frame(img)
         self.last_width = em
         flags = Quality.FIRST if dt is None else Quality(0)
         flags |= _step_flags(g, Quality.GEAR_LOW_TEXTURE, Quality.GEAR_TRACKING,
@@ -199,6 +203,8 @@ class Pipeline:
             else no_width
         self.rows.add(frame.index, t_rel, NAN if dt is None else dt, flags, _step_tuple(g),
                       _step_tuple(f), width)
+        if not (flags & Quality.WIDTH_INVALID) or not em.ok:
+            self.widths.record(len(self.rows.t) - 1, em)
         self._prev = img
         self._t_last = frame.t_s
 
@@ -212,7 +218,9 @@ class Pipeline:
         """
         if not self.rows.t:
             raise VisionError("the source delivered no frames", source=self.info.description)
-        return finish(self.rows, self.config, self.info, elapsed_s, self.gear)
+        width_note = self.widths.finish(self.rows, self.gear.center_px, self.config.mm_per_px)
+        return finish(self.rows, self.config, self.info, elapsed_s, self.gear,
+                      width_note=width_note, blur_px=self.widths.blur_px)
 
 
 def measure_frames(frames: Iterable[Frame], config: VisionConfig, *,

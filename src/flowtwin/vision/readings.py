@@ -39,7 +39,10 @@ class Quality(IntFlag):
     0.5 px rms (they follow noise, not the surface). ``*_TRACKING`` means the tracks
     were too few or disagreed for another reason. Either way the value is NaN.
     ``*_STOPPED`` keeps the (tiny) measured speed but makes the slip undefined: slip
-    needs both speeds above their floors.
+    needs both speeds above their floors. ``GEAR_NO_AXIS``: the gear turns, no axis was
+    given and none could be estimated from the motion; the tangential reading of [003]
+    that remains depends on the lever arm of the tracked features, not on the drive
+    radius, so it is not reported (``--gear-mode tangential`` asks for it explicitly).
     """
 
     FIRST = 1                   #: first frame: nothing to compare with, no speeds
@@ -56,6 +59,7 @@ class Quality(IntFlag):
     FILAMENT_STALE = 2048       #: after ROI repeats old pixels (damaged frame), or follows
     WIDTH_AMBIGUOUS = 4096      #: refused because several edge pairs compete (with INVALID)
     FILAMENT_STOPPED = 8192     #: filament slower than its floor: slip undefined
+    GEAR_NO_AXIS = 16384        #: gear turns but no axis was found: its speed is refused
 
     def names(self) -> str:
         """``"GAP|WIDTH_INVALID"`` style text (empty when no flag is set)."""
@@ -67,7 +71,7 @@ MIN_SLIP_STEPS = 2
 
 #: Flags that make the gear speed invalid.
 GEAR_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK | Quality.GEAR_LOW_TEXTURE
-                | Quality.GEAR_TRACKING | Quality.GEAR_STALE)
+                | Quality.GEAR_TRACKING | Quality.GEAR_STALE | Quality.GEAR_NO_AXIS)
 #: Flags that make the filament speed invalid.
 FILAMENT_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK
                     | Quality.FILAMENT_LOW_TEXTURE | Quality.FILAMENT_TRACKING
@@ -169,7 +173,8 @@ class VisionSummary:
         Why the slip is undefined (None when it is defined).
     gear_state, filament_state
         ``"moving"`` (mean speed above its floor), ``"still"`` or ``"unknown"`` (no valid
-        step).
+        step). A gear whose speed was refused for want of an axis (``gear_note``) is
+        ``"moving"``.
     gear_speed_floor_mm_s, filament_speed_floor_mm_s
         The floors, mm/s.
     width_mm, width_std_mm
@@ -223,6 +228,14 @@ class VisionSummary:
         OpenCV that measured.
     processing_fps
         Frames per second of this run (decoding included).
+    gear_note
+        Why the gear speed was refused (None if it was not): the gear turns but no axis
+        was found, and the tangential reading left is not the drive's surface speed.
+    width_note
+        Why every width of the run was refused (None if they were not): edges that are
+        not a clean silhouette, or a ``before`` ROI in the gear's contact zone.
+    width_blur_px
+        The edges' blur σ fitted over the clip (optics and pixel), px (NaN if no edges).
     """
 
     gear_speed_mm_s: float
@@ -268,6 +281,9 @@ class VisionSummary:
     timestamp_source: str
     opencv_version: str
     processing_fps: float
+    width_note: str | None = None
+    width_blur_px: float = math.nan
+    gear_note: str | None = None
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (NaN becomes None)."""

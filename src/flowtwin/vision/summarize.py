@@ -17,9 +17,15 @@ their floors, *and* both mean speeds above their floors; otherwise it is undefin
 ``null`` in JSON) and ``slip_note`` says why — a still drive never reads as a slip
 percentage.
 
+**No axis, no gear speed.** When the gear turns but no axis was given and none could be
+estimated from the motion (``--gear-mode auto``), the tangential reading that remains is
+``ω`` times the lever arm of whatever features were tracked, not the drive's surface
+speed: the gear speed and the slip are refused (GEAR_NO_AXIS, ``gear_note``), not
+reported with a warning. ``--gear-mode tangential`` asks for [003]'s method explicitly.
+
 **Warnings.** A quantity valid in fewer than ``min_valid_fraction`` of its steps, a slip
-from few steps, and tangential mode on a turning gear are listed in
-``VisionSummary.warnings`` (the CLI prints them and fails with ``--strict``).
+from few steps, a refused gear speed or width, and tangential mode on a turning gear are
+listed in ``VisionSummary.warnings`` (the CLI prints them and fails with ``--strict``).
 """
 
 from __future__ import annotations
@@ -149,7 +155,8 @@ def _gear_speed(rows: RowLog, config: VisionConfig, gear: GearSetup, k_cal: floa
 
 
 def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: float,
-           gear: GearSetup) -> VisionResult:
+           gear: GearSetup, *, width_note: str | None = None, blur_px: float | None = None
+           ) -> VisionResult:
     """Turn the rows of the pipeline loop into a :class:`VisionResult`.
 
     Parameters
@@ -164,6 +171,10 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
         Processing time of the loop, s.
     gear
         Gear axis used (and how it was found).
+    width_note
+        Why every width of the clip was refused (:mod:`flowtwin.vision.clip_width`).
+    blur_px
+        The clip's edge blur, px (None if no edges were found).
 
     Returns
     -------
@@ -204,6 +215,8 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
                                                               w_ok, where)
     fil_v = speed_mm_s(np.asarray(rows.fil), np.asarray(rows.fil_span), k_cal)
     floors = (p.min_gear_speed_mm_s, p.min_filament_speed_mm_s)
+    gear_note = _refuse_tangential_fallback(gear_v, np.asarray(rows.gear_span), flags,
+                                            config, gear, floors[0])
     g_s = gaussian_smooth(t, gear_v, p.smooth_sigma_s)
     f_s = gaussian_smooth(t, fil_v, p.smooth_sigma_s)
     # still: the step, or the speed around it (the Gaussian window), at or below the floor
@@ -234,8 +247,36 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
     summary = _summary(series, config, info, gear, gear_span=np.asarray(rows.gear_span),
                        fil_span=np.asarray(rows.fil_span), period=period, dropped=dropped,
                        k_cal=k_cal, scale_source=scale_source, gear_mode=gear_mode,
-                       radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s)
+                       radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s,
+                       width_note=width_note, blur_px=blur_px, gear_note=gear_note)
     return VisionResult(series, summary)
+
+
+def _refuse_tangential_fallback(gear_v: F64, span: F64, flags: npt.NDArray[np.int64],
+                                config: VisionConfig, gear: GearSetup, floor: float
+                                ) -> str | None:
+    """Refuse the gear speed (in place) when the gear turns and tangential mode was only
+    the fallback of a failed axis estimate; returns why (None when not refused).
+
+    The tangential method of [003] reads the mean motion of the gear ROI's features
+    along the filament: ``ω`` times their lever arm, not the drive radius (16 % slow in a
+    ROI next to the contact, −64 pp of slip on a 40×40 box on the teeth, docs). Asked for
+    explicitly (``--gear-mode tangential``) it is reported, with a warning.
+    """
+    if gear.center_px is not None or config.gear_method != "auto":
+        return None
+    ok = np.isfinite(gear_v) & np.isfinite(span) & (span > 0)
+    time_s = float(np.sum(span[ok]))
+    if time_s <= 0 or abs(float(np.sum(gear_v[ok] * span[ok])) / time_s) <= floor:
+        return None
+    flags[np.isfinite(gear_v)] |= int(Quality.GEAR_NO_AXIS)
+    gear_v[:] = NAN
+    why = "" if gear.estimate is None else f" ({gear.estimate.reason})"
+    return ("the gear turns but no gear axis was found" + why + "; the tangential reading "
+            "left reads the lever arm of the tracked features, not the drive radius, so "
+            "the gear speed and the slip are not reported: give --gear-center x,y, a gear "
+            "ROI whose motion shows the rotation (its face, or a wide strip of the rim), "
+            "or --gear-mode tangential to accept [003]'s method")
 
 
 def _state(speed: float, n_valid: int, floor: float) -> str:
@@ -269,7 +310,8 @@ def _slip_note(gear_state: str, fil_state: str, g: float, f: float, steps: int,
 def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: GearSetup, *,
              gear_span: F64, fil_span: F64, period: float, dropped: int, k_cal: float,
              scale_source: str, gear_mode: str, radius_mm: float | None,
-             radius_source: str | None, elapsed_s: float) -> VisionSummary:
+             radius_source: str | None, elapsed_s: float, width_note: str | None,
+             blur_px: float | None, gear_note: str | None) -> VisionSummary:
     p = config.tracking
     fl = s.flags
     g_ok = ((fl & int(GEAR_INVALID)) == 0) & np.isfinite(s.gear_speed_mm_s)
@@ -286,7 +328,7 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
     floors = (p.min_gear_speed_mm_s, p.min_filament_speed_mm_s)
     g_mean = mean_speed(s.gear_speed_mm_s, g_ok, g_dt)
     f_mean = mean_speed(s.filament_speed_mm_s, f_ok, f_dt)
-    gear_state = _state(g_mean, int(g_ok.sum()), floors[0])
+    gear_state = "moving" if gear_note else _state(g_mean, int(g_ok.sum()), floors[0])
     fil_state = _state(f_mean, int(f_ok.sum()), floors[1])
     # slip over the run: distances where both speeds are valid and above their floors,
     # counted along the gear's direction, so feeding and retracting both add up
@@ -294,7 +336,7 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
     stopped = int(Quality.GEAR_STOPPED | Quality.FILAMENT_STOPPED)
     moving = both & ((fl & stopped) == 0)
     steps = int(moving.sum())
-    note = _slip_note(gear_state, fil_state, g_mean, f_mean, steps, floors)
+    note = gear_note or _slip_note(gear_state, fil_state, g_mean, f_mean, steps, floors)
     g_dir = np.sign(s.gear_speed_mm_s[moving])
     l_gear = float(np.sum(np.abs(s.gear_speed_mm_s[moving]) * g_dt[moving]))
     l_fil = float(np.sum(g_dir * s.filament_speed_mm_s[moving] * f_dt[moving]))
@@ -305,7 +347,8 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
     n_steps = max(n_frames - 1, 0)
     warnings = _warnings(s, config, gear, gear_mode=gear_mode, gear_state=gear_state,
                          g_ok=g_ok, f_ok=f_ok, w_ok=w_ok, n_steps=n_steps,
-                         n_frames=n_frames, slip_steps=steps, slip=slip)
+                         n_frames=n_frames, slip_steps=steps, slip=slip,
+                         width_note=width_note, gear_note=gear_note)
     frames_expected = info.frames_expected
     return VisionSummary(
         gear_speed_mm_s=g_mean, filament_speed_mm_s=f_mean, slip=slip, slip_pct=100.0 * slip,
@@ -333,7 +376,9 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
         warnings=tuple(warnings),
         source=info.description, source_kind=info.kind,
         timestamp_source=info.timestamp_source, opencv_version=cv2.__version__,
-        processing_fps=n / elapsed_s if elapsed_s > 0 else NAN)
+        processing_fps=n / elapsed_s if elapsed_s > 0 else NAN,
+        width_note=width_note, width_blur_px=NAN if blur_px is None else blur_px,
+        gear_note=gear_note)
 
 
 def _count(fl: npt.NDArray[np.int64], flag: Quality) -> int:
@@ -343,28 +388,30 @@ def _count(fl: npt.NDArray[np.int64], flag: Quality) -> int:
 def _warnings(s: VisionSeries, config: VisionConfig, gear: GearSetup, *, gear_mode: str,
               gear_state: str, g_ok: npt.NDArray[np.bool_], f_ok: npt.NDArray[np.bool_],
               w_ok: npt.NDArray[np.bool_], n_steps: int, n_frames: int, slip_steps: int,
-              slip: float) -> list[str]:
+              slip: float, width_note: str | None, gear_note: str | None) -> list[str]:
     """What a user must not miss (see the module docstring)."""
     frac = config.tracking.min_valid_fraction
     fl = s.flags
-    out: list[str] = []
+    out: list[str] = [f"gear speed and slip refused: {gear_note}"] if gear_note else []
     for name, ok, low, bad, stale in (
             ("gear speed", g_ok, Quality.GEAR_LOW_TEXTURE, Quality.GEAR_TRACKING,
              Quality.GEAR_STALE),
             ("filament speed", f_ok, Quality.FILAMENT_LOW_TEXTURE, Quality.FILAMENT_TRACKING,
              Quality.FILAMENT_STALE)):
-        if n_steps and int(ok.sum()) < frac * n_steps:
+        if n_steps and int(ok.sum()) < frac * n_steps and not (gear_note and ok is g_ok):
             out.append(f"{name} valid in only {int(ok.sum())} of {n_steps} steps "
                        f"({100.0 * ok.sum() / n_steps:.0f} %): {_count(fl, low)} without "
                        f"texture, {_count(fl, bad)} with too few or disagreeing tracks, "
                        f"{_count(fl, stale)} stale")
-    if n_frames and int(w_ok.sum()) < frac * n_frames:
+    if width_note is not None:
+        out.append(f"width refused in every frame: {width_note}")
+    elif n_frames and int(w_ok.sum()) < frac * n_frames:
         out.append(f"width valid in only {int(w_ok.sum())} of {n_frames} frames "
                    f"({_count(fl, Quality.WIDTH_AMBIGUOUS)} refused as ambiguous, the others "
                    "without a plausible pair of filament edges)")
     if math.isfinite(slip) and n_steps and slip_steps < frac * n_steps:
         out.append(f"slip from only {slip_steps} of {n_steps} steps")
-    if gear_mode == "tangential" and gear_state == "moving":
+    if gear_mode == "tangential" and gear_state == "moving" and not gear_note:
         why = "" if gear.estimate is None else f" ({gear.estimate.reason})"
         out.append("gear speed in tangential mode: it reads the lever arm of the tracked "
                    f"features, not the drive radius{why}; give --gear-center x,y or a "

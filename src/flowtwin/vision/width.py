@@ -50,9 +50,12 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import VisionError
+from flowtwin.vision.edge_model import EdgeProfile
+from flowtwin.vision.edge_pairs import Pair, band_pairs, outer_pairs
+from flowtwin.vision.silhouette import Silhouette, edge_profiles, fit_silhouette
 
 __all__ = ["STANDARD_DIAMETERS_MM", "EdgeMeasurement", "calibration_factor",
-           "expected_width_px", "measure_width_px"]
+           "expected_width_px", "measure_width_px", "refit_width"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -67,17 +70,9 @@ STANDARD_TOLERANCE = 0.08
 #: Largest number of row bands, and fewest rows in one band.
 _MAX_BANDS = 6
 _BAND_ROWS = 12
-#: Strongest candidates kept per sign and band.
-_CANDIDATES = 5
 #: Background must be resolved this many smoothing sigmas (and at least 3 px) outside an
 #: edge inside the ROI.
 _EDGE_CLEAR = 3.0
-#: Interior test: the interior's extreme must stay this fraction of the weaker step
-#: away from the outside level.
-_INTERIOR_FRACTION = 0.5
-#: The weaker edge of a pair must have at least this fraction of the stronger one's slope
-#: (a shading gradient is no match for a silhouette edge).
-_STRENGTH_RATIO = 0.25
 #: Without a nominal width, a band's widest plausible pair is taken when it is at least
 #: this many times wider than the next one (a glint or a gap beside the filament).
 _DOMINANCE = 2.0
@@ -128,6 +123,21 @@ class EdgeMeasurement:
     rejected
         Plausible-looking pairs that were not taken, ``(y0, y1, left, right, why)`` in
         crop coordinates (for drawing).
+    gradient_width_px
+        The width between the derivative extrema (the method of [003 §2.2]), px; NaN when
+        the edges were not found.
+    blur_px
+        Blur σ of the silhouette fit (optics and pixel), px.
+    lines
+        The derivative-extremum edge lines ``((slope, intercept), (slope, intercept))``,
+        ``x = slope·y + intercept`` in crop coordinates (``None`` if not found).
+    silhouette
+        The silhouette fit of the two edges (:mod:`flowtwin.vision.silhouette`), or
+        ``None``.
+    edge_scatter_px
+        Robust scatter (1.4826·MAD) of the rows' edge points about the left and the right
+        edge line, px: a silhouette is straight, gear teeth over the edge or teeth marks
+        in it are not.
     """
 
     width_px: float
@@ -144,6 +154,11 @@ class EdgeMeasurement:
     row_right_px: F64 = field(default_factory=lambda: np.zeros(0))
     row_used: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
     rejected: tuple[tuple[int, int, float, float, str], ...] = ()
+    gradient_width_px: float = math.nan
+    blur_px: float = math.nan
+    lines: tuple[tuple[float, float], tuple[float, float]] | None = None
+    silhouette: Silhouette | None = None
+    edge_scatter_px: tuple[float, float] = (math.nan, math.nan)
 
 
 def expected_width_px(mm_per_px: float | None, diameter_mm: float | None = None, *,
@@ -197,86 +212,10 @@ def _subpixel(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> F64:
     return km + np.clip(off, -0.5, 0.5)
 
 
-@dataclass(frozen=True, slots=True)
-class _Pair:
-    left: float          # sub-pixel columns of the two edges
-    right: float
-    sign: float          # +1 bright filament (rising then falling), -1 dark
-    strength: float      # weaker edge slope, DN/px
-
-
-def _candidates(p: F64, thr: float) -> tuple[list[int], list[int]]:
-    """Indices of the strongest local maxima above ``thr`` and minima below ``-thr``."""
-    inner = p[1:-1]
-    rise = np.flatnonzero((inner >= p[:-2]) & (inner > p[2:]) & (inner >= thr)) + 1
-    fall = np.flatnonzero((inner <= p[:-2]) & (inner < p[2:]) & (inner <= -thr)) + 1
-    if rise.size > _CANDIDATES:
-        rise = rise[np.argsort(-p[rise])[:_CANDIDATES]]
-    if fall.size > _CANDIDATES:
-        fall = fall[np.argsort(p[fall])[:_CANDIDATES]]
-    return sorted(rise.tolist()), sorted(fall.tolist())
-
-
-def _band_pairs(p: F64, level: F64, thr: float, clear: int,
-                expected: Sequence[tuple[float, float]] | None, min_sep: float
-                ) -> list[_Pair]:
-    """Plausible edge pairs of one band (step 2 of the module docstring)."""
-    w = p.size
-    rise, fall = _candidates(p, thr)
-    out: list[_Pair] = []
-    for a_list, b_list, sign in ((rise, fall, 1.0), (fall, rise, -1.0)):
-        for i in a_list:
-            if i - clear < 0:
-                continue
-            for j in b_list:
-                sep = j - i
-                if sep < min_sep:
-                    continue
-                if j + clear >= w:
-                    break
-                if expected is not None and not any(lo - 1 <= sep <= hi + 1
-                                                    for lo, hi in expected):
-                    continue
-                out_l = float(level[i - clear])
-                out_r = float(level[j + clear])
-                in_l = float(level[i + clear])
-                in_r = float(level[j - clear])
-                step = min(sign * (in_l - out_l), sign * (in_r - out_r))
-                if step <= 0:
-                    continue
-                if min(abs(p[i]), abs(p[j])) < _STRENGTH_RATIO * max(abs(p[i]), abs(p[j])):
-                    continue
-                inner = level[i + clear:j - clear + 1]
-                if sign > 0:
-                    margin = float(inner.min()) - max(out_l, out_r)
-                else:
-                    margin = min(out_l, out_r) - float(inner.max())
-                if margin < _INTERIOR_FRACTION * step:
-                    continue
-                out.append(_Pair(float(i), float(j), sign,
-                                 float(min(abs(p[i]), abs(p[j])))))
-    return out
-
-
-def _outer(pairs: list[_Pair]) -> list[_Pair]:
-    """Pairs not nested inside another pair (one px of slack)."""
-    keep = []
-    for a in pairs:
-        nested = any(b is not a and b.left <= a.left + 1 and a.right <= b.right + 1
-                     and (b.right - b.left) > (a.right - a.left) for b in pairs)
-        if not nested:
-            keep.append(a)
-    # identical pairs found twice (e.g. both polarities never, same edges) collapse
-    unique: list[_Pair] = []
-    for a in keep:
-        if not any(abs(a.left - b.left) <= 1 and abs(a.right - b.right) <= 1 for b in unique):
-            unique.append(a)
-    return unique
-
-
 def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
                      min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5,
-                     expected_px: Sequence[tuple[float, float]] | None = None
+                     expected_px: Sequence[tuple[float, float]] | None = None,
+                     blur_px: float | None = None, mix: tuple[float, float] | None = None
                      ) -> EdgeMeasurement:
     """Measure the filament width in a crop that spans both edges (see module docstring).
 
@@ -294,6 +233,12 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     expected_px
         Plausible widths ``((lo, hi), ...)`` in px (:func:`expected_width_px`);
         ``None``: any width of at least ``4·sigma_px`` and 6 px.
+    blur_px
+        The camera's blur σ (optics and pixel), px, when known (e.g. from earlier frames
+        of the same recording); ``None``: fitted in this crop.
+    mix
+        The two edges' limb shapes when known from earlier frames
+        (:attr:`~flowtwin.vision.edge_model.EdgeFit.mix_rad`); ``None``: fitted.
 
     Returns
     -------
@@ -314,11 +259,11 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     band_d = np.add.reduceat(d, bounds[:-1], axis=0) / counts
     band_i = np.add.reduceat(sm, bounds[:-1], axis=0) / counts
     rejected: list[tuple[int, int, float, float, str]] = []
-    chosen: list[tuple[int, _Pair]] = []
+    chosen: list[tuple[int, Pair]] = []
     n_ambiguous = 0
     for b in range(n_bands):
         y0, y1 = int(bounds[b]), int(bounds[b + 1])
-        outer = _outer(_band_pairs(band_d[b].astype(np.float64),
+        outer = outer_pairs(band_pairs(band_d[b].astype(np.float64),
                                    band_i[b].astype(np.float64), min_edge_dn_px, clear,
                                    expected_px, min_sep))
         if expected_px is None and len(outer) > 1:
@@ -409,20 +354,103 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
                                f"({abs(fit_r[0] - fit_l[0]) * h:.1f} px over {h} rows)",
                                "ambiguous", math.nan, row_left, row_right, row_used,
                                tuple(rejected))
+    lines = (fit_l, fit_r)
     y_mid = 0.5 * (h - 1)
-    tilt = math.atan(0.5 * (fit_l[0] + fit_r[0]))
-    left = fit_l[0] * y_mid + fit_l[1]
-    right = fit_r[0] * y_mid + fit_r[1]
-    width = (right - left) * math.cos(tilt)
+    half = 0.5 * ((fit_r[0] - fit_l[0]) * y_mid + fit_r[1] - fit_l[1])
+    profiles = edge_profiles(crop.astype(np.float32), (rows[keep_l], rows[keep_r]), lines,
+                             sign, half)
     spread = float(np.std(xr[both] - xl[both])) if both.sum() > 1 else math.nan
+    diag = _Diagnostics(strength, used, spread, row_left, row_right, row_used,
+                        tuple(rejected), lines, sign,
+                        (_scatter(yf, xl, good_l, fit_l), _scatter(yf, xr, good_r, fit_r)))
+    return _silhouette_width(diag, profiles, h, expected_px, blur_px, mix)
+
+
+@dataclass(frozen=True, slots=True)
+class _Diagnostics:
+    """What the edge search found, carried into the result."""
+
+    strength: float
+    used: int
+    spread: float
+    row_left: F64
+    row_right: F64
+    row_used: npt.NDArray[np.bool_]
+    rejected: tuple[tuple[int, int, float, float, str], ...]
+    lines: tuple[tuple[float, float], tuple[float, float]]
+    polarity: float
+    scatter: tuple[float, float]
+
+
+def _scatter(y: F64, x: F64, good: npt.NDArray[np.bool_], line: tuple[float, float]) -> float:
+    """Robust scatter (1.4826·MAD) of the rows' edge points about an edge line, px."""
+    res = x[good] - (line[0] * y[good] + line[1])
+    return float(1.4826 * np.median(np.abs(res - np.median(res)))) if res.size else math.nan
+
+
+def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile], h: int,
+                      expected_px: Sequence[tuple[float, float]] | None,
+                      blur_px: float | None, mix: tuple[float, float] | None = None
+                      ) -> EdgeMeasurement:
+    """The width between the fitted silhouettes at the ROI's middle row, or a refusal."""
+    (al, bl), (ar, br) = d.lines
+    y_mid = 0.5 * (h - 1)
+    tilt = math.atan(0.5 * (al + ar))
+    cos_t = math.cos(tilt)
+    grad_left, grad_right = al * y_mid + bl, ar * y_mid + br
+    gradient = (grad_right - grad_left) * cos_t
+    sil = fit_silhouette(profiles, d.polarity, blur_px=blur_px, mix=mix)
+
+    def refuse(status: str, reason: str, width: float = math.nan) -> EdgeMeasurement:
+        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, d.strength, d.used,
+                               False, reason, status, d.spread, d.row_left, d.row_right,
+                               d.row_used, d.rejected, gradient, sil.left.blur_px, d.lines,
+                               sil, d.scatter)
+
+    if not sil.ok:
+        return refuse("ambiguous", sil.reason)
+    left = grad_left + sil.left.offset_px
+    right = grad_right + sil.right.offset_px
+    width = (right - left) * cos_t
     if expected_px is not None and not any(lo <= width <= hi for lo, hi in expected_px):
-        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, strength, used, False,
-                               f"the edges' width {width:.1f} px is outside the expected "
-                               + ", ".join(f"{lo:.0f}–{hi:.0f} px" for lo, hi in expected_px),
-                               "no_edges", spread, row_left, row_right, row_used,
-                               tuple(rejected))
-    return EdgeMeasurement(width, left, right, tilt, strength, used, True, "", "ok", spread,
-                           row_left, row_right, row_used, tuple(rejected))
+        return refuse("no_edges", f"the edges' width {width:.1f} px is outside the expected "
+                      + ", ".join(f"{lo:.0f}–{hi:.0f} px" for lo, hi in expected_px))
+    return EdgeMeasurement(width, left, right, tilt, d.strength, d.used, True, "", "ok",
+                           d.spread, d.row_left, d.row_right, d.row_used, d.rejected,
+                           gradient, sil.left.blur_px, d.lines, sil, d.scatter)
+
+
+def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
+                expected_px: Sequence[tuple[float, float]] | None = None,
+                mix: tuple[float, float] | None = None) -> EdgeMeasurement:
+    """The same measurement with the silhouettes refitted at a known blur.
+
+    Parameters
+    ----------
+    em
+        A measurement whose edges were found (``silhouette`` not ``None``); others are
+        returned unchanged.
+    blur_px
+        The blur σ (optics and pixel), px.
+    h
+        Height of the crop, rows.
+    expected_px
+        Plausible widths, as for :func:`measure_width_px`.
+    mix
+        Known limb shapes, as for :func:`measure_width_px`.
+
+    Returns
+    -------
+    EdgeMeasurement
+        The refitted measurement.
+    """
+    if em.silhouette is None or em.lines is None:
+        return em
+    polarity = em.silhouette.polarity
+    d = _Diagnostics(em.edge_dn_px, em.rows_used, em.row_spread_px, em.row_left_px,
+                     em.row_right_px, em.row_used, em.rejected, em.lines, polarity,
+                     em.edge_scatter_px)
+    return _silhouette_width(d, em.silhouette.profiles, h, expected_px, blur_px, mix)
 
 
 def _fit_line(y: F64, x: F64) -> tuple[float, float]:

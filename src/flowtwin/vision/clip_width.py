@@ -1,0 +1,300 @@
+"""The width over a whole recording: one blur for the clip, and refusals a frame cannot make.
+
+Per frame, :func:`~flowtwin.vision.width.measure_width_px` finds the filament's edges and
+fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
+
+1. **One blur, one limb shape.** The optics' blur is the same in every frame (fixed
+   focus; motion blur runs along the filament, not across it), and so is the shape of
+   each edge's limb — the split between the step and the square-root rise,
+   ``atan2(B, A)``, set by the material and the lighting (a drifting gain scales both)
+   — but a single frame's fit of them trades off against the edge position (texture
+   at the limb, noise). The blur is fitted freely in the first :data:`BLUR_FRAMES`
+   frames whose edges were found, and their median fixed for the later frames; each
+   frame's limb shapes are fitted with it (the running values). At the end
+   (:meth:`ClipWidth.finish`) the blur and the shape of each edge are fitted jointly
+   over up to :data:`SHAPE_FRAMES` frames spread over the clip
+   (:func:`~flowtwin.vision.silhouette.clip_model`: the least residual summed over the
+   frames), and every frame is refitted with them: only the edges' positions, the
+   background and the amplitudes are per frame. (The widths are final when the run
+   ends.)
+2. **Rough edges.** A silhouette is straight: its rows' edge points scatter about the
+   edge line by the noise only (0.2–0.5 px on the real clip of [003], up to 0.85 px on
+   renderer 2 at 2 px blur). Where the gear's teeth cover the filament's edge, or teeth
+   marks notch it, that edge's rows scatter by 1–2.5 px, several times the other
+   edge's. One frame's scatter is noisy; the clip's median is not: when the rougher edge
+   scatters by more than :data:`ROUGH_PX` *and* :data:`ROUGH_RATIO` times the other, or
+   both by more than :data:`ROUGH_BOTH_PX`, every width of the clip is refused — what
+   the ROI sees is not the filament's silhouette, and no frame of it can be trusted.
+3. **The gear's contact zone.** With the gear axis known (given or estimated), the
+   contact radius ``R_c`` is the distance from the axis to the filament's near edge; the
+   teeth reach ``R_c + δ`` (the bite and a margin, :data:`TOOTH_REACH_MM`), so rows within
+   ``√((R_c + δ)² − R_c²)`` of the axis's row see teeth over the edge. A ``before`` ROI
+   that reaches them is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.vision.readings import Quality
+from flowtwin.vision.roi import Roi
+from flowtwin.vision.silhouette import clip_model
+from flowtwin.vision.summarize import RowLog
+from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_width
+
+__all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REACH_MM",
+           "ClipWidth", "contact_rows", "is_clean"]
+
+#: Frames whose blur is fitted freely before the clip's blur is fixed.
+BLUR_FRAMES = 15
+#: Frames (spread over the clip) whose residuals decide the clip's blur and limb shapes.
+SHAPE_FRAMES = 64
+#: Clip-median row scatter of the rougher edge above which, with :data:`ROUGH_RATIO`,
+#: the edges are not a silhouette, px.
+ROUGH_PX = 0.6
+#: ... when it is also this many times the other edge's.
+ROUGH_RATIO = 2.0
+#: An edge scattering more than this is refused whatever the other does, px.
+ROUGH_MAX_PX = 1.5
+#: Height of the row bands of the frame-wide reference scan, rows.
+REFERENCE_BAND_ROWS = 32
+#: The ROI's width may differ from the filament's width elsewhere in the frame by this
+#: many px or this fraction, whichever is larger (a filament's diameter changes little
+#: over the ~10 mm a microscope sees).
+REFERENCE_TOL_PX = 1.5
+REFERENCE_TOL_FRACTION = 0.02
+#: How far the gear's teeth reach beyond the contact radius: the bite (~0.1 mm) and a
+#: margin for the knurl's depth, mm.
+TOOTH_REACH_MM = 0.25
+
+_REFUSED = int(Quality.WIDTH_INVALID | Quality.WIDTH_AMBIGUOUS)
+
+
+def is_clean(scatter: tuple[float, float]) -> bool:
+    """Whether two edges whose rows scatter by ``scatter`` px about their lines look like
+    a silhouette (see the module docstring)."""
+    rough, other = max(scatter), min(scatter)
+    return not (rough > ROUGH_MAX_PX or (rough > ROUGH_PX and rough > ROUGH_RATIO * other))
+
+
+def contact_rows(center_px: tuple[float, float], contact_radius_px: float, reach_px: float
+                 ) -> tuple[float, float]:
+    """Rows where a gear of contact radius ``R_c`` whose teeth reach ``R_c + δ`` covers
+    the filament's edge: ``y_c ± √((R_c + δ)² − R_c²)``.
+
+    Parameters
+    ----------
+    center_px
+        Gear axis ``(x, y)``, px.
+    contact_radius_px
+        Distance from the axis to the filament's near edge, px.
+    reach_px
+        How far the teeth reach beyond it, ``δ``, px.
+
+    Returns
+    -------
+    tuple of float
+        First and last row of the zone, px.
+    """
+    r = contact_radius_px
+    half = math.sqrt(max((r + reach_px) ** 2 - r * r, 0.0))
+    return center_px[1] - half, center_px[1] + half
+
+
+@dataclass
+class ClipWidth:
+    """Width measurement over a recording (see the module docstring).
+
+    Parameters
+    ----------
+    roi
+        The ``before`` ROI.
+    expected_px
+        Plausible widths, px (:func:`~flowtwin.vision.width.expected_width_px`).
+    sigma_px, min_edge_dn_px
+        Edge search parameters (:func:`~flowtwin.vision.width.measure_width_px`).
+    blur_frames
+        Frames fitted freely before the clip's blur is fixed.
+    """
+
+    roi: Roi
+    expected_px: Sequence[tuple[float, float]] | None
+    sigma_px: float = 0.7
+    min_edge_dn_px: float = 3.0
+    blur_frames: int = BLUR_FRAMES
+    blur_px: float | None = None
+    mix: tuple[float, float] | None = None
+    reference_px: float | None = None
+    reference_rows: tuple[int, ...] = ()
+    _scanned: bool = False
+    _stored: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
+    _scatter: list[tuple[float, float]] = field(default_factory=list)
+
+    def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
+        """Width of one frame's ``before`` crop (with the clip's blur once it is fixed;
+        the limb shapes are fitted per frame until :meth:`finish`)."""
+        return measure_width_px(crop, sigma_px=self.sigma_px,
+                                min_edge_dn_px=self.min_edge_dn_px,
+                                expected_px=self.expected_px, blur_px=self.blur_px)
+
+    def scan_frame(self, image: npt.NDArray[np.uint8]) -> None:
+        """The filament's width elsewhere in the frame: the ROI's columns (±20 px) in
+        bands of :data:`REFERENCE_BAND_ROWS` rows over the whole height; the bands whose
+        edges are clean silhouettes give the reference (their median), when at least two
+        agree. Done once per clip (the first call)."""
+        if self._scanned:
+            return
+        self._scanned = True
+        h, w = image.shape[:2]
+        x0, x1 = max(0, self.roi.x - 20), min(w, self.roi.x1 + 20)
+        found: list[tuple[int, float]] = []
+        for y0 in range(0, h - REFERENCE_BAND_ROWS + 1, REFERENCE_BAND_ROWS):
+            em = measure_width_px(image[y0:y0 + REFERENCE_BAND_ROWS, x0:x1],
+                                  sigma_px=self.sigma_px, min_edge_dn_px=self.min_edge_dn_px,
+                                  expected_px=self.expected_px)
+            if em.ok and is_clean(em.edge_scatter_px):
+                found.append((y0, em.width_px))
+        if len(found) < 2:
+            return
+        widths = np.array([v for _, v in found])
+        ref = float(np.median(widths))
+        agree = np.abs(widths - ref) <= _tolerance(ref)
+        if int(agree.sum()) >= 2:
+            self.reference_px = float(np.median(widths[agree]))
+            self.reference_rows = tuple(y for (y, _), a in zip(found, agree, strict=True) if a)
+
+    def record(self, row: int, em: EdgeMeasurement) -> None:
+        """Note the measurement of row ``row``; once :attr:`blur_frames` frames were
+        fitted freely, fix the clip's blur (their median)."""
+        self._scatter.append(em.edge_scatter_px)
+        if em.silhouette is None or not math.isfinite(em.blur_px):
+            return
+        # keep what a refit needs, not the per-row diagnostics
+        empty = np.zeros(0)
+        self._stored.append((row, replace(em, row_left_px=empty, row_right_px=empty,
+                                          row_used=np.zeros(0, bool))))
+        if self.blur_px is None and len(self._stored) >= self.blur_frames:
+            self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
+
+    def _refit_all(self, rows: RowLog) -> None:
+        """The clip's blur (if not yet fixed) and limb shapes (medians over all frames),
+        and every frame refitted with them."""
+        if not self._stored:
+            return
+        if self.blur_px is None:
+            self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
+        ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
+        pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
+        sils = [em.silhouette for em in pick if em.silhouette is not None]
+        if sils:
+            self.blur_px, self.mix = clip_model([sl.profiles for sl in sils],
+                                                [(sl.left, sl.right) for sl in sils],
+                                                self.blur_px)
+        blur = self.blur_px
+        for row, em in self._stored:
+            new = refit_width(em, blur, self.roi.h, self.expected_px, self.mix)
+            if new.ok:
+                rows.width[row] = new.width_px
+                rows.left[row] = new.left_px + self.roi.x
+                rows.right[row] = new.right_px + self.roi.x
+                rows.flags[row] &= ~_REFUSED
+            else:
+                _refuse_row(rows, row)
+        self._stored.clear()
+
+    def finish(self, rows: RowLog, gear_center_px: tuple[float, float] | None,
+               mm_per_px: float | None) -> str | None:
+        """Refit every frame with the clip's blur and limb shapes, then apply the
+        clip-level refusals.
+
+        Parameters
+        ----------
+        rows
+            The pipeline's rows (widths and flags are changed in place).
+        gear_center_px
+            Gear axis, if known.
+        mm_per_px
+            Image scale, if known (for the teeth's reach).
+
+        Returns
+        -------
+        str or None
+            Why every width was refused (None if they were not).
+        """
+        self._refit_all(rows)
+        note = self.rough_edges()
+        if note is None:
+            note = self.against_reference(rows)
+        if note is None and gear_center_px is not None:
+            note = self._in_contact_zone(rows, gear_center_px, mm_per_px)
+        if note is not None:
+            skipped = int(Quality.BLANK | Quality.DUPLICATE)
+            for row in range(len(rows.width)):
+                if not rows.flags[row] & skipped:
+                    _refuse_row(rows, row)
+        return note
+
+    def rough_edges(self) -> str | None:
+        """Why the edges are not a clean silhouette over the clip (None if they are)."""
+        sc = np.array([s for s in self._scatter if math.isfinite(s[0] + s[1])])
+        if sc.size == 0:
+            return None
+        left, right = (float(v) for v in np.median(sc, axis=0))
+        rough, other = max(left, right), min(left, right)
+        name = "left" if left >= right else "right"
+        if not is_clean((left, right)):
+            return (f"the {name} edge is not a clean silhouette: its rows scatter by "
+                    f"{rough:.1f} px about a straight line (median over {len(sc)} frames; "
+                    f"the other edge {other:.1f} px) - gear teeth over the edge or teeth "
+                    "marks in it; place the before ROI where the filament runs clear")
+        return None
+
+    def against_reference(self, rows: RowLog) -> str | None:
+        """Why the ROI's width is not the filament's elsewhere in the frame (None if it
+        is, or if there is no reference)."""
+        width = np.asarray(rows.width)
+        width = width[np.isfinite(width)]
+        if self.reference_px is None or width.size == 0:
+            return None
+        here = float(np.median(width))
+        if abs(here - self.reference_px) <= _tolerance(self.reference_px):
+            return None
+        bands = ", ".join(f"{y}-{y + REFERENCE_BAND_ROWS}" for y in self.reference_rows)
+        return (f"the width in the before ROI ({here:.1f} px) is not the filament's width "
+                f"elsewhere in the frame ({self.reference_px:.1f} px where its edges are "
+                f"clean, rows {bands}): something covers an edge in the ROI (the gear's "
+                "teeth?); place the before ROI where the filament runs clear")
+
+    def _in_contact_zone(self, rows: RowLog, center: tuple[float, float],
+                         mm_per_px: float | None) -> str | None:
+        left, right = np.asarray(rows.left), np.asarray(rows.right)
+        ok = np.isfinite(left) & np.isfinite(right)
+        if not ok.any():
+            return None
+        near = np.where(np.abs(left[ok] - center[0]) <= np.abs(right[ok] - center[0]),
+                        left[ok], right[ok])
+        r_c = float(np.median(np.abs(near - center[0])))
+        reach = TOOTH_REACH_MM / mm_per_px if mm_per_px else 0.03 * r_c
+        y0, y1 = contact_rows(center, r_c, reach)
+        if self.roi.y < y1 and self.roi.y1 > y0:
+            return (f"the before ROI (rows {self.roi.y}-{self.roi.y1}) reaches the gear's "
+                    f"contact zone (rows {y0:.0f}-{y1:.0f}: gear axis at ({center[0]:.0f}, "
+                    f"{center[1]:.0f}), contact radius {r_c:.0f} px): the teeth cover the "
+                    "filament's edge there; place the before ROI above or below it")
+        return None
+
+
+def _tolerance(width_px: float) -> float:
+    return max(REFERENCE_TOL_PX, REFERENCE_TOL_FRACTION * width_px)
+
+
+def _refuse_row(rows: RowLog, row: int) -> None:
+    rows.width[row] = math.nan
+    rows.left[row] = math.nan
+    rows.right[row] = math.nan
+    rows.flags[row] |= _REFUSED

@@ -1,0 +1,266 @@
+"""The silhouette of a filament in one frame and over a clip, from the edge model.
+
+:mod:`flowtwin.vision.edge_model` fits the blurred, shaded-cylinder edge to the
+edge-aligned mean profiles of the filament's two edges. Here: the profiles of the two
+edges with the background beyond another object's edge left out (:func:`edge_profiles`),
+the checks that make a fit usable (:func:`fit_silhouette`), and the clip's blur and limb
+shapes fitted jointly over its frames (:func:`clip_model`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.vision.edge_model import (
+    EdgeFit,
+    EdgeProfile,
+    aligned_profile,
+    best_offsets,
+    fit_edge_pair,
+    parabola_vertex,
+    sse_grid,
+)
+
+__all__ = ["IN_PX", "OUT_PX", "Silhouette", "clip_model", "edge_profiles", "fit_silhouette"]
+
+F64 = npt.NDArray[np.float64]
+
+
+#: Extent of the edge profiles: outside the filament (background) and inside, px.
+OUT_PX = 6
+IN_PX = 10
+#: Outside the edge, samples beyond the point where the profile turns back from the
+#: background by this fraction of the edge's contrast (another object: a gear rim) are
+#: left out.
+_TURN_BACK = 0.15
+
+
+def _outside_weights(p: EdgeProfile, polarity: float) -> F64:
+    """Weights that leave out the background beyond another object's edge.
+
+    Going outward from the edge, the profile of a bright filament (``polarity`` +1)
+    falls to the background and stays there; where it rises again by more than
+    :data:`_TURN_BACK` of the edge's contrast, something else begins, and from there on
+    the samples are not background.
+    """
+    t = p.inside * p.offset_px
+    v = polarity * p.value_dn
+    w = p.weights.copy()
+    out = np.flatnonzero(t < 0)
+    if out.size == 0:
+        return w
+    order = out[np.argsort(-t[out])]                     # from the edge outward
+    inner = v[(t >= 2.0) & (t <= 6.0)]
+    contrast = (float(np.median(inner)) if inner.size else float(v.max())) \
+        - float(v[out].min())
+    tol = max(3.0, _TURN_BACK * abs(contrast))
+    low = np.minimum.accumulate(v[order])
+    back = np.flatnonzero(v[order][1:] > low[:-1] + tol)
+    if back.size:
+        w[order[back[0] + 1:]] = 0.0
+    return w
+
+
+@dataclass(frozen=True, slots=True)
+class Silhouette:
+    """The two silhouette edges of a filament, fitted (see the module docstring).
+
+    Attributes
+    ----------
+    left, right
+        The fits; ``offset_px`` is the silhouette minus the reference line, px.
+    profiles
+        The edge-aligned profiles the fits were made on (kept to refit with another
+        blur).
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+    ok
+        Both fits converged with enough background beside each edge.
+    reason
+        Why not, if not ``ok``.
+    """
+
+    left: EdgeFit
+    right: EdgeFit
+    profiles: tuple[EdgeProfile, EdgeProfile]
+    polarity: float
+    ok: bool
+    reason: str = ""
+
+
+def edge_profiles(grey: npt.NDArray[np.float32], rows: tuple[npt.NDArray[np.intp],
+                  npt.NDArray[np.intp]], lines: tuple[tuple[float, float],
+                                                     tuple[float, float]],
+                  polarity: float, radius_px: float = math.inf
+                  ) -> tuple[EdgeProfile, EdgeProfile]:
+    """The two edges' aligned profiles, with the background beyond other objects left
+    out.
+
+    Parameters
+    ----------
+    grey
+        Image crop, shape ``(H, W)``.
+    rows
+        Rows on the left and on the right edge line.
+    lines
+        ``(slope, intercept)`` of the left and right edge lines, ``x = slope·y +
+        intercept`` in crop coordinates.
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+    radius_px
+        The filament's radius (half its width), px.
+
+    Returns
+    -------
+    tuple of EdgeProfile
+        Left and right profiles.
+    """
+    out = []
+    for inside, r, (a, b) in ((1, rows[0], lines[0]), (-1, rows[1], lines[1])):
+        p = aligned_profile(grey, r, a, b, inside, OUT_PX, IN_PX)
+        if p.rows:
+            p = EdgeProfile(p.offset_px, p.value_dn, inside, p.rows,
+                            _outside_weights(p, polarity), radius_px)
+        out.append(p)
+    return out[0], out[1]
+
+
+def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *,
+                   blur_px: float | None = None, mix: tuple[float, float] | None = None
+                   ) -> Silhouette:
+    """Fit both edges (:func:`fit_edge_pair`) and check that the fits are usable.
+
+    Parameters
+    ----------
+    profiles
+        Left and right profiles (:func:`edge_profiles`).
+    polarity
+        +1 for a filament brighter than its background, −1 for a darker one.
+    blur_px
+        Known blur σ (optics and pixel), px; ``None``: fitted.
+    mix
+        Known limb shapes of the two edges (:func:`fit_edge_pair`); ``None``: fitted.
+
+    Returns
+    -------
+    Silhouette
+        The fits, ``ok`` false with a reason when an edge has too little background
+        beside it or its fit ran to the end of the search range.
+    """
+    left, right = profiles
+    for name, p in (("left", left), ("right", right)):
+        t = p.inside * p.offset_px
+        if p.rows == 0 or int(np.sum((t < -1.0) & (p.weights > 0))) < 2:
+            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+                              f"too little background beside the {name} edge in the ROI")
+        if int(np.sum(t > 2.0)) < 4:
+            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+                              f"too little filament inside the {name} edge in the ROI")
+    fl, fr = fit_edge_pair(left, right, blur_px=blur_px, mix=mix)
+    for name, f in (("left", fl), ("right", fr)):
+        if not f.ok:
+            return Silhouette(fl, fr, profiles, polarity, False,
+                              f"the {name} edge does not fit a silhouette "
+                              f"({f.offset_px:+.1f} px from its derivative extremum)")
+    return Silhouette(fl, fr, profiles, polarity, True)
+
+
+_NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, False)
+
+
+#: Limb shapes ``α`` tried for a clip, rad (``α`` and ``α + π`` are the same shape).
+_MIXES = np.arange(-0.5 * math.pi, 0.5 * math.pi, 0.1)
+#: Edge positions tried around each frame's own fit in the clip fit, px.
+_NEAR = np.arange(-0.6, 0.6001, 0.1)
+
+
+def _stack(profiles: list[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
+    """Positions (inside at larger ``t``), values, weights and radii of profiles, padded
+    to one length (padding has weight 0)."""
+    n = max(p.offset_px.size for p in profiles)
+    count = len(profiles)
+    t = np.zeros((count, n))
+    y = np.zeros((count, n))
+    w = np.zeros((count, n))
+    for i, p in enumerate(profiles):
+        m = p.offset_px.size
+        t[i, :m] = p.inside * p.offset_px
+        t[i, m:] = t[i, m - 1] if m else 0.0
+        y[i, :m] = p.value_dn
+        w[i, :m] = p.weights
+    return t, y, w, np.array([p.radius_px for p in profiles])
+
+
+def _shape_residuals(t: F64, y: F64, w: F64, radius: F64, starts: F64, sigma: float
+                     ) -> F64:
+    """Residual of every profile at every limb shape of :data:`_MIXES`, each at its
+    own best edge position near ``starts`` (:data:`_NEAR`), with blur ``sigma``: shape
+    ``(P, len(_MIXES))``."""
+    count = t.shape[0]
+    k = _MIXES.size
+    tt, yy, ww = (np.repeat(v, k, axis=0) for v in (t, y, w))
+    rr = np.repeat(radius, k)
+    mixes = np.tile(_MIXES, count)
+    taus = np.repeat(starts, k)[:, None] + _NEAR[None, :]
+    sse, _, _ = best_offsets(sse_grid(tt, yy, ww, np.array([sigma]), taus, None, rr, mixes)[0],
+                      taus)
+    return sse[:, 0].reshape(count, k)
+
+
+def _parabola_min(values: F64, grid: F64) -> tuple[float, float]:
+    """Grid point of the smallest value, refined by a parabola, and that value."""
+    k = int(np.argmin(values))
+    x = float(grid[k])
+    if 0 < k < values.size - 1:
+        x += parabola_vertex(float(values[k - 1]), float(values[k]), float(values[k + 1])) \
+            * float(grid[1] - grid[0])
+    return x, float(values[k])
+
+
+def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]],
+               fits: list[tuple[EdgeFit, EdgeFit]], blur_guess_px: float
+               ) -> tuple[float, tuple[float, float]]:
+    """The blur and the two edges' limb shapes of a clip, fitted jointly over its frames.
+
+    Each frame's edges keep their own positions (searched ±0.6 px around the frame's
+    own fit), backgrounds and amplitudes; the blur σ and the shapes ``α`` (``(A, B) ∝
+    (cos α, sin α)``) are the clip's: those that leave the least residual summed over
+    the frames. One frame's texture and noise trade the blur, ``A`` and ``B`` against
+    the edge position; summed over many frames they do not.
+
+    Parameters
+    ----------
+    pairs
+        Left and right profiles of each frame (:func:`edge_profiles`).
+    fits
+        Each frame's own fits of them (:func:`fit_edge_pair`).
+    blur_guess_px
+        A first blur (e.g. the median of single-frame fits): σ is searched from 0.68 to
+        1.46 times it.
+
+    Returns
+    -------
+    tuple
+        ``(σ, (α_left, α_right))``, px and rad.
+    """
+    t, y, w, radius = _stack([p for pair in pairs for p in pair])
+    starts = np.array([f.offset_px * p.inside for pair, fp in zip(pairs, fits, strict=True)
+                       for p, f in zip(pair, fp, strict=True)])
+    # the blur: least residual summed over the frames, each frame's shapes free (bounded)
+    outside = (t < -1.0) & (w > 0)
+    a_min = np.array([-float(np.mean(y[i][outside[i]])) if outside[i].any() else -np.inf
+                      for i in range(t.shape[0])])
+    log_grid = math.log(blur_guess_px) + np.log(1.1) * np.arange(-4, 5)
+    taus = starts[:, None] + _NEAR[None, :]
+    sse = sse_grid(t, y, w, np.exp(log_grid), taus, a_min, radius)[0]     # (P, S, K)
+    log_sigma, _ = _parabola_min(sse.min(axis=2).sum(axis=0), log_grid)
+    sigma = math.exp(log_sigma)
+    # the shapes at that blur
+    res = _shape_residuals(t, y, w, radius, starts, sigma)
+    al, _ = _parabola_min(res[0::2].sum(axis=0), _MIXES)
+    ar, _ = _parabola_min(res[1::2].sum(axis=0), _MIXES)
+    return sigma, (al, ar)
