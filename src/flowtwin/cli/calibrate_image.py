@@ -32,8 +32,8 @@ def _fmt(x: float | None) -> str:
 
 def from_image_cmd(
     image: Annotated[Path, typer.Argument(help="Photo or scan of the printed pattern.")],
-    pattern: Annotated[str, _opt("Pattern printed: kline, marlin, prusa, orca or "
-                                 "orca-legacy.")] = "kline",
+    pattern: Annotated[str, _opt("Pattern printed: kline, marlin, prusa, orca, "
+                                 "orca-legacy, pa-camera or chevron.")] = "kline",
     machine: Annotated[str, _opt("Set-up that printed it (built-in name or TOML): its "
                                  "printer plans the lines.")] = "tronvoll2019",
     k_start: Annotated[_F, _opt("First K, s (default: the pattern's).")] = None,
@@ -43,6 +43,8 @@ def from_image_cmd(
     fast_speed: Annotated[_F, _opt("Fast speed, mm/s.")] = None,
     slow_length: Annotated[_F, _opt("Each slow segment's length, mm.")] = None,
     fast_length: Annotated[_F, _opt("Fast segment length, mm.")] = None,
+    end_length: Annotated[_F, _opt("Last slow segment's length when it differs from the "
+                                   "first, mm (pa-camera).")] = None,
     pitch: Annotated[_F, _opt("Line spacing, mm.")] = None,
     numbers: Annotated[bool, typer.Option(help="The K was printed beside the lines "
                                                "(marlin, prusa, orca).")] = True,
@@ -102,9 +104,13 @@ def from_image_cmd(
     values = {"k_start": k_start, "k_end": k_end, "k_step": k_step,
               "slow_speed_mm_s": slow_speed, "fast_speed_mm_s": fast_speed,
               "slow_length_mm": slow_length, "fast_length_mm": fast_length,
-              "line_pitch_mm": pitch}
+              "end_length_mm": end_length, "line_pitch_mm": pitch}
     params = layout_params(pattern, {**values, "numbers": numbers})
     if pattern == "kline":
+        if params.end_length_mm is not None:
+            raise CalibrationError("the kline pattern has equal slow segments",
+                                   field="--end-length", value=end_length,
+                                   allowed="omit it (or use --slow-length)")
         kp = KLineParams(k_start=params.k_start, k_end=params.k_end, k_step=params.k_step,
                          slow_speed_mm_s=params.slow_speed_mm_s,
                          fast_speed_mm_s=params.fast_speed_mm_s,
