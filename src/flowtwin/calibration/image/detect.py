@@ -173,9 +173,9 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
         mad = float(np.median(np.abs(sheet - med))) * 1.4826 + 1e-6
     # a bead is at least _LOCAL_LEVEL of the strongest beads around it (the light and
     # the bead signal change across a photo) and clear of the sheet's scatter
-    r = max(3, int(round(2.0 * pitch)))
+    rad = max(3, int(round(2.0 * pitch)))
     env = cv2.dilate(np.where(valid > 0, sm, 0.0).astype(np.float32),
-                     cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+                     cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rad + 1, 2 * rad + 1)))
     env = cv2.GaussianBlur(env, (0, 0), pitch)
     thr = np.maximum(_LOCAL_LEVEL * env, med + _SHEET_SIGMAS * mad)
     mask = ((sm > thr) & (valid > 0)).astype(np.uint8)
