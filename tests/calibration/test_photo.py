@@ -9,6 +9,7 @@ tests/data/kphoto (a check set never tuned on; provenance in PROVENANCE.md there
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 import math
 from pathlib import Path
@@ -19,7 +20,9 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from flowtwin.calibration.chevron import ChevronParams, chevron_pattern
 from flowtwin.calibration.image.analyse import PhotoResult, analyse_line_photo
+from flowtwin.calibration.image.chevron_read import analyse_chevron_photo
 from flowtwin.calibration.image.layouts import (
     LAYOUTS,
     layout_params,
@@ -256,6 +259,71 @@ def test_cli_from_image_marlin_json_fragment_and_annotated_copy(tmp_path: Path) 
     assert "k_s" in frag.read_text()
     shown = cv2.imread(str(ann))
     assert shown is not None and shown.shape[1] > img.shape[1]
-    result = runner.invoke(APP, ["calibrate", "from-image", str(photo), "--pattern", "chevron"])
-    assert isinstance(result.exception, CalibrationError)
-    assert "not read" in str(result.exception)
+
+
+# --- chevrons -----------------------------------------------------------------------------------
+
+def _chevron(lag: float, cond: PhotoConditions) -> tuple[Pattern, np.ndarray]:
+    base = PrintSettings(firmware=pattern_firmware(MACHINE), accel_mm_s2=ACCEL)
+    pat = chevron_pattern(base, ChevronParams(k_start=0.0, k_end=0.1, k_step=0.01))
+    # Marlin's jerk of 10 mm/s on each axis turns a 90-degree corner at 10/sqrt(2) mm/s
+    marks, tests = scene_from_pattern(pat, lag_s=lag, accel_mm_s2=ACCEL,
+                                      corner_speed_mm_s=10.0 / math.sqrt(2.0))
+    return pat, render_photo(pat, marks, tests, cond).image
+
+
+def test_chevron_render_walls_alternate_and_top_layer_only() -> None:
+    pat, _ = _chevron(0.04, PhotoConditions(px_per_mm=3.0, seed=9))
+    marks, tests = scene_from_pattern(pat, lag_s=0.04)
+    assert len(tests) == 11 * 3                     # the top layer's walls only
+    assert all(path.shape == (3, 2) for path, _ in tests.values())
+    starts_up = [path[0, 1] > path[2, 1] for path, _ in tests.values()]
+    assert all(a != b for a, b in itertools.pairwise(starts_up))     # the walls alternate
+    assert len(marks) == 4                          # prime line and three ticks
+
+
+@pytest.mark.parametrize("lag, cond", [
+    (0.045, PhotoConditions(px_per_mm=8.0, tilt_deg=5.0, seed=3)),
+    (0.062, PhotoConditions(px_per_mm=9.0, light_beads=False, bead_bgr=(40, 40, 140),
+                            sheet_bgr=(200, 205, 210), texture=0.05, roll_deg=200.0,
+                            tilt_deg=8.0, gloss=0.2, falloff=0.4, seed=7)),
+])
+def test_chevron_photo_known_answer(lag: float, cond: PhotoConditions) -> None:
+    pat, img = _chevron(lag, cond)
+    res = analyse_chevron_photo(img, pat, machine=MACHINE)
+    assert res.light_beads == cond.light_beads and len(res.lines) == 11
+    assert abs(res.k_best_line_s - lag) <= 0.01 + 1e-9
+    # a step is 0.01 s: the crossing within 0.8 of a step (measured +0.005 on the glossy one)
+    assert res.k_cross_s is not None and abs(res.k_cross_s - lag) <= 0.008
+    # the chevrons' signed errors grow with K (the walls' alternating directions undone)
+    errs = np.array([r.accel_error for r in res.lines])
+    assert np.corrcoef(np.arange(errs.size), errs)[0, 1] > 0.8
+    assert res.lag is not None, res.lag_problem
+    # the renderer turns its corners at a fixed speed; the twin plans Marlin's jerk: the
+    # twin's lag agrees within 15 % on these two (docs/calibration.md: the spread)
+    assert abs(res.lag.k_s - lag) <= 0.15 * lag
+    assert res.reprojection_rms_mm < 0.1
+
+
+def test_chevron_refusals_and_cli(tmp_path: Path) -> None:
+    pat, img = _chevron(0.045, PhotoConditions(px_per_mm=8.0, tilt_deg=5.0, seed=3))
+    w = img.shape[1]
+    with pytest.raises(VisionError, match=r"cut by the edge|found \d+ chevrons"):
+        analyse_chevron_photo(img[:, : int(0.55 * w)], pat, machine=MACHINE)
+    with pytest.raises(VisionError, match=r"blurred|cannot tell|no printed lines|chevrons"):
+        analyse_chevron_photo(cv2.GaussianBlur(img, (0, 0), 5.0), pat, machine=MACHINE)
+    with pytest.raises(CalibrationError, match="not a chevron pattern"):
+        analyse_chevron_photo(img, _pattern("marlin"), machine=MACHINE)
+    photo = tmp_path / "chevrons.png"
+    assert cv2.imwrite(str(photo), img)
+    frag, ann = tmp_path / "pa.toml", tmp_path / "annotated.png"
+    result = runner.invoke(APP, ["calibrate", "from-image", str(photo), "--pattern", "chevron",
+                                 "--k-start", "0", "--k-end", "0.1", "--k-step", "0.01",
+                                 "--accel", str(ACCEL), "-o", str(frag), "--annotate",
+                                 str(ann), "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["pattern"] == "chevron" and len(out["chevrons"]) == 11
+    assert out["k_best_line_s"] == pytest.approx(0.045, abs=0.0101)
+    assert math.isfinite(out["k_s"]) and "k_s" in frag.read_text()
+    assert cv2.imread(str(ann)) is not None

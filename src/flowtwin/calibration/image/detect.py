@@ -207,12 +207,19 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
 
 
 def _group(pieces: list[_Piece], pitch: float) -> list[list[_Piece]]:
+    """Pieces on one axis (within 0.3 pitch) and not too far apart along it (a gap of at
+    most two pitches or half the longer of the piece and the line so far: a line broken
+    where the nozzle ran empty, not two lines that happen to be collinear) are one line."""
     groups: list[list[_Piece]] = []
     for p in sorted(pieces, key=lambda q: q.x0 - q.x1):          # longest first
         xm = 0.5 * (p.x0 + p.x1)
         best, best_d = None, 0.3 * pitch
         for g in groups:
             d = abs(g[0].y_at(xm) - p.y_at(xm))
+            g0, g1 = min(q.x0 for q in g), max(q.x1 for q in g)
+            gap = max(0.0, p.x0 - g1, g0 - p.x1)
+            if gap > max(2.0 * pitch, 0.5 * max(p.x1 - p.x0, g1 - g0)):
+                continue
             if d < best_d:
                 best, best_d = g, d
         if best is None:
@@ -224,16 +231,25 @@ def _group(pieces: list[_Piece], pitch: float) -> list[list[_Piece]]:
 
 def _trim(groups: list[list[_Piece]]) -> tuple[list[list[_Piece]], list[_Piece]]:
     """Drop short collinear pieces beyond a line's ends (a tick mark, a number's stroke on
-    the axis) where they reach past the ends of the neighbouring lines."""
+    the axis, a blob of another line) where they reach past the ends of the neighbouring
+    lines (the nearest three on each side among the groups at least half the median
+    group long: specks are no neighbours)."""
     if len(groups) < 3:
         return groups, []
     groups = sorted(groups, key=lambda g: g[0].y_at(0.5 * (g[0].x0 + g[0].x1)))
     ext = np.array([[min(p.x0 for p in g), max(p.x1 for p in g)] for g in groups])
-    med = float(np.median(ext[:, 1] - ext[:, 0]))
+    span = ext[:, 1] - ext[:, 0]
+    med = float(np.median(span))
+    big = [j for j in range(len(groups)) if span[j] >= 0.5 * med]
     dropped: list[_Piece] = []
     out = []
     for i, g in enumerate(groups):
-        nb = [j for j in range(max(0, i - 3), min(len(groups), i + 4)) if j != i]
+        before = [j for j in big if j < i][-3:]
+        after = [j for j in big if j > i][:3]
+        nb = before + after
+        if not nb:
+            out.append(g)
+            continue
         lo = float(np.median(ext[nb, 0]))
         hi = float(np.median(ext[nb, 1]))
         g = sorted(g, key=lambda p: p.x0)
@@ -301,9 +317,9 @@ def _line(group: list[_Piece], sig: F32, valid: npt.NDArray[np.uint8], pitch: fl
     return xs0, xs1, float(a), float(b), thick, cut, core
 
 
-def _find(desk: Deskewed, pitch: float, light: bool
+def _find(desk: Deskewed, pitch: float, light: bool, element: float
           ) -> tuple[list[FoundLine], F32]:
-    sig = bead_signal(desk.image, desk.valid, pitch, light=light)
+    sig = bead_signal(desk.image, desk.valid, pitch, light=light, element_pitches=element)
     groups, _ = _trim(_group(_pieces(sig, desk.valid, pitch), pitch))
     found: list[FoundLine] = []
     for g in groups:
@@ -361,7 +377,8 @@ def _stack(found: list[FoundLine], pitch: float) -> list[FoundLine]:
 
 
 def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
-                 source: str = "<image>") -> LineSet:
+                 source: str = "<image>", angle_deg: float | None = None,
+                 element_pitches: float = 0.6) -> LineSet:
     """Find the pattern's long parallel lines.
 
     Parameters
@@ -373,6 +390,11 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
         or ``"dark"``.
     source
         Image name for messages.
+    angle_deg
+        Direction of the lines in the image (default: the dominant one,
+        :func:`~.signal.line_direction_deg`); a chevron pattern has two.
+    element_pitches
+        The top-hat's element, pitches (:func:`~.signal.bead_signal`).
 
     Returns
     -------
@@ -396,6 +418,8 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
                           source=source, value=f"grey levels {lo:.0f}..{hi:.0f}",
                           allowed="a photo or scan of a printed line pattern")
     angle, coherence = line_direction_deg(gray)
+    if angle_deg is not None:
+        angle = float(angle_deg)
     desk = deskew(gray, angle)
     pitch = pitch_px(desk.image, desk.valid)
     if not (math.isfinite(pitch) and pitch >= 4.0):
@@ -404,7 +428,7 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
                           value=f"direction {angle:.1f}°, coherence {coherence:.2f}",
                           allowed="a photo of a line pattern, lines at least 4 px apart")
     polarities = (True, False) if polarity == "auto" else (polarity == "light",)
-    results = {light: _find(desk, pitch, light) for light in polarities}
+    results = {light: _find(desk, pitch, light, element_pitches) for light in polarities}
     evidence = {("light" if k else "dark"): float(sum(f.length_px * f.thickness_px
                                                       * f.contrast for f in v[0]))
                 for k, v in results.items()}

@@ -39,7 +39,8 @@ from flowtwin.calibration.image.detect import FoundLine, LineSet
 from flowtwin.calibration.image.geometry import LayoutGeometry
 from flowtwin.errors import VisionError
 
-__all__ = ["MARK_MARGIN", "MARK_MARGIN_MM", "Reading", "local_scale", "register_layout"]
+__all__ = ["MARK_MARGIN", "MARK_MARGIN_MM", "Reading", "local_scale", "marks_seen",
+           "refine_homography", "register_layout"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -162,7 +163,7 @@ def _fill(ls: LineSet, hom: FloatArray, geo: LayoutGeometry) -> list[float]:
     return out
 
 
-def _seen(ls: LineSet, hom: FloatArray, geo: LayoutGeometry) -> tuple[float, float]:
+def marks_seen(ls: LineSet, hom: FloatArray, geo: LayoutGeometry) -> tuple[float, float]:
     """Length of the marks seen (mean signal along the mark at least half the test lines',
     a filled area at least half filled), and their total length, mm."""
     line = np.concatenate([_path_samples(ls, hom, np.vstack([a, b]), 0.5)
@@ -191,8 +192,9 @@ class _Fit:
     test_lines: dict[int, FoundLine]
 
 
-def _refine(hom: FloatArray, pairs: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]
-            ) -> tuple[FloatArray, FloatArray]:
+def refine_homography(hom: FloatArray,
+                      pairs: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]]
+                      ) -> tuple[FloatArray, FloatArray]:
     """Refine ``hom`` on the found lines' axes; the residuals across the axes, px.
 
     ``pairs``: ``(bed start, bed end, image start, image end)`` of each matched line. Each
@@ -245,7 +247,7 @@ def _fit(seq: list[tuple[FloatArray, FloatArray, int]], found: list[FoundLine],
     """Homography of one matching of found lines to ``seq``; ``None`` if it does not fit.
 
     RANSAC on the line ends, least squares on the inliers, then refined on the lines'
-    axes (:func:`_refine`).
+    axes (:func:`refine_homography`).
     """
     order = found[::-1] if rev_order else found
     src, dst = [], []
@@ -271,7 +273,7 @@ def _fit(seq: list[tuple[FloatArray, FloatArray, int]], found: list[FoundLine],
     hom, _ = cv2.findHomography(src_a[keep], dst_a[keep], 0)
     if hom is None:
         return None
-    hom, across = _refine(np.asarray(hom, dtype=np.float64), pairs)
+    hom, across = refine_homography(np.asarray(hom, dtype=np.float64), pairs)
     if not np.all(np.isfinite(hom)):
         return None
     return _Fit(np.asarray(hom, dtype=np.float64), float(np.sqrt(np.mean(across ** 2))),
@@ -345,7 +347,7 @@ def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
             if (view == "top" and mirrored) or (view == "mirrored" and not mirrored):
                 continue
             scale = local_scale(hom, centre)
-            seen, total = _seen(ls, hom, geo)
+            seen, total = marks_seen(ls, hom, geo)
             name = (f"lines {'back to front' if rev_order else 'front to back'} across, "
                     f"printed {'leftwards' if rev_along else 'rightwards'} in the turned image")
             readings.append(Reading(name, tuple(test_lines[i] for i in range(n)), hom,
