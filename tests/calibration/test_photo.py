@@ -195,6 +195,28 @@ def test_photo_known_answer(case: str) -> None:
     assert res.reprojection_rms_mm < 0.3
 
 
+def test_one_faint_test_line_missing() -> None:
+    """A test line the finder does not see (here: not printed) is placed where the fitted
+    layout puts it and reported as unmeasured; when which line is missing cannot be told
+    (the first of evenly spaced lines), the photo is refused."""
+    params = {"k_start": 0.0, "k_end": 0.1, "k_step": 0.01}
+    pat = _pattern("marlin", **params)
+    marks, tests = scene_from_pattern(pat, lag_s=0.05, accel_mm_s2=ACCEL)
+    cond = PhotoConditions(tilt_deg=8.0, roll_deg=5.0, seed=1)
+    ids = sorted(tests)
+    inner = render_photo(pat, marks, {k: v for k, v in tests.items() if k != ids[3]},
+                         cond).image
+    res = analyse_line_photo(inner, pat, machine=MACHINE)
+    assert len(res.lines) == 11
+    assert any("1 line(s) with widths on fewer than" in n for n in res.notes)
+    assert abs(res.k_best_line_s - 0.05) <= 0.01 + 1e-9
+    assert res.lag is not None and abs(res.lag.k_s - 0.05) <= 0.15 * 0.05
+    first = render_photo(pat, marks, {k: v for k, v in tests.items() if k != ids[0]},
+                         cond).image
+    with pytest.raises(VisionError):
+        analyse_line_photo(first, pat, machine=MACHINE)
+
+
 # --- refusals ---------------------------------------------------------------------------------
 
 def test_refuses_blur_cut_lines_and_too_few_lines() -> None:

@@ -29,7 +29,7 @@ from flowtwin.calibration.beadwidth import Strip, edge_widths, window_widths
 from flowtwin.calibration.image.bestline import best_line, zero_crossing
 from flowtwin.calibration.image.detect import LineSet, detect_lines
 from flowtwin.calibration.image.direction import choose_by_twin
-from flowtwin.calibration.image.geometry import layout_geometry
+from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
 from flowtwin.calibration.image.widths import (
@@ -173,6 +173,23 @@ def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model:
     return out, np.median(np.vstack(profiles), axis=0), dv
 
 
+def _find_and_register(gray: npt.NDArray[np.uint8], polarity: str, geo: LayoutGeometry,
+                       view: str, name: str) -> tuple[LineSet, list[Reading]]:
+    """The lines (:mod:`.detect`), the refusals that need only them, the readings."""
+    ls = detect_lines(gray, polarity=polarity, source=name)
+    n = geo.starts.shape[0]
+    if len(ls.lines) < min(MIN_LINES, n):
+        raise VisionError("too few lines found to compare", source=name,
+                          value=f"{len(ls.lines)} line(s)",
+                          allowed=f"at least {MIN_LINES} lines of the pattern in view")
+    cut = [i for i, f in enumerate(ls.lines) if f.cut]
+    if cut:
+        raise VisionError("lines are cut by the edge of the photo", source=name,
+                          value=f"{len(cut)} of {len(ls.lines)} lines",
+                          allowed="the whole pattern in the frame, with a margin")
+    return ls, register_layout(ls, geo, view=view, source=name)
+
+
 def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern: Pattern, *,
                        machine: Machine | str | os.PathLike[str] | None = None,
                        mm_per_px: float | None = None, polarity: str = "auto",
@@ -236,17 +253,27 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     geo, k_index = layout_geometry(pattern, full)
     model = full.subset(k_index)
     n = len(k_index)
-    ls: LineSet = detect_lines(gray, polarity=polarity, source=name)
-    if len(ls.lines) < min(MIN_LINES, n):
-        raise VisionError("too few lines found to compare", source=name,
-                          value=f"{len(ls.lines)} line(s)",
-                          allowed=f"at least {MIN_LINES} lines of the pattern in view")
-    cut = [i for i, f in enumerate(ls.lines) if f.cut]
-    if cut:
-        raise VisionError("lines are cut by the edge of the photo", source=name,
-                          value=f"{len(cut)} of {len(ls.lines)} lines",
-                          allowed="the whole pattern in the frame, with a margin")
-    readings = register_layout(ls, geo, view=view, source=name)
+    extra_notes: list[str] = []
+    try:
+        ls, readings = _find_and_register(gray, polarity, geo, view, name)
+    except VisionError as exc:
+        if polarity != "auto" or exc.field != "polarity":
+            raise
+        # the image does not tell the polarity: the layout does, if the lines of only
+        # one polarity register (fat beads leave gaps narrower than the beads, which the
+        # other polarity's top-hat finds as lines too)
+        fits = []
+        for pol in ("light", "dark"):
+            try:
+                fits.append(_find_and_register(gray, pol, geo, view, name))
+            except VisionError:
+                continue
+        if len(fits) != 1:
+            raise
+        ls, readings = fits[0]
+        extra_notes.append(f"bead polarity decided by the layout: only the "
+                           f"{'light' if ls.light else 'dark'} lines register "
+                           f"(image evidence {exc.value})")
     pitch_mm = float(np.median(np.hypot(*np.diff(geo.starts, axis=0).T))) if n > 1 else 5.0
     g32 = np.asarray(gray, dtype=np.float32)
     read = [_read(g32, ls.light, r, model, pitch_mm=pitch_mm,
@@ -286,7 +313,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     best = choice_best.index
     k_acc = zero_crossing(ks, np.array([r.accel_error for r in lines]), ks[best])
     k_dec = zero_crossing(ks, np.array([r.decel_error for r in lines]), ks[best])
-    notes = [f"{n} test lines, K {ks[0]:g} to {ks[-1]:g} s; beads "
+    notes = [*extra_notes, f"{n} test lines, K {ks[0]:g} to {ks[-1]:g} s; beads "
              f"{'lighter' if ls.light else 'darker'} than the sheet; reading "
              f"{reading.name}, decided by {how}"]
     if len(usable) < n:

@@ -21,7 +21,10 @@ refuses.
 A parallel mark (a prime line along the lines, a frame) may be found among the lines or
 not (it may touch the edge of the photo's frame or be merged with a neighbour): the found
 lines are matched to the test lines plus every choice of that many parallel marks, in
-order, and the choice whose line ends fit best is kept.
+order, and the choice whose line ends fit best is kept. One test line may be missing (a
+faint line the finder did not keep): then every choice of the missing line is fitted and
+the best kept only if it fits the found axes clearly better than the next
+(:data:`_MISSING_RATIO`); the missing line is measured where the fit puts it.
 """
 
 from __future__ import annotations
@@ -44,6 +47,9 @@ __all__ = ["MARK_MARGIN", "MARK_MARGIN_MM", "Reading", "local_scale", "marks_see
 
 FloatArray = npt.NDArray[np.float64]
 
+#: With one test line missing, the best choice of the missing line must fit the found
+#: lines' axes this much better (RMS across) than the next.
+_MISSING_RATIO = 0.7
 #: Lead in length of marks seen that decides the reading: this fraction of all the marks'
 #: length, and at least :data:`MARK_MARGIN_MM`.
 MARK_MARGIN = 0.05
@@ -313,16 +319,25 @@ def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
     n = geo.starts.shape[0]
     found = list(ls.lines)
     mark_ids = [i for i, p in enumerate(geo.parallel) if p[2] < 0]
+    test_ids = [i for i, p in enumerate(geo.parallel) if p[2] >= 0]
     extra = len(found) - n
-    if not 0 <= extra <= len(mark_ids):
+    # the found lines are the test lines and `extra` parallel marks, or, failing that,
+    # all test lines but one (a faint or broken line the finder missed) and marks
+    missing_one = not 0 <= extra <= len(mark_ids)
+    if missing_one and not (0 <= extra + 1 <= len(mark_ids) and n >= 5):
         raise VisionError(f"found {len(found)} lines, but the pattern has {n} test lines"
                           + (f" and {len(mark_ids)} parallel mark(s)" if mark_ids else ""),
                           source=source, value=len(found),
                           allowed=f"{n} lines (give the pattern and its k-start, k-end, "
                                   "k-step as printed; the whole pattern in view; crop other "
                                   "prints away)")
-    seqs = [[p for i, p in enumerate(geo.parallel) if p[2] >= 0 or i in chosen]
-            for chosen in itertools.combinations(mark_ids, extra)]
+    if missing_one:
+        seqs = [[p for i, p in enumerate(geo.parallel) if (p[2] >= 0 and i != skip)
+                 or i in chosen]
+                for skip in test_ids for chosen in itertools.combinations(mark_ids, extra + 1)]
+    else:
+        seqs = [[p for i, p in enumerate(geo.parallel) if p[2] >= 0 or i in chosen]
+                for chosen in itertools.combinations(mark_ids, extra)]
     length_mm = float(np.median(np.hypot(*(geo.ends - geo.starts).T)))
     length_px = float(np.median([f.length_px for f in found]))
     thr = max(2.0, 0.6 * length_px / length_mm)
@@ -331,16 +346,22 @@ def register_layout(ls: LineSet, geo: LayoutGeometry, *, view: str = "auto",
     total = 0.0
     for rev_order in (False, True):
         for rev_along in (False, True):
-            best: _Fit | None = None
-            for seq in seqs:
-                fit = _fit(seq, found, rev_order, rev_along, thr)
-                if fit is None:
-                    continue
-                if best is None or fit.across_rms_px < best.across_rms_px:
-                    best = fit
-            if best is None:
+            fits = [f for f in (_fit(seq, found, rev_order, rev_along, thr) for seq in seqs)
+                    if f is not None]
+            if not fits:
                 continue
-            hom, test_lines = best.hom, best.test_lines
+            fits.sort(key=lambda f: f.across_rms_px)
+            best = fits[0]
+            if missing_one and len(fits) > 1 and not (
+                    best.across_rms_px < _MISSING_RATIO * fits[1].across_rms_px):
+                continue        # which line is missing is not clear
+            hom, test_lines = best.hom, dict(best.test_lines)
+            for i in range(n):
+                if i not in test_lines:     # where the layout puts the line not found
+                    ends = cv2.perspectiveTransform(
+                        np.array([[geo.starts[i], geo.ends[i]]], dtype=np.float64), hom)[0]
+                    test_lines[i] = FoundLine(ends[0], ends[1], math.nan, math.nan, 0,
+                                              False, 0.0)
             rms = best.across_rms_px / local_scale(hom, centre)
             # bed y up, image rows down: a view from the printed side reverses orientation
             mirrored = _jac_det(hom, centre) > 0
