@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from flowtwin.calibration.chevron import ChevronParams, chevron_pattern
+from flowtwin.calibration.fits.kfit import kline_for_machine, pattern_firmware
 from flowtwin.calibration.image.analyse import analyse_line_photo
 from flowtwin.calibration.image.layouts import (
     layout_params,
@@ -41,9 +41,9 @@ from flowtwin.calibration.image.photosynth import (
     render_photo,
     scene_from_pattern,
 )
-from flowtwin.calibration.kfit import kline_for_machine, pattern_firmware
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.chevron import ChevronParams, chevron_pattern
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.errors import FlowtwinError
 from flowtwin.profiles.machine import load_machine
 

@@ -75,24 +75,26 @@ def _text_or_bytes(rng: random.Random, data: bytes) -> bytes:
 def gcode_target(seed: int) -> Target:
     """G-code text: read, plan (Klipper and Marlin), simulate; samples compensate and CLI."""
     pool = LinePool(_corpus(), random.Random(seed))
-    machine: list[Any] = []
+    loaded: dict[str, Any] = {}
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import load_printer, plan_gcode
         from flowtwin.profiles.machine import load_machine
         from flowtwin.simulation import simulate
 
+        if not loaded:  # profiles once per worker: the documents are what is fuzzed
+            loaded["machine"] = load_machine("tronvoll2019")
+            loaded["printers"] = [load_printer(n) for n in ("generic-klipper", "generic-marlin")]
+        data = path.read_bytes()  # the file is read once; the readers take its bytes
         target.count("read")
-        read_gcode(path)
+        read_gcode(data)
         target.count("plan")
-        result = plan_gcode(path, printer=rng.choice(("generic-klipper", "generic-marlin")))
+        result = plan_gcode(data, printer=rng.choice(loaded["printers"]))
         result.summary()
         result.per_layer()
-        if not machine:
-            machine.append(load_machine("tronvoll2019"))
         target.count("simulate")
-        simulate(path, machine=machine[0]).summary()
+        simulate(data, machine=loaded["machine"]).summary()
         if rng.random() < 0.002:
             from flowtwin.compensation import compensate
 
@@ -120,6 +122,47 @@ def _cli(argv: list[str]) -> None:
                 raise RuntimeError(f"CLI exit status {exc.code}") from None
 
 
+def bgcode_target(seed: int) -> Target:
+    """Prusa binary G-code: flowtwin's writer on real corpus slices in every storage variant
+    (no checksum in half of them, so edits reach the decompressors and MeatPack)."""
+    import itertools
+    import tempfile
+
+    from flowtwin.gcode.bgcode.format import ChecksumType, Compression, GcodeEncoding
+    from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+    corpus = _corpus()
+    texts = [b"\n".join((corpus / name).read_bytes().split(b"\n")[:n]) + b"\n"
+             for name, n in (("prusaslicer_2.8.1_minicube_small.gcode", 1500),
+                             ("prusaslicer_2.7.4_vase.gcode", 600),
+                             ("bambustudio_1.07_2colour_cube_small.gcode", 400))]
+    seeds: list[bytes] = []
+    variants = itertools.product(ChecksumType, (Compression.NONE, Compression.DEFLATE,
+                                                Compression.HEATSHRINK_11_4,
+                                                Compression.HEATSHRINK_12_4), GcodeEncoding)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "seed.bgcode"
+        for i, (check, comp, enc) in enumerate(variants):
+            text_to_bgcode(texts[i % len(texts)], out, options=BgcodeOptions(
+                checksum=check, gcode=comp, gcode_encoding=enc))
+            seeds.append(out.read_bytes())
+
+    def make(rng: random.Random) -> bytes:
+        return mutate_bytes(rng, rng.choice(seeds))
+
+    def run(path: Path, rng: random.Random) -> None:
+        from flowtwin.gcode.reader import read_gcode
+        from flowtwin.planner.plan_file import plan_gcode
+
+        target.count("read")
+        read_gcode(path)
+        target.count("plan")
+        plan_gcode(path).summary()
+
+    target = Target("bgcode", ".bgcode", make, run, weight=1.0)
+    return target
+
+
 # ---------------------------------------------------------------- profiles and configs
 
 
@@ -145,7 +188,7 @@ def klipper_cfg_target() -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.planner.klipper_config import load_printer_cfg
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         target.count("load")
         load_printer_cfg(path)
@@ -201,7 +244,7 @@ def width_csv_target() -> Target:
              b"# measured\nposition_mm,width_mm\n0,0.45\n1,0.46\n2,0.47\n3,0.44\n"]
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.lagfit import read_width_profiles
+        from flowtwin.calibration.fits.lagfit import read_width_profiles
 
         target.count("read")
         read_width_profiles(path)
@@ -216,7 +259,7 @@ def orca_table_target() -> Target:
              b"0.045,15,5000\n", b'"0.04,5,1000\\n0.05,20,1000\\n0.03,5,3000\\n0.04,20,3000"']
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.adaptive_pa import read_orca_model
+        from flowtwin.calibration.tuning.adaptive_pa import read_orca_model
 
         target.count("read")
         read_orca_model(path)
@@ -263,7 +306,7 @@ def image_target() -> Target:
         return mutate_bytes(rng, rng.choice(seeds))
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.kimage import load_grey
+        from flowtwin.calibration.image.kimage import load_grey
 
         target.count("load")
         load_grey(path)
@@ -274,6 +317,7 @@ def image_target() -> Target:
 
 FACTORIES: dict[str, Callable[[int], Target]] = {
     "gcode": gcode_target,
+    "bgcode": bgcode_target,
     "profile": lambda seed: profile_target(),
     "klipper-cfg": lambda seed: klipper_cfg_target(),
     "records-csv": lambda seed: records_csv_target(),

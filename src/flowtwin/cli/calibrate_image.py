@@ -78,15 +78,15 @@ def from_image_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.fits.kfit import kline_for_machine, pattern_firmware
     from flowtwin.calibration.image.analyse import analyse_line_photo
     from flowtwin.calibration.image.layouts import (
         layout_params,
         layout_settings,
         line_layout_pattern,
     )
-    from flowtwin.calibration.kfit import kline_for_machine, pattern_firmware
-    from flowtwin.calibration.kline import KLineParams
-    from flowtwin.calibration.pattern_base import PrintSettings
+    from flowtwin.calibration.patterns.kline import KLineParams
+    from flowtwin.calibration.patterns.pattern import PrintSettings
     from flowtwin.profiles.machine import load_machine
 
     if dpi is not None and mm_per_px is not None:
@@ -204,8 +204,8 @@ def _chevron(image: Path, m: Any, base: Any, *, k_start: float | None, k_end: fl
     """``--pattern chevron``: flowtwin's chevrons as printed, read from the photo."""
     from dataclasses import replace
 
-    from flowtwin.calibration.chevron import ChevronParams, chevron_pattern
     from flowtwin.calibration.image.chevron_read import analyse_chevron_photo
+    from flowtwin.calibration.patterns.chevron import ChevronParams, chevron_pattern
 
     given: dict[str, Any] = {"k_start": k_start, "k_end": k_end, "k_step": k_step,
                              "speed_mm_s": speed, "first_layer_speed_mm_s": first_layer_speed}

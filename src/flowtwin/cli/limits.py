@@ -8,9 +8,12 @@ the hot end), the reason that binds, and a table against temperature. ``--hotend
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
+
+if TYPE_CHECKING:
+    from flowtwin.profiles.material import MaterialProfile
 
 __all__ = ["limits_command", "register"]
 
@@ -54,7 +57,7 @@ def limits_command(
         setup = setup.model_copy(update={"temperature_c": float(temperature)})
     elif material is not None:
         mat = _material(material)
-        mid = 0.5 * (mat.print_temp_min_c + mat.print_temp_max_c)  # type: ignore[attr-defined]
+        mid = 0.5 * (mat.print_temp_min_c + mat.print_temp_max_c)
         setup = setup.model_copy(update={"temperature_c": mid})
     machine = load_machine(setup)
     mat_p = machine.material
@@ -99,11 +102,15 @@ def limits_command(
                                    "melt capacity mm³/s"], rows))
 
 
-def _material(ref: str) -> object:
+def _material(ref: str) -> MaterialProfile:
     from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles.material import MaterialProfile
 
-    return load_profile(ref, "material") if ref.endswith(".toml") else load_builtin(
-        ref, "material")
+    if ref.endswith(".toml"):
+        return load_profile(ref, "material")
+    profile = load_builtin(ref, "material")
+    assert isinstance(profile, MaterialProfile)  # the library gives the kind asked for
+    return profile
 
 
 def _setup(ref: str) -> object:

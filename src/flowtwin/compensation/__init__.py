@@ -2,8 +2,10 @@
 
 * :func:`compensate` rewrites a G-code (pressure advance baked in [001], slip feed-forward
   [000 §6], grinding guard [000 §4], flow pacing, strand-lag trajectory [004]) and reports
-  what the twin predicts before and after (:class:`CompensationReport`);
-* :func:`best_pressure_advance` and :func:`adaptive_pa_table` compute firmware settings.
+  what the twin predicts before and after (:class:`CompensationReport`).
+
+Firmware settings (the best advance factor, an adaptive table) are calibration's:
+:mod:`flowtwin.calibration.tuning.advance_settings`.
 
 See ``docs/compensation.md``.
 """
@@ -15,12 +17,10 @@ from flowtwin.compensation.metrics import FlowFigures, flow_figures
 from flowtwin.compensation.pace import PaceOptions, PaceReport
 from flowtwin.compensation.pipeline import CompensationReport, compensate
 from flowtwin.compensation.refine import RefineOptions
-from flowtwin.compensation.settings import AdvanceFit, adaptive_pa_table, best_pressure_advance
 from flowtwin.compensation.slip import SlipOptions
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 
 __all__ = [
-    "AdvanceFit",
     "AdvanceLaw",
     "AdvanceOptions",
     "CompensationReport",
@@ -33,8 +33,6 @@ __all__ = [
     "SlipOptions",
     "TrajectoryOptions",
     "TrajectoryReport",
-    "adaptive_pa_table",
-    "best_pressure_advance",
     "compensate",
     "extruder_limits",
     "flow_figures",

@@ -112,6 +112,9 @@ class CompensationReport:
     pace
         Figures of the pacing stage (:class:`~flowtwin.compensation.pace.PaceReport`), or
         ``None``.
+    original_result, compensated_result, piece_row
+        The two simulations and the original move of every compensated move (for the
+        before/after report, :func:`flowtwin.report.write_comparison`).
     """
 
     source: str
@@ -142,6 +145,13 @@ class CompensationReport:
     paced_moves: list[int] = field(default_factory=list)
     pace_time_cost_s: float = 0.0
     pace: dict[str, object] | None = None
+    original_result: SimulationResult | None = field(default=None, repr=False)
+    compensated_result: SimulationResult | None = field(default=None, repr=False)
+    piece_row: npt.NDArray[np.int64] | None = field(default=None, repr=False)
+
+    def _repr_html_(self) -> str:
+        from flowtwin.report.notebook import compensation_repr
+        return compensation_repr(self)
 
     def summary(self) -> dict[str, object]:
         """The figures as plain JSON-able values (the ``--json`` object)."""
@@ -466,7 +476,9 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         paced_moves=([] if pace_report is None else
                      [int(x) for x in table.moves["line"][pace_report.paced_rows].tolist()]),
         pace_time_cost_s=float(pace_cost),
-        pace=None if pace_report is None else pace_report.as_dict())
+        pace=None if pace_report is None else pace_report.as_dict(),
+        original_result=original, compensated_result=after_sim,
+        piece_row=np.asarray(draft.row, dtype=np.int64))
 
 
 #: Relative change of a piece's lag factor against its original move's that is reported.

@@ -152,7 +152,7 @@ def read_source(source: str | os.PathLike[str]) -> SourceText:
     except OSError as exc:
         raise GcodeError(f"cannot open G-code file: {exc.strerror}", source=path) from exc
     if raw[:4] == b"GCDE":  # Prusa binary G-code: its text (the reader's line numbers)
-        from flowtwin.gcode.source import open_source
+        from flowtwin.gcode.inputs import open_source
 
         stream, _ = open_source(path)
         with stream:

@@ -7,7 +7,7 @@
 * :mod:`~flowtwin.firmware.factors`: the ``M220``/``M221`` multipliers (encoding, Marlin's
   reports, commands refused on Klipper).
 
-Planning (:mod:`flowtwin.planning`), the dynamics' pressure advance, the calibration
+Planning (:mod:`flowtwin.planner.plan_file`), the dynamics' pressure advance, the calibration
 patterns, the twin's firmware settings and the closed loop all read the firmware from
 here. To add a firmware, see :mod:`flowtwin.firmware.kinds`.
 

@@ -141,7 +141,7 @@ def _rewrite_bgcode(src: Path, destination: Path, edits: Mapping[int, Edit]) -> 
 
 
 def _decode(src: Path, text: Path) -> None:
-    from flowtwin.gcode.source import open_source
+    from flowtwin.gcode.inputs import open_source
 
     stream, _ = open_source(src)
     try:

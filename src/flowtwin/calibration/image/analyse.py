@@ -4,11 +4,11 @@
 (:mod:`.detect`, polarity from the image), the refusals that need only the lines
 (:mod:`.quality`: too few, cut by the frame), the registration without ticks
 (:mod:`.register`), the widths along every test line on the bed grid
-(:mod:`flowtwin.calibration.beadwidth`; light beads are measured on the inverted image,
+(:mod:`flowtwin.calibration.image.beadwidth`; light beads are measured on the inverted image,
 so the integrated "darkness" is the bead's contrast either way), the blur refusal, the
-per-line scores (:func:`flowtwin.calibration.kimage.score_line`, [001 Fig. 14, Table II]
+per-line scores (:func:`flowtwin.calibration.image.kimage.score_line`, [001 Fig. 14, Table II]
 made quantitative) and the lag fitted with the twin to all gap-free lines
-(:func:`flowtwin.calibration.lagfit.fit_lag`, free gain and registration along the lines).
+(:func:`flowtwin.calibration.fits.lagfit.fit_lag`, free gain and registration along the lines).
 
 When the layout's marks do not tell which way the photo is turned, the widths do: the
 twin explains them clearly better in the right reading (:mod:`.direction`); when they do
@@ -25,11 +25,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.beadwidth import Strip, edge_widths, window_widths
+from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
+from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
+from flowtwin.calibration.image.beadwidth import Strip, edge_widths, window_widths
 from flowtwin.calibration.image.bestline import best_line, zero_crossing
 from flowtwin.calibration.image.detect import LineSet, detect_lines
 from flowtwin.calibration.image.direction import choose_by_twin
 from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
+from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
 from flowtwin.calibration.image.widths import (
@@ -38,11 +42,7 @@ from flowtwin.calibration.image.widths import (
     contrast_strip,
     contrast_widths,
 )
-from flowtwin.calibration.kfit import pattern_firmware
-from flowtwin.calibration.kimage import LineReading, load_grey, score_line
-from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
@@ -144,7 +144,7 @@ def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model:
 
     ``"area"``: the contrast relative to the local sheet integrated over the bead's band
     (:mod:`.widths`); ``"edges"``: the bead's edges
-    (:func:`flowtwin.calibration.beadwidth.edge_widths`, beads made dark).
+    (:func:`flowtwin.calibration.image.beadwidth.edge_widths`, beads made dark).
     """
     dv = 0.5 / reading.px_per_mm
     band = band_half_mm(line_width_mm, pitch_mm)
@@ -204,7 +204,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
         Image file or array (grey or BGR).
     pattern
         The pattern as printed (:func:`~.layouts.line_layout_pattern` or
-        :func:`flowtwin.calibration.kline.kline_pattern`), for the machine's firmware.
+        :func:`flowtwin.calibration.patterns.kline.kline_pattern`), for the machine's firmware.
     machine
         Set-up for the twin.
     mm_per_px
@@ -217,7 +217,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     step_mm, method
         Width sample spacing along the lines; ``"area"`` or ``"edges"``.
     fit, fit_dead_time, fit_gain, end_margin_mm
-        The lag fit (see :func:`flowtwin.calibration.lagfit.fit_lag`).
+        The lag fit (see :func:`flowtwin.calibration.fits.lagfit.fit_lag`).
 
     Returns
     -------

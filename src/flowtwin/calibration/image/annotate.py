@@ -20,8 +20,8 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.atomic import atomic_open
-from flowtwin.calibration.kimage import LineReading
-from flowtwin.calibration.lagfit import LagFit
+from flowtwin.calibration.fits.lagfit import LagFit
+from flowtwin.calibration.image.kimage import LineReading
 from flowtwin.errors import VisionError
 
 

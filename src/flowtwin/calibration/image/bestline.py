@@ -1,7 +1,7 @@
 """Which printed line (or chevron) is the best, from every line's signed errors.
 
 Each test line has a *signed error*: how far it is from even after its speed changes, and
-which way ([001 Table II] made quantitative, :func:`flowtwin.calibration.kimage.score_line`:
+which way ([001 Table II] made quantitative, :func:`flowtwin.calibration.image.kimage.score_line`:
 negative when the line's K is too low — thin after a step up, thick after a step down —
 positive when too high). In the twin, and in every render of the independent model, the
 errors grow linearly with the line's K near the best line and cross zero at the lag

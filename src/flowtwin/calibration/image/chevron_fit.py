@@ -3,7 +3,7 @@
 A band is ``walls`` touching walls of the top layer (:mod:`.chevron_geom`). At a distance
 ``d`` from the band's apex along one arm, each wall ``i`` is at the point of its own path
 nearest the band's centreline point ``P + d·u`` — a position ``s_i`` along the wall — and
-the twin (:class:`~flowtwin.calibration.lagmodel.LagModel`, [001 Eqs. 7, 10, 15]) gives
+the twin (:class:`~flowtwin.calibration.fits.lagmodel.LagModel`, [001 Eqs. 7, 10, 15]) gives
 its width ``w_i(s_i)`` for a trial lag ``K`` and gain ``g``. Touching walls overlap by
 ``(1 − π/4)·h`` each (the slicer's line spacing), so the band is
 
@@ -14,7 +14,7 @@ squares (:func:`scipy.optimize.least_squares`) to all bands' widths beyond ``d0`
 the twin's nozzle moves at least half its cruise speed on every wall (nearer the apex the
 width ``Q/(h·v)`` diverges as ``v → 0``). Start: the best ``K`` of a log grid; errors:
 ``cov = s²·(JᵀJ)⁻¹``; refused when ``K`` ends on a bound or its standard error exceeds
-half its value. The result is a :class:`~flowtwin.calibration.lagfit.LagFit` (its lines
+half its value. The result is a :class:`~flowtwin.calibration.fits.lagfit.LagFit` (its lines
 the top layer's walls, each with its band's RMS).
 """
 
@@ -28,10 +28,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+from flowtwin.calibration.fits.lagfit import LagFit
+from flowtwin.calibration.fits.lagmodel import LagModel, LagParams
 from flowtwin.calibration.image.chevron_geom import ChevronGeometry
-from flowtwin.calibration.kimage import LineReading
-from flowtwin.calibration.lagfit import LagFit
-from flowtwin.calibration.lagmodel import LagModel, LagParams
+from flowtwin.calibration.image.kimage import LineReading
 from flowtwin.errors import CalibrationError
 
 __all__ = ["fit_chevron_lag"]

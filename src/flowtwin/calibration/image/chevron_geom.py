@@ -1,6 +1,6 @@
 """A chevron pattern's bands on the bed, from its planned G-code.
 
-Flowtwin's chevrons (:mod:`flowtwin.calibration.chevron`, after Andrew Ellis' pattern) are
+Flowtwin's chevrons (:mod:`flowtwin.calibration.patterns.chevron`, after Andrew Ellis' pattern) are
 ``walls`` nested 90° corners per advance factor, touching at the line spacing, printed on
 several layers. A photo from above sees the top layer: each chevron as one *band* of
 its walls, two straight arms meeting at an apex. This module gives, per chevron, the
@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.lagmodel import LagModel, printed_runs
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.fits.lagmodel import LagModel, printed_runs
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError
 
 __all__ = ["ChevronGeometry", "chevron_geometry"]

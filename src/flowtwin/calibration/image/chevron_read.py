@@ -53,11 +53,15 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.beadwidth import window_widths
+from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.lagfit import LagFit
+from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, lag_model
+from flowtwin.calibration.image.beadwidth import window_widths
 from flowtwin.calibration.image.bestline import best_line
 from flowtwin.calibration.image.chevron_geom import ChevronGeometry, chevron_geometry
 from flowtwin.calibration.image.detect import FoundLine, LineSet, detect_lines
 from flowtwin.calibration.image.geometry import LayoutGeometry
+from flowtwin.calibration.image.kimage import LineReading, load_grey
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
 from flowtwin.calibration.image.register import local_scale, marks_seen, refine_homography
 from flowtwin.calibration.image.widths import (
@@ -68,11 +72,7 @@ from flowtwin.calibration.image.widths import (
     contrast_strip,
     contrast_widths,
 )
-from flowtwin.calibration.kfit import pattern_firmware
-from flowtwin.calibration.kimage import LineReading, load_grey
-from flowtwin.calibration.lagfit import LagFit
-from flowtwin.calibration.lagmodel import DEFAULT_MACHINE, lag_model
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
@@ -346,7 +346,7 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
     image
         Image file or array (grey or BGR).
     pattern
-        The pattern as printed (:func:`flowtwin.calibration.chevron.chevron_pattern`),
+        The pattern as printed (:func:`flowtwin.calibration.patterns.chevron.chevron_pattern`),
         for the machine's firmware.
     machine
         Set-up for the twin.

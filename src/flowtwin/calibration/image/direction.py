@@ -4,7 +4,7 @@ A stack of equal lines reads the same turned by 180° or mirrored; when its mark
 symmetric too (OrcaSlicer's PA line seen from above or scanned face down; a pattern in a
 frame) the registration (:mod:`.register`) returns several readings. Each reading puts the
 measured widths at other positions and K on other lines. Only in the right one do the
-widths look like printed lines: the twin (:class:`~flowtwin.calibration.lagmodel.
+widths look like printed lines: the twin (:class:`~flowtwin.calibration.fits.lagmodel.
 LagModel`, [001 Eqs. 7, 15]) then explains them with one lag for all lines.
 
 For every reading the lag is scanned on a grid (:data:`K_GRID`; the flow gain solved in
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.calibration.fits.lagmodel import LagModel, LagParams
 from flowtwin.calibration.image.bestline import trend
-from flowtwin.calibration.kimage import LineReading
-from flowtwin.calibration.lagmodel import LagModel, LagParams
+from flowtwin.calibration.image.kimage import LineReading
 
 __all__ = ["K_GRID", "RMS_RATIO", "DirectionChoice", "choose_by_twin", "twin_rms"]
 

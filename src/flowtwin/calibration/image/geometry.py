@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.lagmodel import LagModel, printed_runs
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.fits.lagmodel import LagModel, printed_runs
+from flowtwin.calibration.patterns.pattern import Pattern
 
 __all__ = ["FILL_SPACING", "LayoutGeometry", "layout_geometry"]
 
@@ -128,7 +128,7 @@ def layout_geometry(pattern: Pattern, full: LagModel) -> tuple[LayoutGeometry, l
         The pattern (its test segments name the test lines).
     full
         The twin's model of every printed run of the pattern
-        (:func:`~flowtwin.calibration.lagmodel.lag_model` with ``gcode_lines=None``).
+        (:func:`~flowtwin.calibration.fits.lagmodel.lag_model` with ``gcode_lines=None``).
 
     Returns
     -------

@@ -1,7 +1,7 @@
 """Bead widths along the lines of a photo, independent of the lighting and the sheet.
 
 The image is resampled along each test line on the bed grid
-(:func:`flowtwin.calibration.beadwidth.sample_strip`: rows across the bead every ``dv``
+(:func:`flowtwin.calibration.image.beadwidth.sample_strip`: rows across the bead every ``dv``
 mm, columns along it). In a photo the light is not even — it falls off across the
 print, a glossy sheet reflects a window — and the sheet is textured. Both matter to an
 integrated-contrast width ``w = Σ (B − I)/(B − D)·dv`` with one bead level ``D`` for the
@@ -20,7 +20,7 @@ size. So:
   contrast followed along each line: the running median of the column peaks over
   :data:`BEAD_LOCAL_MM` (:func:`local_bead_contrast`, within 0.4–2.5 × the photo's
   value from the cores of the widest columns, as
-  :func:`flowtwin.calibration.beadwidth.dark_level`). A light level ``L(x)`` multiplies
+  :func:`flowtwin.calibration.image.beadwidth.dark_level`). A light level ``L(x)`` multiplies
   ``C`` and ``C_bead`` alike and cancels; so does glare, which is not a multiplicative
   light (a reflection adds to a glossy bead more than to a matt sheet and lowers a dark
   bead's contrast where it falls: a fifth under a moderate highlight on the renders).
@@ -43,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import median_filter
 
-from flowtwin.calibration.beadwidth import Strip, sample_strip
+from flowtwin.calibration.image.beadwidth import Strip, sample_strip
 
 __all__ = ["BEAD_LOCAL_MM", "SHEET_SMOOTH_MM", "ContrastStrip", "band_half_mm",
            "bead_contrast", "contrast_strip", "contrast_widths", "local_bead_contrast"]
@@ -74,7 +74,7 @@ class ContrastStrip:
     Attributes
     ----------
     strip
-        The resampled grey levels (:class:`~flowtwin.calibration.beadwidth.Strip`).
+        The resampled grey levels (:class:`~flowtwin.calibration.image.beadwidth.Strip`).
     contrast
         ``±(I − B)``, grey levels, positive on the bead, shape as ``strip.values``.
     v_mm
