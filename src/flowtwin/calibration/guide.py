@@ -141,7 +141,9 @@ FROM_IMAGE_HELP = """Read the advance factor from a photo or scan of a printed l
 
 --pattern names what you printed: kline (flowtwin's), marlin (Marlin's
 K-factor generator), prusa (Prusa's linear-advance lines), orca
-(OrcaSlicer's PA line) or orca-legacy (OrcaSlicer 1.x / Bambu Studio).
+(OrcaSlicer's PA line), orca-legacy (OrcaSlicer 1.x / Bambu Studio),
+pa-camera (PressureAdvanceCamera's framed lines) or chevron (flowtwin's
+chevrons: --walls, --arm-length, --gap, --layers as printed).
 Give the K range and any setting you changed from the tool's defaults
 (--k-start, --k-end, --k-step, speeds, lengths, --pitch) and the
 --machine it printed on.

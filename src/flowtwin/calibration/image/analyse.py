@@ -10,10 +10,9 @@ per-line scores (:func:`flowtwin.calibration.image.kimage.score_line`, [001 Fig.
 made quantitative) and the lag fitted with the twin to all gap-free lines
 (:func:`flowtwin.calibration.fits.lagfit.fit_lag`, free gain and registration along the lines).
 
-When the layout's marks do not tell which way the photo is turned, the widths do: in the
-right reading the acceleration and deceleration errors grow with the lines' K (a too-low
-K under-extrudes after a step up [001 Fig. 2]); when they do not decide either, the
-analysis refuses and asks for ``view``.
+When the layout's marks do not tell which way the photo is turned, the widths do: the
+twin explains them clearly better in the right reading (:mod:`.direction`); when they do
+not decide either, the analysis refuses and asks for ``view``.
 """
 
 from __future__ import annotations
@@ -28,23 +27,26 @@ import numpy.typing as npt
 
 from flowtwin.calibration.fits.kfit import pattern_firmware
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model, printed_runs
-from flowtwin.calibration.image.beadwidth import (
-    area_widths,
-    dark_level,
-    edge_widths,
-    sample_strip,
-    window_widths,
-)
+from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
+from flowtwin.calibration.image.beadwidth import Strip, edge_widths, window_widths
+from flowtwin.calibration.image.bestline import best_line, zero_crossing
 from flowtwin.calibration.image.detect import LineSet, detect_lines
+from flowtwin.calibration.image.direction import choose_by_twin
+from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
-from flowtwin.calibration.image.register import LayoutGeometry, Reading, register_layout
+from flowtwin.calibration.image.register import Reading, local_scale, register_layout
+from flowtwin.calibration.image.widths import (
+    band_half_mm,
+    bead_contrast,
+    contrast_strip,
+    contrast_widths,
+)
 from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
-__all__ = ["PhotoResult", "analyse_line_photo", "layout_geometry"]
+__all__ = ["PhotoResult", "analyse_line_photo"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -80,6 +82,11 @@ class PhotoResult:
         Each test line's ends in the image, px, shape ``(n, 2, 2)``.
     notes
         Facts worth knowing.
+    k_cross_s
+        Zero crossing of the Theil–Sen line through all lines' signed errors, s
+        (:mod:`.bestline`; ``None``: the errors do not rise with K).
+    best_by
+        How the best line was chosen: ``"errors"`` (nearest the crossing) or ``"score"``.
     """
 
     source: str
@@ -97,6 +104,8 @@ class PhotoResult:
     homography: FloatArray
     image_lines: FloatArray
     notes: tuple[str, ...] = field(default_factory=tuple)
+    k_cross_s: float | None = None
+    best_by: str = "score"
 
     @property
     def k_best_line_s(self) -> float:
@@ -109,7 +118,8 @@ class PhotoResult:
             "image": self.source, "pattern": self.pattern,
             "k_s": None if self.lag is None else self.lag.k_s,
             "k_err_s": None if self.lag is None else self.lag.k_err_s,
-            "k_best_line_s": self.k_best_line_s, "k_accel_s": self.k_accel_s,
+            "k_best_line_s": self.k_best_line_s, "best_by": self.best_by,
+            "k_cross_s": self.k_cross_s, "k_accel_s": self.k_accel_s,
             "k_decel_s": self.k_decel_s,
             "lag": None if self.lag is None else self.lag.summary(),
             "lag_problem": self.lag_problem,
@@ -127,85 +137,57 @@ def _num(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def layout_geometry(pattern: Pattern, full: LagModel) -> tuple[LayoutGeometry, list[int]]:
-    """The layout's lines and marks from its planned G-code; and the test lines' run indices."""
-    runs = printed_runs(full.plan)
-    firsts = [next(s.line for s in pattern.segments if s.group == g)
-              for g in range(len(pattern.values))]
-    k_index = [runs.index(f) for f in firsts]
-    starts = np.array([full.lines[i].vertices_xy_mm[0] for i in k_index])
-    ends = np.array([full.lines[i].vertices_xy_mm[-1] for i in k_index])
-    d = ends[0] - starts[0]
-    length = float(np.hypot(*d))
-    u = d / length
-    across = np.array([-u[1], u[0]])
-    par: list[tuple[FloatArray, FloatArray, int]] = []
-    marks: list[FloatArray] = []
-    for r, ln in enumerate(full.lines):
-        if r in k_index:
-            par.append((ln.vertices_xy_mm[0], ln.vertices_xy_mm[-1], k_index.index(r)))
-            continue
-        v = np.asarray(ln.vertices_xy_mm, dtype=np.float64)
-        seg = v[-1] - v[0]
-        seg_len = float(np.hypot(*seg))
-        if (v.shape[0] == 2 and seg_len >= 0.5 * length
-                and abs(float(seg @ u)) >= 0.99 * seg_len):
-            a, b = (v[0], v[-1]) if float(seg @ u) > 0 else (v[-1], v[0])
-            par.append((a, b, -1))
-        else:
-            marks.append(v)
-    par.sort(key=lambda p: float(0.5 * (p[0] + p[1]) @ across))
-    return LayoutGeometry(starts, ends, tuple(par), tuple(marks)), k_index
+def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model: LagModel, *,
+          pitch_mm: float, line_width_mm: float, step_mm: float, method: str,
+          mm_per_px: float | None) -> tuple[list[LineReading], FloatArray, float]:
+    """Widths and scores of every test line; the mean bead contrast across and its spacing.
 
-
-def _read(gray_dark32: npt.NDArray[np.float32], reading: Reading, model: LagModel, *,
-          pitch_mm: float, step_mm: float, method: str, mm_per_px: float | None
-          ) -> tuple[list[LineReading], FloatArray, float]:
-    """Widths and scores of every test line; the mean bead profile across and its spacing."""
-    half = min(0.4 * pitch_mm, 3.0)
+    ``"area"``: the contrast relative to the local sheet integrated over the bead's band
+    (:mod:`.widths`); ``"edges"``: the bead's edges
+    (:func:`flowtwin.calibration.image.beadwidth.edge_widths`, beads made dark).
+    """
     dv = 0.5 / reading.px_per_mm
-    strips = [sample_strip(gray_dark32, reading.homography, ln.vertices_xy_mm[0],
-                           ln.vertices_xy_mm[-1], step_mm=step_mm, half_span_mm=half,
-                           dv_mm=dv) for ln in model.lines]
-    dark = dark_level(strips) if method == "area" else math.nan
+    band = band_half_mm(line_width_mm, pitch_mm)
+    half = 0.5 * pitch_mm
+    strips = [contrast_strip(gray32, reading.homography, ln.vertices_xy_mm[0],
+                             ln.vertices_xy_mm[-1], light=light, step_mm=step_mm,
+                             band_mm=band, half_span_mm=half, dv_mm=dv) for ln in model.lines]
+    bead = bead_contrast(strips) if method == "area" else math.nan
     out: list[LineReading] = []
     profiles = []
-    for line, strip in zip(model.lines, strips, strict=True):
-        cols = area_widths(strip, dark) if method == "area" else edge_widths(strip)
+    for line, cs in zip(model.lines, strips, strict=True):
+        if method == "area":
+            cols = contrast_widths(cs, bead)
+        else:
+            vals = cs.strip.values if not light else 255.0 - cs.strip.values
+            cols = edge_widths(Strip(np.asarray(vals, dtype=np.float32), cs.strip.dv_mm,
+                                     cs.strip.per, cs.strip.positions_mm))
         if mm_per_px is not None:
-            from flowtwin.calibration.image.register import local_scale
             mid = 0.5 * (line.vertices_xy_mm[0] + line.vertices_xy_mm[-1])
             cols = cols * (mm_per_px * local_scale(reading.homography, mid))
-        wid = window_widths(cols, strip.per, min_width_mm=0.5 * line.layer_height_mm)
-        ref, score, e_acc, e_dec = score_line(line, strip.positions_mm, wid)
-        out.append(LineReading(line.advance_k_s, strip.positions_mm, wid, ref, score, e_acc,
-                               e_dec, float(np.mean(np.isfinite(wid)))))
-        q = max(2, strip.values.shape[0] // 5)
-        bg = np.median(np.vstack([strip.values[:q], strip.values[-q:]]), axis=0)
-        profiles.append(np.median(bg[None, :] - strip.values, axis=1))
+        wid = window_widths(cols, cs.strip.per, min_width_mm=0.5 * line.layer_height_mm)
+        ref, score, e_acc, e_dec = score_line(line, cs.strip.positions_mm, wid)
+        out.append(LineReading(line.advance_k_s, cs.strip.positions_mm, wid, ref, score,
+                               e_acc, e_dec, float(np.mean(np.isfinite(wid)))))
+        profiles.append(np.median(cs.contrast, axis=1))
     return out, np.median(np.vstack(profiles), axis=0), dv
 
 
-def _trend(readings: list[LineReading]) -> float:
-    """Mean rank correlation of the acceleration and deceleration errors with K."""
-    k = np.array([r.k_la_s for r in readings])
-    out = []
-    for e in (np.array([r.accel_error for r in readings]),
-              np.array([r.decel_error for r in readings])):
-        ok = np.isfinite(e)
-        if np.count_nonzero(ok) >= 3:
-            rk = np.argsort(np.argsort(k[ok])).astype(float)
-            re = np.argsort(np.argsort(e[ok])).astype(float)
-            out.append(float(np.corrcoef(rk, re)[0, 1]))
-    return float(np.mean(out)) if out else math.nan
-
-
-def _zero_crossing(k: FloatArray, e: FloatArray, near: float) -> float | None:
-    ok = np.isfinite(e)
-    k, e = k[ok], e[ok]
-    found = [float(k[i] + (k[i + 1] - k[i]) * (-e[i]) / (e[i + 1] - e[i]))
-             for i in range(k.size - 1) if e[i] <= 0.0 < e[i + 1]]
-    return min(found, key=lambda kk: abs(kk - near)) if found else None
+def _find_and_register(gray: npt.NDArray[np.uint8], polarity: str, geo: LayoutGeometry,
+                       view: str, name: str) -> tuple[LineSet, list[Reading]]:
+    """The lines (:mod:`.detect`), the refusals that need only them, the readings."""
+    ls = detect_lines(gray, polarity=polarity, source=name)
+    n = geo.starts.shape[0]
+    if len(ls.lines) < min(MIN_LINES, n):
+        raise VisionError("too few lines found to compare", source=name,
+                          value=f"{len(ls.lines)} line(s)",
+                          allowed=f"at least {MIN_LINES} lines of the pattern in view")
+    cut = [i for i, f in enumerate(ls.lines) if f.cut]
+    if cut:
+        raise VisionError("lines are cut by the edge of the photo", source=name,
+                          value=f"{len(cut)} of {len(ls.lines)} lines",
+                          allowed="the whole pattern in the frame, with a margin")
+    return ls, register_layout(ls, geo, view=view, source=name)
 
 
 def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern: Pattern, *,
@@ -271,37 +253,49 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     geo, k_index = layout_geometry(pattern, full)
     model = full.subset(k_index)
     n = len(k_index)
-    ls: LineSet = detect_lines(gray, polarity=polarity, source=name)
-    if len(ls.lines) < min(MIN_LINES, n):
-        raise VisionError("too few lines found to compare", source=name,
-                          value=f"{len(ls.lines)} line(s)",
-                          allowed=f"at least {MIN_LINES} lines of the pattern in view")
-    cut = [i for i, f in enumerate(ls.lines) if f.cut]
-    if cut:
-        raise VisionError("lines are cut by the edge of the photo", source=name,
-                          value=f"{len(cut)} of {len(ls.lines)} lines",
-                          allowed="the whole pattern in the frame, with a margin")
-    readings = register_layout(ls, geo, view=view, source=name)
+    extra_notes: list[str] = []
+    try:
+        ls, readings = _find_and_register(gray, polarity, geo, view, name)
+    except VisionError as exc:
+        if polarity != "auto" or exc.field != "polarity":
+            raise
+        # the image does not tell the polarity: the layout does, if the lines of only
+        # one polarity register (fat beads leave gaps narrower than the beads, which the
+        # other polarity's top-hat finds as lines too)
+        fits = []
+        for pol in ("light", "dark"):
+            try:
+                fits.append(_find_and_register(gray, pol, geo, view, name))
+            except VisionError:
+                continue
+        if len(fits) != 1:
+            raise
+        ls, readings = fits[0]
+        extra_notes.append(f"bead polarity decided by the layout: only the "
+                           f"{'light' if ls.light else 'dark'} lines register "
+                           f"(image evidence {exc.value})")
     pitch_mm = float(np.median(np.hypot(*np.diff(geo.starts, axis=0).T))) if n > 1 else 5.0
-    g32 = (255.0 - gray.astype(np.float32)) if ls.light else gray.astype(np.float32)
-    g32 = np.asarray(g32, dtype=np.float32)
-    read = [_read(g32, r, model, pitch_mm=pitch_mm, step_mm=step_mm, method=method,
-                  mm_per_px=mm_per_px) for r in readings]
+    g32 = np.asarray(gray, dtype=np.float32)
+    read = [_read(g32, ls.light, r, model, pitch_mm=pitch_mm,
+                  line_width_mm=pattern.settings.line_width_mm, step_mm=step_mm,
+                  method=method, mm_per_px=mm_per_px) for r in readings]
     choice = 0
     how = "the pattern's marks" if geo.marks else "the only reading"
     if len(readings) > 1:
-        trends = [_trend(r[0]) for r in read]
-        good = [i for i, t in enumerate(trends) if t > 0.5]
-        if len(good) != 1 or any(t > 0.0 for i, t in enumerate(trends) if i != good[0]):
+        pick = choose_by_twin(model, [r[0] for r in read])
+        if pick.index is None:
             raise VisionError("the photo does not show which way the pattern lies (its marks "
-                              "are not seen or read the same both ways, and the widths do "
-                              "not decide)", source=name, field="view",
-                              value={r.name: round(t, 2)
-                                     for r, t in zip(readings, trends, strict=True)},
+                              "are not seen or read the same both ways, and the twin does "
+                              "not explain the widths clearly better in one reading)",
+                              source=name, field="view",
+                              value={r.name: f"twin RMS {v:.3f}, trend {t:+.2f}"
+                                     for r, v, t in zip(readings, pick.rms, pick.trends,
+                                                        strict=True)},
                               allowed="view top or mirrored, or a photo showing the "
                                       "pattern's marks (prime line, numbers)")
-        choice = good[0]
-        how = "the widths (errors growing with K)"
+        choice = pick.index
+        how = (f"the widths (the twin explains them with RMS {pick.rms[choice]:.3f}, the "
+               f"next reading {min(v for i, v in enumerate(pick.rms) if i != choice):.3f})")
     reading = readings[choice]
     lines, profile, dv = read[choice]
     reason = blur_reason(profile, dv, reading.px_per_mm)
@@ -313,11 +307,13 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
         raise VisionError("too few lines could be measured along their length", source=name,
                           value=f"{len(usable)} of {n}",
                           allowed=f"at least {MIN_LINES} lines with beads along their length")
-    best = min(usable, key=lambda i: lines[i].score)
     ks = np.array([r.k_la_s for r in lines])
-    k_acc = _zero_crossing(ks, np.array([r.accel_error for r in lines]), ks[best])
-    k_dec = _zero_crossing(ks, np.array([r.decel_error for r in lines]), ks[best])
-    notes = [f"{n} test lines, K {ks[0]:g} to {ks[-1]:g} s; beads "
+    choice_best = best_line(ks, [r.score for r in lines], [r.accel_error for r in lines],
+                            [r.decel_error for r in lines], usable)
+    best = choice_best.index
+    k_acc = zero_crossing(ks, np.array([r.accel_error for r in lines]), ks[best])
+    k_dec = zero_crossing(ks, np.array([r.decel_error for r in lines]), ks[best])
+    notes = [*extra_notes, f"{n} test lines, K {ks[0]:g} to {ks[-1]:g} s; beads "
              f"{'lighter' if ls.light else 'darker'} than the sheet; reading "
              f"{reading.name}, decided by {how}"]
     if len(usable) < n:
@@ -335,7 +331,20 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
                           end_margin_mm=end_margin_mm)
         except CalibrationError as exc:
             problem = exc.message
+            if exc.field in ("shift_mm", "stretch"):
+                # the widths do not pin the registration along the lines: the photo's
+                # own (the line ends) stands, and the lag is fitted without it
+                try:
+                    lag = fit_lag(model.subset(whole), profiles,
+                                  fit_dead_time=fit_dead_time, fit_gain=fit_gain,
+                                  fit_registration=False, end_margin_mm=end_margin_mm)
+                    problem = None
+                    notes.append(f"lag fitted on the photo's registration along the lines "
+                                 f"(the widths do not pin it: {exc.message})")
+                except CalibrationError as exc2:
+                    problem = exc2.message
     ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines])
     return PhotoResult(name, pattern.kind, tuple(lines), best, k_acc, k_dec, lag, problem,
                        ls.light, f"{reading.name} (decided by {how})", reading.px_per_mm,
-                       reading.reprojection_rms_mm, reading.homography, ends, tuple(notes))
+                       reading.reprojection_rms_mm, reading.homography, ends, tuple(notes),
+                       k_cross_s=choice_best.k_cross_s, best_by=choice_best.by)

@@ -1,9 +1,10 @@
 """An annotated copy of the photo: each line's score on the line, a score plot beside it.
 
-Every test line's found axis is drawn over the photo in a colour from green (its score the
-lowest, the most even line) to red (the highest), the best line thicker and marked with its
-K; a panel to the right plots the score against K with the most even line and the twin's
-fitted lag ``K ± 1σ`` marked. Written atomically (:func:`flowtwin.atomic.atomic_open`).
+Every test line's found axis (a chevron's two arms) is drawn over the photo in a colour
+from green (its score the lowest, the most even line) to red (the highest), the best line
+thicker and marked with its K; a panel to the right plots the score against K with the
+twin's fitted lag ``K ± 1σ`` marked. Written atomically
+(:func:`flowtwin.atomic.atomic_open`).
 """
 
 from __future__ import annotations
@@ -11,17 +12,42 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from flowtwin.atomic import atomic_open
-from flowtwin.calibration.image.analyse import PhotoResult
+from flowtwin.calibration.fits.lagfit import LagFit
+from flowtwin.calibration.image.kimage import LineReading
 from flowtwin.errors import VisionError
 
-__all__ = ["annotated_image", "write_annotated"]
+
+class Readout(Protocol):
+    """What the annotated copy needs of a result (:class:`~.analyse.PhotoResult`,
+    :class:`~.chevron_read.ChevronResult`)."""
+
+    @property
+    def pattern(self) -> str: ...
+
+    @property
+    def best_index(self) -> int: ...
+
+    @property
+    def lag(self) -> LagFit | None: ...
+
+    @property
+    def lines(self) -> Sequence[LineReading]: ...
+
+    @property
+    def image_lines(self) -> npt.NDArray[np.float64]: ...
+
+    @property
+    def k_best_line_s(self) -> float: ...
+
+__all__ = ["Readout", "annotated_image", "write_annotated"]
 
 
 def _colour(t: float) -> tuple[int, int, int]:
@@ -32,7 +58,7 @@ def _colour(t: float) -> tuple[int, int, int]:
     return (0, int(255 * min(1.0, 2.0 * (1.0 - t))), int(255 * min(1.0, 2.0 * t)))
 
 
-def annotated_image(image: npt.NDArray[Any], res: PhotoResult) -> npt.NDArray[np.uint8]:
+def annotated_image(image: npt.NDArray[Any], res: Readout) -> npt.NDArray[np.uint8]:
     """The photo (grey or BGR) with the scores drawn on it and a score plot beside it."""
     img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
     img = np.ascontiguousarray(img[:, :, :3]).astype(np.uint8)
@@ -42,13 +68,14 @@ def annotated_image(image: npt.NDArray[Any], res: PhotoResult) -> npt.NDArray[np
     lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (0.0, 1.0)
     thick = max(1, int(round(h / 500)))
     font = max(0.35, h / 1500)
-    for i, (r, ends) in enumerate(zip(res.lines, res.image_lines, strict=True)):
+    for i, (r, path) in enumerate(zip(res.lines, res.image_lines, strict=True)):
         t = (r.score - lo) / (hi - lo) if hi > lo else 0.0
-        a = tuple(int(round(v)) for v in ends[0])
-        b = tuple(int(round(v)) for v in ends[1])
+        poly = np.round(np.asarray(path, dtype=np.float64)).astype(np.int32).reshape(-1, 1, 2)
         best = i == res.best_index
-        cv2.line(img, a, b, _colour(t), 3 * thick if best else thick, cv2.LINE_AA)
+        cv2.polylines(img, [poly], False, _colour(t), 3 * thick if best else thick,
+                      cv2.LINE_AA)
         if best:
+            b = (int(poly[-1, 0, 0]), int(poly[-1, 0, 1]))
             cv2.putText(img, f"best K={r.k_la_s:g}", (b[0] + 4 * thick, b[1]),
                         cv2.FONT_HERSHEY_SIMPLEX, font, (0, 255, 0), thick, cv2.LINE_AA)
     # score plot panel
@@ -92,7 +119,7 @@ def annotated_image(image: npt.NDArray[Any], res: PhotoResult) -> npt.NDArray[np
 
 
 def write_annotated(path: str | os.PathLike[str], image: str | os.PathLike[str],
-                    res: PhotoResult) -> None:
+                    res: Readout) -> None:
     """Write the annotated copy of the photo file ``image`` to ``path`` (PNG or JPEG).
 
     Raises

@@ -2,18 +2,26 @@
 
 :func:`detect_lines` turns the image so the lines run along its rows
 (:mod:`.signal`), measures the pitch, and for each polarity (beads lighter or darker than
-the sheet) computes the bead signal, smooths it along the rows over 0.3 pitch (a textured
-sheet's speckle averages out, a bead does not), thresholds it (Otsu, and at least six
-robust standard deviations above the sheet) and keeps the long thin connected pieces.
+the sheet) computes the bead signal, smooths it along the rows over one pitch (a textured
+sheet's speckle averages out, a bead does not), thresholds it locally (at least 0.45 of
+the strongest bead signal within two pitches — the light and the beads' contrast change
+across a photo — and four robust standard deviations above the sheet's scatter, taken
+from the values below Otsu's threshold: fat beads may cover half the photo) and keeps the
+long thin connected pieces.
 Pieces on one axis are one line (a bead broken by gaps). Each line's axis is fitted to
 its pixels, weighted by the signal; its ends are where the signal along the axis falls to
 half the line's median level, moved inwards by a quarter of the bead's thickness (the
 round end cap reaches half a width beyond the path's end, and the half level is reached
 inside it).
 
-The polarity is the one whose lines cover more length (a bright-bead top-hat of dark
-beads finds nothing long: the gaps between dark beads are wider than its element). Both
-polarities' totals are kept as evidence; a tie is not decided.
+The polarity is the one whose lines carry more bead: the sum over its lines of length ×
+thickness × contrast (the bead signal on the axis). A bright-bead top-hat of dark beads
+finds nothing long where the beads are matt (the gaps between dark beads are wider than
+its element), but a glossy dark bead has a light ridge down its middle which that top-hat
+finds as a thin, faint line on every bead: counting length alone ties the two polarities,
+weighting by thickness and contrast does not (a ridge is a fraction of the bead's
+width and of its contrast). Both totals are kept as evidence; within a factor
+:data:`POLARITY_MARGIN` of each other the polarity is not decided.
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ from flowtwin.calibration.image.signal import (
 )
 from flowtwin.errors import VisionError
 
-__all__ = ["FoundLine", "LineSet", "detect_lines"]
+__all__ = ["POLARITY_MARGIN", "FoundLine", "LineSet", "detect_lines"]
 
 FloatArray = npt.NDArray[np.float64]
 F32 = npt.NDArray[np.float32]
@@ -43,6 +51,19 @@ F32 = npt.NDArray[np.float32]
 _MIN_ELONGATION = 8.0
 #: Lines shorter than this fraction of the longest are not pattern lines.
 _MIN_LINE_FRACTION = 0.5
+#: Length of the smoothing along the rows before the threshold, in pitches.
+_SMOOTH_PITCHES = 1.0
+#: Lines further apart than this many pitches belong to different stacks.
+_STACK_GAP = 2.5
+#: A line at an end of the stack carrying less than this fraction of the stack's median
+#: bead is a streak of the sheet, not a line.
+_END_WEIGHT = 0.35
+#: A bead's signal is at least this fraction of the strongest beads' within two pitches.
+_LOCAL_LEVEL = 0.45
+#: ... and this many robust standard deviations above the sheet's.
+_SHEET_SIGMAS = 4.0
+#: The polarity whose lines carry this many times more bead than the other's wins.
+POLARITY_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -61,6 +82,8 @@ class FoundLine:
         Pieces it was assembled from (> 1: gaps).
     cut
         An end reaches the edge of the photo.
+    contrast
+        Median bead signal along the axis (bead/sheet contrast, a fraction).
     """
 
     start_px: FloatArray
@@ -69,6 +92,7 @@ class FoundLine:
     thickness_px: float
     pieces: int
     cut: bool
+    contrast: float = 1.0
 
     @property
     def length_px(self) -> float:
@@ -87,7 +111,8 @@ class LineSet:
     light
         Beads lighter than the sheet.
     polarity_evidence
-        Total line length found for ``"light"`` and ``"dark"`` beads, px.
+        Bead carried by the lines found for ``"light"`` and ``"dark"`` beads: the sum of
+        length × thickness × contrast, px².
     deskewed
         The turned image and its map.
     signal
@@ -126,7 +151,7 @@ class _Piece:
 
 
 def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece]:
-    length = max(3, int(round(0.3 * pitch)))
+    length = max(3, int(round(_SMOOTH_PITCHES * pitch)))
     sm = cv2.blur(sig, (length, 1))
     vals = sm[valid > 0]
     if vals.size == 0:
@@ -139,7 +164,20 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
     u8 = np.clip((sm - med) / (top - med) * 255.0, 0, 255).astype(np.uint8)
     otsu, _ = cv2.threshold(u8[valid > 0].reshape(-1, 1), 0, 255,
                             cv2.THRESH_BINARY | cv2.THRESH_OTSU)
-    thr = max(med + float(otsu) / 255.0 * (top - med), med + 6.0 * mad)
+    thr_otsu = med + float(otsu) / 255.0 * (top - med)
+    # the sheet's own scatter, from the values below Otsu's threshold: fat beads may
+    # cover half the photo, and then the median and MAD of all values are the beads'
+    sheet = vals[vals <= thr_otsu]
+    if sheet.size > 100:
+        med = float(np.median(sheet))
+        mad = float(np.median(np.abs(sheet - med))) * 1.4826 + 1e-6
+    # a bead is at least _LOCAL_LEVEL of the strongest beads around it (the light and
+    # the bead signal change across a photo) and clear of the sheet's scatter
+    rad = max(3, int(round(2.0 * pitch)))
+    env = cv2.dilate(np.where(valid > 0, sm, 0.0).astype(np.float32),
+                     cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rad + 1, 2 * rad + 1)))
+    env = cv2.GaussianBlur(env, (0, 0), pitch)
+    thr = np.maximum(_LOCAL_LEVEL * env, med + _SHEET_SIGMAS * mad)
     mask = ((sm > thr) & (valid > 0)).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     out: list[_Piece] = []
@@ -162,19 +200,26 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
             continue
         b, a = np.polyfit(c.astype(np.float64), r.astype(np.float64), 1, w=np.sqrt(wts))
         thickness = r.size / span
-        if span < _MIN_ELONGATION * thickness or thickness > 0.5 * pitch or abs(b) > 0.15:
+        if span < _MIN_ELONGATION * thickness or thickness > 0.6 * pitch or abs(b) > 0.15:
             continue
         out.append(_Piece(x0, x1, float(a), float(b), thickness, r, c))
     return out
 
 
 def _group(pieces: list[_Piece], pitch: float) -> list[list[_Piece]]:
+    """Pieces on one axis (within 0.3 pitch) and not too far apart along it (a gap of at
+    most two pitches or half the longer of the piece and the line so far: a line broken
+    where the nozzle ran empty, not two lines that happen to be collinear) are one line."""
     groups: list[list[_Piece]] = []
     for p in sorted(pieces, key=lambda q: q.x0 - q.x1):          # longest first
         xm = 0.5 * (p.x0 + p.x1)
         best, best_d = None, 0.3 * pitch
         for g in groups:
             d = abs(g[0].y_at(xm) - p.y_at(xm))
+            g0, g1 = min(q.x0 for q in g), max(q.x1 for q in g)
+            gap = max(0.0, p.x0 - g1, g0 - p.x1)
+            if gap > max(2.0 * pitch, 0.5 * max(p.x1 - p.x0, g1 - g0)):
+                continue
             if d < best_d:
                 best, best_d = g, d
         if best is None:
@@ -186,16 +231,25 @@ def _group(pieces: list[_Piece], pitch: float) -> list[list[_Piece]]:
 
 def _trim(groups: list[list[_Piece]]) -> tuple[list[list[_Piece]], list[_Piece]]:
     """Drop short collinear pieces beyond a line's ends (a tick mark, a number's stroke on
-    the axis) where they reach past the ends of the neighbouring lines."""
+    the axis, a blob of another line) where they reach past the ends of the neighbouring
+    lines (the nearest three on each side among the groups at least half the median
+    group long: specks are no neighbours)."""
     if len(groups) < 3:
         return groups, []
     groups = sorted(groups, key=lambda g: g[0].y_at(0.5 * (g[0].x0 + g[0].x1)))
     ext = np.array([[min(p.x0 for p in g), max(p.x1 for p in g)] for g in groups])
-    med = float(np.median(ext[:, 1] - ext[:, 0]))
+    span = ext[:, 1] - ext[:, 0]
+    med = float(np.median(span))
+    big = [j for j in range(len(groups)) if span[j] >= 0.5 * med]
     dropped: list[_Piece] = []
     out = []
     for i, g in enumerate(groups):
-        nb = [j for j in range(max(0, i - 3), min(len(groups), i + 4)) if j != i]
+        before = [j for j in big if j < i][-3:]
+        after = [j for j in big if j > i][:3]
+        nb = before + after
+        if not nb:
+            out.append(g)
+            continue
         lo = float(np.median(ext[nb, 0]))
         hi = float(np.median(ext[nb, 1]))
         g = sorted(g, key=lambda p: p.x0)
@@ -211,8 +265,9 @@ def _trim(groups: list[list[_Piece]]) -> tuple[list[list[_Piece]], list[_Piece]]
 
 
 def _line(group: list[_Piece], sig: F32, valid: npt.NDArray[np.uint8], pitch: float
-          ) -> tuple[float, float, float, float, float, bool] | None:
-    """``(x_start, x_end, a, b, thickness, cut)`` of a group in the turned image."""
+          ) -> tuple[float, float, float, float, float, bool, float] | None:
+    """``(x_start, x_end, a, b, thickness, cut, contrast)`` of a group in the turned
+    image."""
     r = np.concatenate([p.rows for p in group]).astype(np.float64)
     c = np.concatenate([p.cols for p in group]).astype(np.float64)
     wts = sig[r.astype(np.intp), c.astype(np.intp)].astype(np.float64) + 1e-6
@@ -259,24 +314,26 @@ def _line(group: list[_Piece], sig: F32, valid: npt.NDArray[np.uint8], pitch: fl
         xi, yi = int(round(x)), int(round(a + b * x))
         if not (0 <= xi < w and 0 <= yi < h) or er[yi, xi] == 0:
             cut = True
-    return xs0, xs1, float(a), float(b), thick, cut
+    return xs0, xs1, float(a), float(b), thick, cut, core
 
 
-def _find(desk: Deskewed, pitch: float, light: bool
+def _find(desk: Deskewed, pitch: float, light: bool, element: float
           ) -> tuple[list[FoundLine], F32]:
-    sig = bead_signal(desk.image, desk.valid, pitch, light=light)
+    sig = bead_signal(desk.image, desk.valid, pitch, light=light, element_pitches=element)
     groups, _ = _trim(_group(_pieces(sig, desk.valid, pitch), pitch))
     found: list[FoundLine] = []
     for g in groups:
         res = _line(g, sig, desk.valid, pitch)
         if res is None:
             continue
-        xs0, xs1, a, b, thick, cut = res
+        xs0, xs1, a, b, thick, cut, core = res
         if xs1 - xs0 < _MIN_ELONGATION * thick:
             continue
         ends = desk.to_original(np.array([[xs0, a + b * xs0], [xs1, a + b * xs1]]))
         xm = 0.5 * (xs0 + xs1)
-        found.append(FoundLine(ends[0], ends[1], float(a + b * xm), thick, len(g), cut))
+        found.append(FoundLine(ends[0], ends[1], float(a + b * xm), thick, len(g), cut,
+                               core))
+    found = _stack(found, pitch)
     if found:
         longest = max(f.length_px for f in found)
         found = [f for f in found if f.length_px >= _MIN_LINE_FRACTION * longest]
@@ -284,8 +341,44 @@ def _find(desk: Deskewed, pitch: float, light: bool
     return found, sig
 
 
+def _stack(found: list[FoundLine], pitch: float) -> list[FoundLine]:
+    """The pattern's stack: the chain of lines, each between 0.6 and :data:`_STACK_GAP`
+    pitches from the last, that carries the most bead (length × thickness × contrast).
+
+    Streaks of a textured sheet beyond the pattern, a ruler's edge or a crease lie at
+    irregular distances, closer than a pitch to each other or far from the pattern: a
+    chain through the pattern's lines takes few of them, and those at its ends that carry
+    less than :data:`_END_WEIGHT` of the chain's median bead are dropped.
+    """
+    if not found:
+        return found
+    found = sorted(found, key=lambda f: f.offset_px)
+    w = [f.length_px * f.thickness_px * f.contrast for f in found]
+    best = list(w)
+    prev = [-1] * len(found)
+    for i in range(len(found)):
+        for j in range(i):
+            gap = found[i].offset_px - found[j].offset_px
+            if 0.6 * pitch <= gap <= _STACK_GAP * pitch and best[j] + w[i] > best[i]:
+                best[i], prev[i] = best[j] + w[i], j
+    i = int(np.argmax(best))
+    idx = []
+    while i >= 0:
+        idx.append(i)
+        i = prev[i]
+    idx = idx[::-1]
+    # faint streaks that the chain picked up at its ends
+    typical = float(np.median([w[k] for k in idx]))
+    while len(idx) > 2 and w[idx[0]] < _END_WEIGHT * typical:
+        idx.pop(0)
+    while len(idx) > 2 and w[idx[-1]] < _END_WEIGHT * typical:
+        idx.pop()
+    return [found[k] for k in idx]
+
+
 def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
-                 source: str = "<image>") -> LineSet:
+                 source: str = "<image>", angle_deg: float | None = None,
+                 element_pitches: float = 0.6) -> LineSet:
     """Find the pattern's long parallel lines.
 
     Parameters
@@ -297,6 +390,11 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
         or ``"dark"``.
     source
         Image name for messages.
+    angle_deg
+        Direction of the lines in the image (default: the dominant one,
+        :func:`~.signal.line_direction_deg`); a chevron pattern has two.
+    element_pitches
+        The top-hat's element, pitches (:func:`~.signal.bead_signal`).
 
     Returns
     -------
@@ -320,6 +418,8 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
                           source=source, value=f"grey levels {lo:.0f}..{hi:.0f}",
                           allowed="a photo or scan of a printed line pattern")
     angle, coherence = line_direction_deg(gray)
+    if angle_deg is not None:
+        angle = float(angle_deg)
     desk = deskew(gray, angle)
     pitch = pitch_px(desk.image, desk.valid)
     if not (math.isfinite(pitch) and pitch >= 4.0):
@@ -328,15 +428,16 @@ def detect_lines(gray: npt.NDArray[np.uint8], *, polarity: str = "auto",
                           value=f"direction {angle:.1f}°, coherence {coherence:.2f}",
                           allowed="a photo of a line pattern, lines at least 4 px apart")
     polarities = (True, False) if polarity == "auto" else (polarity == "light",)
-    results = {light: _find(desk, pitch, light) for light in polarities}
-    evidence = {("light" if k else "dark"): float(sum(f.length_px for f in v[0]))
+    results = {light: _find(desk, pitch, light, element_pitches) for light in polarities}
+    evidence = {("light" if k else "dark"): float(sum(f.length_px * f.thickness_px
+                                                      * f.contrast for f in v[0]))
                 for k, v in results.items()}
     if polarity == "auto":
         el, ed = evidence["light"], evidence["dark"]
         if max(el, ed) <= 0:
             raise VisionError("no printed lines found in the image", source=source,
                               value=f"pitch {pitch:.1f} px", allowed="a line pattern")
-        if min(el, ed) > 0.67 * max(el, ed):
+        if POLARITY_MARGIN * min(el, ed) > max(el, ed):
             raise VisionError("cannot tell whether the beads are lighter or darker than "
                               "the sheet", source=source, field="polarity",
                               value={k: round(v) for k, v in evidence.items()},

@@ -73,9 +73,14 @@ class SynthPhoto:
     homography: FloatArray
 
 
-def _trapezoid_speed(lengths: FloatArray, speeds: FloatArray, accel: float, dt: float
+def _trapezoid_speed(lengths: FloatArray, speeds: FloatArray, accel: float, dt: float,
+                     corner_speeds: FloatArray | None = None
                      ) -> tuple[FloatArray, FloatArray]:
-    """Time samples of the nozzle position and speed along a line of segments."""
+    """Time samples of the nozzle position and speed along a line of segments.
+
+    ``corner_speeds``: the speed through each junction (``None``: the slower of the two
+    segments' speeds, a straight line).
+    """
     # speed as a function of path position: ramps centred on each junction (one at
     # each end from / to rest), then time from ds/v
     edges = np.concatenate(([0.0], np.cumsum(lengths)))
@@ -89,7 +94,9 @@ def _trapezoid_speed(lengths: FloatArray, speeds: FloatArray, accel: float, dt: 
     # acceleration limits: v² ≤ v_j² + 2a|s − junction| around each junction
     knots = [(0.0, 0.0), (total, 0.0)]
     for j in range(1, len(speeds)):
-        knots.append((float(edges[j]), float(min(speeds[j - 1], speeds[j]) ** 2)))
+        vj = (min(speeds[j - 1], speeds[j]) if corner_speeds is None
+              else min(float(corner_speeds[j - 1]), speeds[j - 1], speeds[j]))
+        knots.append((float(edges[j]), float(vj ** 2)))
     for pos, base in knots:
         v2 = np.minimum(v2, base + 2.0 * accel * np.abs(s - pos))
     v = np.sqrt(np.maximum(v2, 0.0))
@@ -101,8 +108,10 @@ def _trapezoid_speed(lengths: FloatArray, speeds: FloatArray, accel: float, dt: 
 
 def synthetic_widths(lengths: FloatArray, speeds: FloatArray, *, k_la_s: float, lag_s: float,
                      accel_mm_s2: float, line_width_mm: float, layer_height_mm: float,
-                     step_mm: float = 0.05) -> tuple[FloatArray, FloatArray]:
-    """Bead width along one test line (module docstring).
+                     step_mm: float = 0.05, corner_speeds: FloatArray | None = None
+                     ) -> tuple[FloatArray, FloatArray]:
+    """Bead width along one test line (module docstring); ``corner_speeds`` as in
+    :func:`_trapezoid_speed` (a chevron's wall turns at its apex).
 
     Returns
     -------
@@ -113,7 +122,7 @@ def synthetic_widths(lengths: FloatArray, speeds: FloatArray, *, k_la_s: float, 
     area = w * h - (1.0 - math.pi / 4.0) * h * h
     dt = 2e-4
     s, v = _trapezoid_speed(np.asarray(lengths, float), np.asarray(speeds, float),
-                            accel_mm_s2, dt)
+                            accel_mm_s2, dt, corner_speeds)
     qn = area * v
     qe = qn + k_la_s * np.gradient(qn, dt)
     qo = np.empty_like(qe)
@@ -179,8 +188,9 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
     runs
         Every printed path (polylines, bed mm) other than the test lines: the marks.
     test_runs
-        For each test line, its path's two ends and its widths: ``{i: (ends (2, 2),
-        widths (k,) every 0.05 mm)}`` (:func:`synthetic_widths`).
+        For each printed test run (a line; a chevron's wall), its path and its widths:
+        ``{i: (path (m, 2), widths (k,) every 0.05 mm along the path)}``
+        (:func:`synthetic_widths`).
     conditions
         The camera and the scene.
 
@@ -236,13 +246,17 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
             rows, cols = window(np.vstack([a, b]), lw)
             dist, _ = _seg_distance(bx[rows, cols], by[rows, cols], a, b)
             paint(dist, 0.5 * lw, rows, cols)
-    for ends, widths in test_runs.values():
-        a, b = ends[0], ends[1]
-        rows, cols = window(np.vstack([a, b]), 3 * lw)
-        dist, along = _seg_distance(bx[rows, cols], by[rows, cols], a, b)
+    for path, widths in test_runs.values():
         pos = np.arange(widths.size) * 0.05
-        wal = np.interp(np.clip(along, 0.0, pos[-1]), pos, np.nan_to_num(widths, nan=0.0))
-        paint(dist, 0.5 * wal, rows, cols)
+        start = 0.0
+        for a, b in itertools.pairwise(np.asarray(path, dtype=np.float64)):
+            seg_len = float(np.hypot(*(b - a)))
+            rows, cols = window(np.vstack([a, b]), 3 * lw)
+            dist, along = _seg_distance(bx[rows, cols], by[rows, cols], a, b)
+            at = np.clip(start + np.clip(along, 0.0, seg_len), 0.0, pos[-1])
+            wal = np.interp(at, pos, np.nan_to_num(widths, nan=0.0))
+            paint(dist, 0.5 * wal, rows, cols)
+            start += seg_len
     # the sheet: colour, texture on the bed, gloss, light
     sheet = np.ones((hpx, wpx))
     if c.sheet in ("textured", "patterned"):
@@ -289,35 +303,49 @@ def render_photo(pattern: Pattern, runs: list[FloatArray], test_runs: dict[int, 
     return SynthPhoto(np.asarray(out, dtype=np.uint8), hom)
 
 
-def scene_from_pattern(pattern: Pattern, *, lag_s: float, accel_mm_s2: float = 1000.0
+def scene_from_pattern(pattern: Pattern, *, lag_s: float, accel_mm_s2: float = 1000.0,
+                       corner_speed_mm_s: float = 7.0
                        ) -> tuple[list[FloatArray], dict[int, tuple[FloatArray, FloatArray]]]:
-    """Marks and test lines of ``pattern`` from its G-code text, read here (not by
-    flowtwin's reader): absolute ``G1 X Y``, relative ``E`` > 0 extrudes; each test line's
-    segments, speeds and advance factor from the pattern's records.
+    """Marks and test runs of ``pattern`` from its G-code text, read here (not by
+    flowtwin's reader): absolute ``G1 X Y Z``, relative ``E`` > 0 extrudes; each test
+    run's segments, speeds and advance factor from the pattern's records.
+
+    A test run is the consecutive test segments of one group (a line; a chevron's wall,
+    turning at its apex at ``corner_speed_mm_s``). Of a pattern printed on several layers
+    only the top layer is drawn: a photo from above shows it.
 
     Returns
     -------
     tuple
-        ``(marks, test_runs)`` for :func:`render_photo`.
+        ``(marks, test_runs)`` for :func:`render_photo`; ``test_runs`` keyed by the
+        line index of a line pattern, by the wall's running number on the top layer
+        otherwise.
     """
     seg_of = {sg.line: sg for sg in pattern.segments}
     k_of = {ps.group: ps.k_s for ps in pattern.pa_settings if ps.group >= 0}
-    x = y = 0.0
+    x = y = z = 0.0
     runs: list[list[tuple[float, float]]] = []
+    run_z: list[float] = []
     cur: list[tuple[float, float]] = []
-    tests: dict[int, list[tuple[float, float, float, float]]] = {}
+    walls: list[tuple[int, float, list[tuple[float, float, float, float, int]]]] = []
+    last_test_line = -10
     for no, text in enumerate(pattern.lines, start=1):
         words = text.split(";")[0].split()
         if not words or words[0] not in ("G0", "G1"):
             continue
-        vals = {w[0]: float(w[1:]) for w in words[1:] if w[0] in "XYEF"}
+        vals = {w[0]: float(w[1:]) for w in words[1:] if w[0] in "XYZEF"}
+        z = vals.get("Z", z)
         nx, ny = vals.get("X", x), vals.get("Y", y)
         moves = (nx, ny) != (x, y)
         if moves and vals.get("E", 0.0) > 0 and no in seg_of:
             sg = seg_of[no]
-            tests.setdefault(sg.group, []).append((x, y, nx, ny))
+            if not walls or walls[-1][0] != sg.group or last_test_line != no - 1:
+                walls.append((sg.group, z, []))
+            walls[-1][2].append((x, y, nx, ny, no))
+            last_test_line = no
             if cur:
                 runs.append(cur)
+                run_z.append(z)
             cur = []
         elif moves and vals.get("E", 0.0) > 0:
             if not cur:
@@ -325,20 +353,29 @@ def scene_from_pattern(pattern: Pattern, *, lag_s: float, accel_mm_s2: float = 1
             cur.append((nx, ny))
         elif moves and cur:
             runs.append(cur)
+            run_z.append(z)
             cur = []
         x, y = nx, ny
     if cur:
         runs.append(cur)
+        run_z.append(z)
+    top = max((w[1] for w in walls), default=0.0)
+    layered = len({round(w[1], 4) for w in walls}) > 1
     marks = [np.asarray(r, dtype=np.float64) for r in runs if len(r) >= 2]
     out: dict[int, tuple[FloatArray, FloatArray]] = {}
-    for g, segs in tests.items():
-        recs = [sg for sg in pattern.segments if sg.group == g]
+    lw = pattern.settings.line_width_mm
+    h = pattern.settings.layer_height_mm
+    for i, (g, _wz, segs) in enumerate(w for w in walls if not layered or w[1] == top):
+        recs = [seg_of[no] for *_, no in segs]
         lengths = np.array([sg.length_mm for sg in recs])
         speeds = np.array([sg.speed_mm_s for sg in recs])
+        path = np.array([[segs[0][0], segs[0][1]]] + [[s_[2], s_[3]] for s_ in segs])
+        d = np.diff(path, axis=0)
+        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+        turns = np.einsum("ij,ij->i", u[:-1], u[1:]) < 0.999
+        corner = np.where(turns, corner_speed_mm_s, np.minimum(speeds[:-1], speeds[1:]))
         _, wid = synthetic_widths(lengths, speeds, k_la_s=k_of[g], lag_s=lag_s,
-                                  accel_mm_s2=accel_mm_s2,
-                                  line_width_mm=pattern.settings.line_width_mm,
-                                  layer_height_mm=pattern.settings.layer_height_mm)
-        ends = np.array([[segs[0][0], segs[0][1]], [segs[-1][2], segs[-1][3]]])
-        out[g] = (ends, wid)
+                                  accel_mm_s2=accel_mm_s2, line_width_mm=lw,
+                                  layer_height_mm=h, corner_speeds=corner)
+        out[g if not layered and pattern.kind != "chevron" else i] = (path, wid)
     return marks, out

@@ -146,7 +146,7 @@ def pitch_px(turned: F32, valid: npt.NDArray[np.uint8]) -> float:
 
 
 def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
-                light: bool, isotropic: bool = False) -> F32:
+                light: bool, isotropic: bool = False, element_pitches: float = 0.6) -> F32:
     """Top-hat across the lines (module docstring), divided by the local brightness.
 
     Parameters
@@ -160,6 +160,10 @@ def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
     isotropic
         A disc instead of the vertical element: keeps thin beads in every direction (the
         pattern's marks: prime lines, reference marks, digits).
+    element_pitches
+        Length of the element, pitches: between the bead's width and the gap's (0.6 for
+        line patterns, whose beads are a fifth of the pitch or less; half a pitch for
+        chevrons, whose bands of touching walls are 0.4 of it).
 
     Returns
     -------
@@ -167,7 +171,7 @@ def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
         float32, ≥ 0, about the bead/sheet contrast as a fraction of the brightness on
         the beads, 0 on the sheet.
     """
-    length = max(3, int(round(0.6 * pitch)) | 1)
+    length = max(3, int(round(element_pitches * pitch)) | 1)
     se = (cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (length, length)) if isotropic
           else cv2.getStructuringElement(cv2.MORPH_RECT, (1, length)))
     if light:
