@@ -17,7 +17,7 @@ from flowtwin.vision.edge_model import (
     fit_edge_pair,
 )
 from flowtwin.vision.silhouette import clip_model
-from flowtwin.vision.width import measure_width_px, refit_width
+from flowtwin.vision.width import measure_width_px, refit_width, refit_widths
 
 
 def test_blurred_square_root_against_quadrature_and_closed_forms() -> None:
@@ -131,6 +131,14 @@ def test_width_of_a_shaded_cylinder_is_its_silhouette(name: str) -> None:
         for m in ms:
             m = refit_width(m, sigma, 60, mix=mix)
             assert m.width_px == pytest.approx(140.8, abs=tol), (name, blur)
+        # the clip's refit in one vectorised pass gives each frame's own refit
+        together = refit_widths(ms, sigma, 60, mix=mix)
+        for m, t in zip(ms, together, strict=True):
+            one = refit_width(m, sigma, 60, mix=mix)
+            assert t.width_px == pytest.approx(one.width_px, abs=1e-9)
+            assert t.silhouette is not None and one.silhouette is not None
+            assert t.silhouette.left.step_dn == pytest.approx(one.silhouette.left.step_dn,
+                                                              rel=1e-9)
     # the derivative method's inward bias, for contrast (grows with the shading rise)
     m = measure_width_px(_cylinder(SHADES["dark limb (the real clip)"], blur=1.2))
     assert m.gradient_width_px < 140.8 - 1.0

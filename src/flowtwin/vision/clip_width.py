@@ -45,7 +45,7 @@ from flowtwin.vision.readings import Quality
 from flowtwin.vision.roi import Roi
 from flowtwin.vision.silhouette import clip_model
 from flowtwin.vision.summarize import RowLog
-from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_width
+from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
 
 __all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REACH_MM",
            "ClipWidth", "contact_rows", "is_clean"]
@@ -195,9 +195,9 @@ class ClipWidth:
             self.blur_px, self.mix = clip_model([sl.profiles for sl in sils],
                                                 [(sl.left, sl.right) for sl in sils],
                                                 self.blur_px)
-        blur = self.blur_px
-        for row, em in self._stored:
-            new = refit_width(em, blur, self.roi.h, self.expected_px, self.mix)
+        refits = refit_widths([em for _, em in self._stored], self.blur_px, self.roi.h,
+                              self.expected_px, self.mix)
+        for (row, _), new in zip(self._stored, refits, strict=True):
             if new.ok:
                 rows.width[row] = new.width_px
                 rows.left[row] = new.left_px + self.roi.x

@@ -44,6 +44,7 @@ offset.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,8 @@ import numpy.typing as npt
 from scipy.special import gamma, ndtr, pbdv
 
 __all__ = ["EdgeFit", "EdgeProfile", "aligned_profile", "best_offsets", "blurred_pow15_edge",
-           "blurred_sqrt_edge", "fit_edge_pair", "parabola_vertex", "sse_grid"]
+           "blurred_sqrt_edge", "fit_edge_pair", "fit_edges", "mixed_sse", "parabola_vertex",
+           "projected_columns", "sse_grid", "stack_profiles"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -266,6 +268,77 @@ class EdgeFit:
     mix_rad: float = math.nan
 
 
+def projected_columns(t: F64, y: F64, w: F64, sigmas: F64, taus: F64,
+                      radius: F64 | None = None) -> tuple[F64, F64]:
+    """The profiles and the model's edge columns with the background line ``(1, t)``
+    projected out (weighted least squares), for :func:`sse_grid`.
+
+    Parameters
+    ----------
+    t, y, w, sigmas, taus, radius
+        As for :func:`sse_grid`.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Projected values, shape ``(P, n)``, and columns, shape ``(P, S, K, n, 3)``.
+    """
+    sw = w.sum(axis=1)
+    tc = t - ((w * t).sum(axis=1) / sw)[:, None]
+    wtc = w * tc
+    ntt = (wtc * tc).sum(axis=1)
+
+    def project(v: F64, shape: tuple[int, ...]) -> F64:
+        # v: (P, ..., n, a) -> weighted residual from its line in t
+        ww = w.reshape(shape)
+        mean = (ww * v).sum(axis=-2, keepdims=True) / sw.reshape(shape[:1] + (1,) * (
+            len(shape) - 1))
+        slope = (wtc.reshape(shape) * v).sum(axis=-2, keepdims=True) / ntt.reshape(
+            shape[:1] + (1,) * (len(shape) - 1))
+        return ww * (v - mean - tc.reshape(shape) * slope)
+
+    p, n = t.shape
+    yp = project(y[:, :, None], (p, n, 1))[:, :, 0]                   # (P, n)
+    s = t[:, None, None, :] - taus[:, None, :, None]                   # (P, 1, K, n)
+    r = np.full(p, np.inf) if radius is None else radius
+    cols = project(_edge_columns(s, sigmas[None, :, None, None], r[:, None, None, None]),
+                   (p, 1, 1, n, 1))
+    return yp, cols
+
+
+def mixed_sse(yp: F64, cols: F64, mix: F64) -> tuple[F64, F64]:
+    """Residual sum of squares and coefficients ``(A, C, B)`` with the limb's shape fixed,
+    ``(A, B) ∝ (cos α, sin α)``, from :func:`projected_columns`.
+
+    Parameters
+    ----------
+    yp, cols
+        Projected values ``(P, n)`` and columns ``(P, S, K, n, 3)``.
+    mix
+        Angles ``α``, shape ``(P,)`` or ``(P, S)`` (one per profile and σ, or per profile
+        and shape when ``S`` is 1 and the columns are broadcast).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        SSE, shape ``(P, S', K)``, and coefficients, shape ``(P, S', K, 3)``.
+    """
+    m = mix.reshape(mix.shape[0], -1)[:, :, None, None]               # (P, S', 1, 1)
+    ca, sa = np.cos(m), np.sin(m)
+    two = np.stack([ca * cols[..., 0] + sa * cols[..., 2],
+                    np.broadcast_to(cols[..., 1], np.broadcast_shapes(
+                        cols.shape[:-1], ca.shape))], axis=-1)
+    tt = np.swapaxes(two, -1, -2)
+    g2 = tt @ two
+    h2 = (tt @ yp[:, None, None, :, None])[..., 0]
+    g2 = g2 + 1e-9 * np.trace(g2, axis1=-2, axis2=-1)[..., None, None] * np.eye(2)
+    c2 = np.linalg.solve(g2, h2[..., None])[..., 0]
+    sse2 = (yp * yp).sum(axis=1)[:, None, None] - np.sum(h2 * c2, axis=-1)
+    coef3 = np.stack([c2[..., 0] * ca[..., 0], c2[..., 1], c2[..., 0] * sa[..., 0]],
+                     axis=-1)
+    return np.maximum(sse2, 0.0), coef3
+
+
 def sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, a_min: F64 | None = None,
              radius: F64 | None = None, mix: F64 | None = None) -> tuple[F64, F64]:
     """Residual sum of squares and edge coefficients ``(A, C, B)`` on a (σ, edge) grid.
@@ -300,38 +373,9 @@ def sse_grid(t: F64, y: F64, w: F64, sigmas: F64, taus: F64, a_min: F64 | None =
     tuple of numpy.ndarray
         SSE, shape ``(P, S, K)``, and coefficients, shape ``(P, S, K, 3)``.
     """
-    sw = w.sum(axis=1)
-    tc = t - ((w * t).sum(axis=1) / sw)[:, None]
-    wtc = w * tc
-    ntt = (wtc * tc).sum(axis=1)
-
-    def project(v: F64, shape: tuple[int, ...]) -> F64:
-        # v: (P, ..., n, a) -> weighted residual from its line in t
-        ww = w.reshape(shape)
-        mean = (ww * v).sum(axis=-2, keepdims=True) / sw.reshape(shape[:1] + (1,) * (
-            len(shape) - 1))
-        slope = (wtc.reshape(shape) * v).sum(axis=-2, keepdims=True) / ntt.reshape(
-            shape[:1] + (1,) * (len(shape) - 1))
-        return ww * (v - mean - tc.reshape(shape) * slope)
-
-    p, n = t.shape
-    yp = project(y[:, :, None], (p, n, 1))[:, :, 0]                   # (P, n)
-    s = t[:, None, None, :] - taus[:, None, :, None]                   # (P, 1, K, n)
-    r = np.full(p, np.inf) if radius is None else radius
-    cols = project(_edge_columns(s, sigmas[None, :, None, None], r[:, None, None, None]),
-                   (p, 1, 1, n, 1))
+    yp, cols = projected_columns(t, y, w, sigmas, taus, radius)
     if mix is not None:
-        ca, sa = np.cos(mix)[:, None, None, None], np.sin(mix)[:, None, None, None]
-        two = np.stack([ca * cols[..., 0] + sa * cols[..., 2], cols[..., 1]], axis=-1)
-        tt = np.swapaxes(two, -1, -2)
-        g2 = tt @ two
-        h2 = (tt @ yp[:, None, None, :, None])[..., 0]
-        g2 = g2 + 1e-9 * np.trace(g2, axis1=-2, axis2=-1)[..., None, None] * np.eye(2)
-        c2 = np.linalg.solve(g2, h2[..., None])[..., 0]
-        sse2 = (yp * yp).sum(axis=1)[:, None, None] - np.sum(h2 * c2, axis=-1)
-        coef3 = np.stack([c2[..., 0] * ca[..., 0], c2[..., 1], c2[..., 0] * sa[..., 0]],
-                         axis=-1)
-        return np.maximum(sse2, 0.0), coef3
+        return mixed_sse(yp, cols, mix)
     ct = np.swapaxes(cols, -1, -2)                                     # (P, S, K, 3, n)
     g = ct @ cols
     h = (ct @ yp[:, None, None, :, None])[..., 0]
@@ -415,44 +459,95 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
         The two edges' fits; ``offset_px`` is relative to each profile's reference line.
     """
     profiles = (left, right)
+    if blur_px is not None:
+        fl, fr = fit_edges(profiles, float(blur_px), None if mix is None else np.array(mix),
+                           bounded=bounded)
+        return fl, fr
+    t, y, w, radius = stack_profiles(profiles)
+    mixes = None if mix is None else np.array(mix, dtype=np.float64)
+    a_min = _step_floor(t, y, w) if bounded and mix is None else None
+    # coarse: offsets every 0.25 px, every σ of the grid; σ shared by the two edges
+    taus: F64 = np.broadcast_to(_OFFSETS, (2, _OFFSETS.size))
+    sse, pos, _ = best_offsets(sse_grid(t, y, w, _SIGMAS, taus, a_min, radius, mixes)[0], taus)
+    i = int(np.argmin(sse.sum(axis=0)))
+    start = pos[:, i]
+    # fine: σ between the neighbours of the best, edges ±0.25 px in 0.05 px
+    fine_s = np.geomspace(_SIGMAS[max(i - 1, 0)], _SIGMAS[min(i + 1, len(_SIGMAS) - 1)], 7)
+    taus = start[:, None] + _FINE[None, :]
+    sse, pos, _ = best_offsets(sse_grid(t, y, w, fine_s, taus, a_min, radius, mixes)[0], taus)
+    total = sse.sum(axis=0)
+    k = int(np.argmin(total))
+    sigma = float(fine_s[k])
+    if 0 < k < len(fine_s) - 1:
+        frac = parabola_vertex(float(total[k - 1]), float(total[k]), float(total[k + 1]))
+        sigma *= float(fine_s[1] / fine_s[0]) ** frac
+    fl, fr = _final_fits(profiles, (t, y, w, radius), sigma, pos[:, k], a_min, mixes)
+    return fl, fr
+
+
+def stack_profiles(profiles: Sequence[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
+    """Positions (inside the filament at larger ``t``), values, weights and radii of
+    profiles, padded to one length (padding has weight 0), shapes ``(P, n)`` and
+    ``(P,)``."""
     n = max(p.offset_px.size for p in profiles)
-    t = np.zeros((2, n))
-    y = np.zeros((2, n))
-    w = np.zeros((2, n))
+    t = np.zeros((len(profiles), n))
+    y = np.zeros((len(profiles), n))
+    w = np.zeros((len(profiles), n))
     for i, p in enumerate(profiles):
         m = p.offset_px.size
         t[i, :m] = p.inside * p.offset_px
         t[i, m:] = t[i, m - 1] if m else 0.0
         y[i, :m] = p.value_dn
         w[i, :m] = p.weights
-    radius = np.array([p.radius_px for p in profiles])
-    mixes = None if mix is None else np.array(mix, dtype=np.float64)
-    a_min = None
-    if bounded and mix is None:
-        outside = (t < -1.0) & (w > 0)
-        a_min = np.array([-float(np.mean(y[i][outside[i]])) if outside[i].any() else -np.inf
-                          for i in range(2)])
-    sigmas: F64 = _SIGMAS if blur_px is None else np.array([float(blur_px)])
-    # coarse: offsets every 0.25 px, every σ of the grid; σ shared by the two edges
-    taus: F64 = np.broadcast_to(_OFFSETS, (2, _OFFSETS.size))
-    sse, pos, _ = best_offsets(sse_grid(t, y, w, sigmas, taus, a_min, radius, mixes)[0], taus)
-    i = int(np.argmin(sse.sum(axis=0)))
-    start = pos[:, i]
-    if blur_px is not None:
-        sigma = float(blur_px)
-    else:
-        # fine: σ between the neighbours of the best, edges ±0.25 px in 0.05 px
-        fine_s = np.geomspace(_SIGMAS[max(i - 1, 0)], _SIGMAS[min(i + 1, len(_SIGMAS) - 1)],
-                              7)
-        taus = start[:, None] + _FINE[None, :]
-        sse, pos, _ = best_offsets(sse_grid(t, y, w, fine_s, taus, a_min, radius, mixes)[0], taus)
-        total = sse.sum(axis=0)
-        k = int(np.argmin(total))
-        sigma = float(fine_s[k])
-        if 0 < k < len(fine_s) - 1:
-            frac = parabola_vertex(float(total[k - 1]), float(total[k]), float(total[k + 1]))
-            sigma *= float(fine_s[1] / fine_s[0]) ** frac
-        start = pos[:, k]
+    return t, y, w, np.array([p.radius_px for p in profiles], dtype=np.float64)
+
+
+def _step_floor(t: F64, y: F64, w: F64) -> F64:
+    """Lower bound of each profile's step: minus its background level, the mean more
+    than 1 px outside the edge line (the limb's radiance is not negative)."""
+    outside = (t < -1.0) & (w > 0)
+    return np.array([-float(np.mean(y[i][outside[i]])) if outside[i].any() else -np.inf
+                     for i in range(t.shape[0])])
+
+
+def fit_edges(profiles: Sequence[EdgeProfile], blur_px: float, mix: F64 | None = None, *,
+              bounded: bool = True) -> list[EdgeFit]:
+    """Fit the edge model to many edges at a known blur, each edge on its own (edges
+    every 0.25 px over ±3 px, then ±0.25 px in 0.05 px around the best), in one pass.
+
+    Parameters
+    ----------
+    profiles
+        Edge-aligned profiles (:func:`aligned_profile`), any number.
+    blur_px
+        The blur (σ, optics and pixel), px.
+    mix
+        Fixed limb shape of each profile, ``α``, shape ``(P,)``; ``None``: free.
+    bounded
+        As for :func:`fit_edge_pair` (applies when ``mix`` is ``None``).
+
+    Returns
+    -------
+    list of EdgeFit
+        One fit per profile, as :func:`fit_edge_pair` gives them at that blur.
+    """
+    if not profiles:
+        return []
+    data = stack_profiles(profiles)
+    t, y, w, radius = data
+    mixes = None if mix is None else np.asarray(mix, dtype=np.float64)
+    a_min = _step_floor(t, y, w) if bounded and mix is None else None
+    sigmas = np.array([float(blur_px)])
+    taus: F64 = np.broadcast_to(_OFFSETS, (len(profiles), _OFFSETS.size))
+    _, pos, _ = best_offsets(sse_grid(t, y, w, sigmas, taus, a_min, radius, mixes)[0], taus)
+    return _final_fits(profiles, data, float(blur_px), pos[:, 0], a_min, mixes)
+
+
+def _final_fits(profiles: Sequence[EdgeProfile], data: tuple[F64, F64, F64, F64],
+                sigma: float, start: F64, a_min: F64 | None, mixes: F64 | None
+                ) -> list[EdgeFit]:
+    """Each edge ±0.25 px in 0.05 px around ``start`` at blur ``sigma``, and its fit."""
+    t, y, w, radius = data
     taus = start[:, None] + _FINE[None, :]
     sse_g, coef_g = sse_grid(t, y, w, np.array([sigma]), taus, a_min, radius, mixes)
     _, pos, kk = best_offsets(sse_g, taus)
@@ -461,7 +556,7 @@ def fit_edge_pair(left: EdgeProfile, right: EdgeProfile, *, blur_px: float | Non
         k = int(kk[j, 0])
         out.append(_fit_result(p, float(pos[j, 0]), sigma, float(sse_g[j, 0, k]),
                                coef_g[j, 0, k], int(w[j].sum())))
-    return out[0], out[1]
+    return out
 
 
 def _fit_result(p: EdgeProfile, tau: float, sigma: float, sse: float, coef: F64,

@@ -3,7 +3,8 @@
 :mod:`flowtwin.vision.edge_model` fits the blurred, shaded-cylinder edge to the
 edge-aligned mean profiles of the filament's two edges. Here: the profiles of the two
 edges with the background beyond another object's edge left out (:func:`edge_profiles`),
-the checks that make a fit usable (:func:`fit_silhouette`), and the clip's blur and limb
+the checks that make a fit usable (:func:`fit_silhouette`; all frames of a clip at one
+blur in one vectorised pass, :func:`fit_silhouettes`), and the clip's blur and limb
 shapes fitted jointly over its frames (:func:`clip_model`).
 """
 
@@ -21,11 +22,16 @@ from flowtwin.vision.edge_model import (
     aligned_profile,
     best_offsets,
     fit_edge_pair,
+    fit_edges,
+    mixed_sse,
     parabola_vertex,
+    projected_columns,
     sse_grid,
+    stack_profiles,
 )
 
-__all__ = ["IN_PX", "OUT_PX", "Silhouette", "clip_model", "edge_profiles", "fit_silhouette"]
+__all__ = ["IN_PX", "OUT_PX", "Silhouette", "clip_model", "edge_profiles", "fit_silhouette",
+           "fit_silhouettes"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -151,8 +157,46 @@ def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *
         The fits, ``ok`` false with a reason when an edge has too little background
         beside it or its fit ran to the end of the search range.
     """
-    left, right = profiles
-    for name, p in (("left", left), ("right", right)):
+    bad = _unfit(profiles, polarity)
+    if bad is not None:
+        return bad
+    fl, fr = fit_edge_pair(profiles[0], profiles[1], blur_px=blur_px, mix=mix)
+    return _checked(profiles, polarity, fl, fr)
+
+
+def fit_silhouettes(items: list[tuple[tuple[EdgeProfile, EdgeProfile], float]],
+                    blur_px: float, mix: tuple[float, float] | None = None
+                    ) -> list[Silhouette]:
+    """:func:`fit_silhouette` of many frames at one known blur, in one pass
+    (:func:`~flowtwin.vision.edge_model.fit_edges`).
+
+    Parameters
+    ----------
+    items
+        Each frame's left and right profiles and polarity.
+    blur_px
+        The blur σ (optics and pixel), px.
+    mix
+        Known limb shapes of the two edges; ``None``: fitted.
+
+    Returns
+    -------
+    list of Silhouette
+        One per item, as :func:`fit_silhouette` gives it.
+    """
+    out: list[Silhouette | None] = [_unfit(pr, pol) for pr, pol in items]
+    todo = [i for i, sil in enumerate(out) if sil is None]
+    edges = [p for i in todo for p in items[i][0]]
+    mixes = None if mix is None else np.tile(np.array(mix, dtype=np.float64), len(todo))
+    fits = fit_edges(edges, blur_px, mixes)
+    for j, i in enumerate(todo):
+        out[i] = _checked(items[i][0], items[i][1], fits[2 * j], fits[2 * j + 1])
+    return [sil for sil in out if sil is not None]
+
+
+def _unfit(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float) -> Silhouette | None:
+    """A refusal when an edge has too little background or filament beside it."""
+    for name, p in zip(("left", "right"), profiles, strict=True):
         t = p.inside * p.offset_px
         if p.rows == 0 or int(np.sum((t < -1.0) & (p.weights > 0))) < 2:
             return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
@@ -160,7 +204,12 @@ def fit_silhouette(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, *
         if int(np.sum(t > 2.0)) < 4:
             return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
                               f"too little filament inside the {name} edge in the ROI")
-    fl, fr = fit_edge_pair(left, right, blur_px=blur_px, mix=mix)
+    return None
+
+
+def _checked(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, fl: EdgeFit,
+             fr: EdgeFit) -> Silhouette:
+    """The silhouette of two fits, refused when a fit ran to the end of its range."""
     for name, f in (("left", fl), ("right", fr)):
         if not f.ok:
             return Silhouette(fl, fr, profiles, polarity, False,
@@ -178,37 +227,17 @@ _MIXES = np.arange(-0.5 * math.pi, 0.5 * math.pi, 0.1)
 _NEAR = np.arange(-0.6, 0.6001, 0.1)
 
 
-def _stack(profiles: list[EdgeProfile]) -> tuple[F64, F64, F64, F64]:
-    """Positions (inside at larger ``t``), values, weights and radii of profiles, padded
-    to one length (padding has weight 0)."""
-    n = max(p.offset_px.size for p in profiles)
-    count = len(profiles)
-    t = np.zeros((count, n))
-    y = np.zeros((count, n))
-    w = np.zeros((count, n))
-    for i, p in enumerate(profiles):
-        m = p.offset_px.size
-        t[i, :m] = p.inside * p.offset_px
-        t[i, m:] = t[i, m - 1] if m else 0.0
-        y[i, :m] = p.value_dn
-        w[i, :m] = p.weights
-    return t, y, w, np.array([p.radius_px for p in profiles])
-
-
 def _shape_residuals(t: F64, y: F64, w: F64, radius: F64, starts: F64, sigma: float
                      ) -> F64:
     """Residual of every profile at every limb shape of :data:`_MIXES`, each at its
     own best edge position near ``starts`` (:data:`_NEAR`), with blur ``sigma``: shape
-    ``(P, len(_MIXES))``."""
-    count = t.shape[0]
-    k = _MIXES.size
-    tt, yy, ww = (np.repeat(v, k, axis=0) for v in (t, y, w))
-    rr = np.repeat(radius, k)
-    mixes = np.tile(_MIXES, count)
-    taus = np.repeat(starts, k)[:, None] + _NEAR[None, :]
-    sse, _, _ = best_offsets(sse_grid(tt, yy, ww, np.array([sigma]), taus, None, rr, mixes)[0],
-                      taus)
-    return sse[:, 0].reshape(count, k)
+    ``(P, len(_MIXES))``. The model's columns do not depend on the shape: they are
+    computed once and combined for each."""
+    taus = starts[:, None] + _NEAR[None, :]
+    yp, cols = projected_columns(t, y, w, np.array([sigma]), taus, radius)
+    mixes = np.broadcast_to(_MIXES, (t.shape[0], _MIXES.size))
+    sse, _, _ = best_offsets(mixed_sse(yp, cols, mixes)[0], taus)
+    return sse
 
 
 def _parabola_min(values: F64, grid: F64) -> tuple[float, float]:
@@ -247,7 +276,7 @@ def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]],
     tuple
         ``(σ, (α_left, α_right))``, px and rad.
     """
-    t, y, w, radius = _stack([p for pair in pairs for p in pair])
+    t, y, w, radius = stack_profiles([p for pair in pairs for p in pair])
     starts = np.array([f.offset_px * p.inside for pair, fp in zip(pairs, fits, strict=True)
                        for p, f in zip(pair, fp, strict=True)])
     # the blur: least residual summed over the frames, each frame's shapes free (bounded)

@@ -52,10 +52,15 @@ import numpy.typing as npt
 from flowtwin.errors import VisionError
 from flowtwin.vision.edge_model import EdgeProfile
 from flowtwin.vision.edge_pairs import Pair, band_pairs, outer_pairs
-from flowtwin.vision.silhouette import Silhouette, edge_profiles, fit_silhouette
+from flowtwin.vision.silhouette import (
+    Silhouette,
+    edge_profiles,
+    fit_silhouette,
+    fit_silhouettes,
+)
 
 __all__ = ["STANDARD_DIAMETERS_MM", "EdgeMeasurement", "calibration_factor",
-           "expected_width_px", "measure_width_px", "refit_width"]
+           "expected_width_px", "measure_width_px", "refit_width", "refit_widths"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -390,16 +395,18 @@ def _scatter(y: F64, x: F64, good: npt.NDArray[np.bool_], line: tuple[float, flo
 
 def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile], h: int,
                       expected_px: Sequence[tuple[float, float]] | None,
-                      blur_px: float | None, mix: tuple[float, float] | None = None
-                      ) -> EdgeMeasurement:
-    """The width between the fitted silhouettes at the ROI's middle row, or a refusal."""
+                      blur_px: float | None, mix: tuple[float, float] | None = None,
+                      sil: Silhouette | None = None) -> EdgeMeasurement:
+    """The width between the fitted silhouettes at the ROI's middle row, or a refusal
+    (``sil``: the silhouettes when already fitted)."""
     (al, bl), (ar, br) = d.lines
     y_mid = 0.5 * (h - 1)
     tilt = math.atan(0.5 * (al + ar))
     cos_t = math.cos(tilt)
     grad_left, grad_right = al * y_mid + bl, ar * y_mid + br
     gradient = (grad_right - grad_left) * cos_t
-    sil = fit_silhouette(profiles, d.polarity, blur_px=blur_px, mix=mix)
+    if sil is None:
+        sil = fit_silhouette(profiles, d.polarity, blur_px=blur_px, mix=mix)
 
     def refuse(status: str, reason: str, width: float = math.nan) -> EdgeMeasurement:
         return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, d.strength, d.used,
@@ -420,15 +427,16 @@ def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile]
                            gradient, sil.left.blur_px, d.lines, sil, d.scatter)
 
 
-def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
-                expected_px: Sequence[tuple[float, float]] | None = None,
-                mix: tuple[float, float] | None = None) -> EdgeMeasurement:
-    """The same measurement with the silhouettes refitted at a known blur.
+def refit_widths(ems: Sequence[EdgeMeasurement], blur_px: float, h: int,
+                 expected_px: Sequence[tuple[float, float]] | None = None,
+                 mix: tuple[float, float] | None = None) -> list[EdgeMeasurement]:
+    """The same measurements with the silhouettes refitted at a known blur (all frames
+    in one pass, :func:`~flowtwin.vision.silhouette.fit_silhouettes`).
 
     Parameters
     ----------
-    em
-        A measurement whose edges were found (``silhouette`` not ``None``); others are
+    ems
+        Measurements; those whose edges were not found (``silhouette`` ``None``) are
         returned unchanged.
     blur_px
         The blur σ (optics and pixel), px.
@@ -441,16 +449,30 @@ def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
 
     Returns
     -------
-    EdgeMeasurement
-        The refitted measurement.
+    list of EdgeMeasurement
+        The refitted measurements, in the order given.
     """
-    if em.silhouette is None or em.lines is None:
-        return em
-    polarity = em.silhouette.polarity
-    d = _Diagnostics(em.edge_dn_px, em.rows_used, em.row_spread_px, em.row_left_px,
-                     em.row_right_px, em.row_used, em.rejected, em.lines, polarity,
-                     em.edge_scatter_px)
-    return _silhouette_width(d, em.silhouette.profiles, h, expected_px, blur_px, mix)
+    todo = [(i, em.silhouette, em.lines) for i, em in enumerate(ems)
+            if em.silhouette is not None and em.lines is not None]
+    sils = fit_silhouettes([(sl.profiles, sl.polarity) for _, sl, _ in todo if sl is not None],
+                           blur_px, mix)
+    out = list(ems)
+    for (i, _, lines), sil in zip(todo, sils, strict=True):
+        em = ems[i]
+        if lines is None:
+            continue
+        d = _Diagnostics(em.edge_dn_px, em.rows_used, em.row_spread_px, em.row_left_px,
+                         em.row_right_px, em.row_used, em.rejected, lines, sil.polarity,
+                         em.edge_scatter_px)
+        out[i] = _silhouette_width(d, sil.profiles, h, expected_px, blur_px, mix, sil)
+    return out
+
+
+def refit_width(em: EdgeMeasurement, blur_px: float, h: int,
+                expected_px: Sequence[tuple[float, float]] | None = None,
+                mix: tuple[float, float] | None = None) -> EdgeMeasurement:
+    """One measurement refitted at a known blur (:func:`refit_widths`)."""
+    return refit_widths([em], blur_px, h, expected_px, mix)[0]
 
 
 def _fit_line(y: F64, x: F64) -> tuple[float, float]:
