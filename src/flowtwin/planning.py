@@ -10,6 +10,7 @@ apply from where they appear, as on the printer.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -31,7 +32,7 @@ from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_
 from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
-__all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
+__all__ = ["DEFAULT_PRINTER", "PlanResult", "PlanSummary", "load_printer", "plan_gcode"]
 
 #: Printer used when none is given.
 DEFAULT_PRINTER = "generic-klipper"
@@ -77,8 +78,8 @@ class PlanResult:
                          "filament_mm": float(fil[k]), "moves": int(counts[k])})
         return rows
 
-    def summary(self) -> dict[str, object]:
-        """The whole-print figures as plain JSON-able values."""
+    def summary(self) -> PlanSummary:
+        """The whole-print figures (:class:`PlanSummary`)."""
         t = self.table
         m = t.moves
         n = len(m)
@@ -106,24 +107,77 @@ class PlanResult:
             layers = max_layer + 1
         by_feature = feature_seconds(t.features, feature_keys, feature_s,
                                      self.timeline.dwell_s)
+        slicer = t.metadata.get("slicer")
+        return PlanSummary(
+            file=t.source, printer=self.printer, firmware=self.timeline.firmware,
+            total_time_s=float(self.timeline.total_time_s), net_filament_mm=net,
+            extruded_filament_mm=extruded, moves=int(n), extruding_moves=int(ext_written),
+            lines=t.n_lines, layers=int(layers), unknown_commands=dict(t.unknown_commands),
+            warnings=len(t.warnings) + len(self.timeline.warnings),
+            time_by_feature_s=by_feature, slicer=slicer if isinstance(slicer, str) else None,
+            slicer_time_s=_number(t.metadata.get("slicer_time_s")),
+            slicer_filament_mm=_number(t.metadata.get("slicer_filament_mm")))
+
+
+@dataclass(frozen=True, slots=True)
+class PlanSummary:
+    """The whole-print figures of a plan (the ``--json`` object of ``flowtwin plan``).
+
+    Attributes
+    ----------
+    file, printer, firmware
+        The G-code's name, the printer (profile name or ``printer.cfg``), the firmware.
+    total_time_s
+        Planned print time, s.
+    net_filament_mm, extruded_filament_mm
+        Net filament written (E words, firmware retractions left out) and filament
+        extruded (after M221) per tool number, mm.
+    moves, extruding_moves, lines, layers
+        Move rows, extruding rows written in the G-code, lines read, layers.
+    unknown_commands
+        Commands the reader did not interpret, with counts.
+    warnings
+        Number of reader and planner warnings.
+    time_by_feature_s
+        Print time per feature name (dwells as one feature), s.
+    slicer, slicer_time_s, slicer_filament_mm
+        The slicer and its own time (s) and filament (mm) estimates, where the file says.
+    """
+
+    file: str
+    printer: str
+    firmware: str
+    total_time_s: float
+    net_filament_mm: Mapping[str, float]
+    extruded_filament_mm: Mapping[str, float]
+    moves: int
+    extruding_moves: int
+    lines: int
+    layers: int
+    unknown_commands: Mapping[str, int]
+    warnings: int
+    time_by_feature_s: Mapping[str, float]
+    slicer: str | None = None
+    slicer_time_s: float | None = None
+    slicer_filament_mm: float | None = None
+
+    def as_dict(self) -> dict[str, object]:
+        """The figures as plain JSON-able values (keys in the ``--json`` order)."""
         return {
-            "file": t.source,
-            "printer": self.printer,
-            "firmware": self.timeline.firmware,
-            "total_time_s": float(self.timeline.total_time_s),
-            "net_filament_mm": net,
-            "extruded_filament_mm": extruded,
-            "moves": int(n),
-            "extruding_moves": int(ext_written),
-            "lines": t.n_lines,
-            "layers": int(layers),
-            "unknown_commands": t.unknown_commands,
-            "warnings": len(t.warnings) + len(self.timeline.warnings),
-            "time_by_feature_s": by_feature,
-            "slicer": t.metadata.get("slicer"),
-            "slicer_time_s": t.metadata.get("slicer_time_s"),
-            "slicer_filament_mm": t.metadata.get("slicer_filament_mm"),
+            "file": self.file, "printer": self.printer, "firmware": self.firmware,
+            "total_time_s": self.total_time_s, "net_filament_mm": dict(self.net_filament_mm),
+            "extruded_filament_mm": dict(self.extruded_filament_mm), "moves": self.moves,
+            "extruding_moves": self.extruding_moves, "lines": self.lines,
+            "layers": self.layers, "unknown_commands": dict(self.unknown_commands),
+            "warnings": self.warnings, "time_by_feature_s": dict(self.time_by_feature_s),
+            "slicer": self.slicer, "slicer_time_s": self.slicer_time_s,
+            "slicer_filament_mm": self.slicer_filament_mm,
         }
+
+
+def _number(value: object) -> float | None:
+    """A metadata number as written (``None`` when absent or not a number)."""
+    return value if isinstance(value, float | int) and not isinstance(value, bool) else None
 
 
 def load_printer(printer: PrinterProfile | str | os.PathLike[str] | None) -> PrinterProfile:

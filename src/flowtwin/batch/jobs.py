@@ -214,13 +214,13 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
         from flowtwin.planning import plan_gcode
 
         planned = plan_gcode(source, printer=machine.printer)
-        summary = planned.summary()
+        summary = planned.summary().as_dict()
         return summary, ({**summary, "per_layer": planned.per_layer()} if report else None)
     if engine == "simulate":
         from flowtwin.simulation import simulate
 
         simulated = simulate(source, machine=machine)
-        summary = simulated.summary()
+        summary = simulated.summary().as_dict()
         return summary, (dict(summary) if report else None)
     raise FlowtwinError("unknown engine", field="engine", value=engine,
                         allowed=", ".join(ENGINES))

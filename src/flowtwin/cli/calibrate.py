@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
@@ -38,11 +38,13 @@ from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_p
 from flowtwin.calibration.verify import verify_pattern
 from flowtwin.calibration.viscosity_fit import (
     VISCOSITY_COLUMNS,
+    ViscosityLawName,
     fit_viscosity_law,
     sweep_from_table,
 )
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.errors import CalibrationError
+from flowtwin.physics.strand import StrandModel
 from flowtwin.profiles.drive import DriveProfile
 from flowtwin.profiles.hotend import HotendProfile
 
@@ -246,11 +248,12 @@ def _fit_viscosity_cmd(
     sweep = sweep_from_table(table, hotend=_load_hotend(hotend),
                              filament_diameter_mm=filament_diameter, drive=drive_profile,
                              roller=roller)
-    if law not in ("exponential", "arrhenius", "wlf"):
+    laws: dict[str, ViscosityLawName] = {"exponential": "exponential",
+                                         "arrhenius": "arrhenius", "wlf": "wlf"}
+    if law not in laws:
         raise CalibrationError("unknown viscosity law", field="--law", value=law,
                                allowed="exponential, arrhenius, wlf")
-    fit = fit_viscosity_law(sweep, law=law, t_ref_c=t_ref,  # type: ignore[arg-type]
-                            wlf_c2_k=wlf_c2)
+    fit = fit_viscosity_law(sweep, law=laws[law], t_ref_c=t_ref, wlf_c2_k=wlf_c2)
     values = fit.profile_table()
     text = render_fragment("viscosity", values, stderr=fit.stderr, header=[
         f"flowtwin calibrate fit-viscosity: {law} law fitted to {data.name}",
@@ -288,14 +291,16 @@ def _fit_strand_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
-    if model not in ("best", "tractrix", "parabola", "catenary"):
+    models: dict[str, StrandModel | Literal["best"]] = {
+        "best": "best", **{m.value: m for m in StrandModel}}
+    if model not in models:
         raise CalibrationError("unknown strand model", field="--model", value=model,
                                allowed="best, tractrix, parabola, catenary")
     if not height_mm > 0:
         raise CalibrationError("nozzle height must be positive", field="--height-mm",
                                value=height_mm, allowed="> 0 mm")
     x, z = strand_points(read_table(data, STRAND_COLUMNS, min_rows=4))
-    cal = fit_strand(x, z, height_mm=height_mm, model=model)  # type: ignore[arg-type]
+    cal = fit_strand(x, z, height_mm=height_mm, model=models[model])
     errors = {**cal.stderr, "lag_mm": cal.lag_stderr_mm}
     text = render_fragment("strand", cal.profile_table(), stderr=errors, header=[
         f"flowtwin calibrate fit-strand: {cal.fit.model.value} [004] fitted to {data.name}",

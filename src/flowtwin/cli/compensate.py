@@ -44,7 +44,6 @@ def _times(a: float, b: float) -> str:
 
 def render_report(report: CompensationReport) -> None:
     """Print the before/after figures of one compensated file with rich."""
-    s = report.summary()
     b, a = report.before, report.after
     rows = [
         ("RMS flow error", _pct(b.rms_flow_error), _pct(a.rms_flow_error),
@@ -82,19 +81,18 @@ def render_report(report: CompensationReport) -> None:
         notes.append(f"guard slowed {len(report.slowed_moves)} moves "
                      f"(+{report.guard_time_cost_s:.1f} s)")
     for p in report.advance:
-        kept = "" if p.get("kept", True) else " (not kept)"
-        notes.append(f"advance pass: {p['pieces']:,} pieces in {p['runs']:,} runs, "
-                     f"{p['relief_travels']} relief retractions added, "
-                     f"{float(p.get('relief_precharge_mm', 0.0)):.3f} mm pre-charge"  # type: ignore[arg-type]
-                     f"{kept}")
-    if report.trajectory:
+        kept = "" if p.kept else " (not kept)"
+        notes.append(f"advance pass: {p.pieces:,} pieces in {p.runs:,} runs, "
+                     f"{p.relief_travels} relief retractions added, "
+                     f"{p.relief_precharge_mm:.3f} mm pre-charge{kept}")
+    if report.trajectory is not None:
         t = report.trajectory
-        notes.append(f"trajectory: L = {t['lag_mm']:.3f} mm, {t['pivots']} pivots, laid road "
-                     f"within {t['road_deviation_before_mm']:.3f} → "
-                     f"{t['road_deviation_after_mm']:.3f} mm of the intended one")
+        notes.append(f"trajectory: L = {t.lag_mm:.3f} mm, {t.pivots} pivots, laid road "
+                     f"within {t.road_deviation_before_mm:.3f} → "
+                     f"{t.road_deviation_after_mm:.3f} mm of the intended one")
     for n in notes:
         console.print(n)
-    for w in s["warnings"]:  # type: ignore[attr-defined]
+    for w in report.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", markup=True)
 
 
@@ -156,7 +154,7 @@ def register(app: typer.Typer) -> None:
             pace=PaceOptions(min_speed_mm_s=pace_min_speed, max_slowdown=pace_max_slowdown)
             if pace else None)
         if json_out:
-            print_json(report.summary())
+            print_json(report.as_dict())
         else:
             render_report(report)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -14,13 +15,37 @@ from flowtwin.cli.plan import render_plan
 from flowtwin.cli.simulate import render_simulation, run_simulation
 from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.planning import plan_gcode
-from flowtwin.simulation import DEFAULT_MACHINE
+from flowtwin.simulation import DEFAULT_MACHINE, SimulationSummary
 
-__all__ = ["register", "run_demo"]
+__all__ = ["DemoOutcome", "register", "run_demo"]
+
+
+@dataclass(frozen=True, slots=True)
+class DemoOutcome:
+    """What ``flowtwin demo`` made.
+
+    Attributes
+    ----------
+    plan
+        The plan's ``--json`` object (its summary with the per-layer rows).
+    simulation
+        The simulation's whole-print figures.
+    outputs
+        File name → path of every file written.
+    """
+
+    plan: dict[str, object]
+    simulation: SimulationSummary
+    outputs: dict[str, str]
+
+    def as_dict(self) -> dict[str, object]:
+        """The ``demo --json`` object."""
+        return {"plan": self.plan, "simulation": self.simulation.as_dict(),
+                "outputs": dict(self.outputs)}
 
 
 def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bool = False
-             ) -> dict[str, object]:
+             ) -> DemoOutcome:
     """Generate the built-in print into ``out_dir``, plan and simulate it, write the report.
 
     Writes ``demo.gcode``, ``plan.json``, ``summary.json`` and ``report.html``; returns the
@@ -32,16 +57,16 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
     from flowtwin.profiles import load_machine
 
     plan = plan_gcode(gcode, printer=load_machine(machine).printer)
-    plan_summary = plan.summary()
+    plan_summary = plan.summary().as_dict()
     plan_summary["per_layer"] = plan.per_layer()
     atomic_write_text(out_dir / "plan.json",
                       json.dumps(plan_summary, indent=2, allow_nan=False, default=str) + "\n")
     sim = run_simulation(str(gcode), machine=machine, klipper_config=None, out_dir=out_dir,
                          series=None, pressure_advance=True, slicer_limits=False,
                          show_progress=show_progress)
-    return {"plan": plan_summary, "simulation": sim.summary(),
-            "outputs": {name: str(out_dir / name) for name in
-                        ("demo.gcode", "plan.json", "summary.json", "report.html")}}
+    return DemoOutcome(plan_summary, sim.summary(),
+                       {name: str(out_dir / name) for name in
+                        ("demo.gcode", "plan.json", "summary.json", "report.html")})
 
 
 def register(app: typer.Typer) -> None:
@@ -58,7 +83,7 @@ def register(app: typer.Typer) -> None:
         """Generate the built-in example print, plan and simulate it, write report.html."""
         summary = run_demo(out, machine=profile, show_progress=not json_out)
         if json_out:
-            print_json(summary)
+            print_json(summary.as_dict())
             return
         from flowtwin.profiles import load_machine
 
@@ -66,4 +91,4 @@ def register(app: typer.Typer) -> None:
         from flowtwin.simulation import simulate
 
         render_simulation(simulate(out / "demo.gcode", machine=profile))
-        console.print("\nwrote " + ", ".join(str(v) for v in summary["outputs"].values()))  # type: ignore[attr-defined]
+        console.print("\nwrote " + ", ".join(summary.outputs.values()))

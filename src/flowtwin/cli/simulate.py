@@ -43,7 +43,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
         if out_dir is not None:
             out_dir.mkdir(parents=True, exist_ok=True)
             write_report(result, out_dir / "report.html")
-            body = {"summary": result.summary(), "per_layer": result.per_layer(),
+            body = {"summary": result.summary().as_dict(), "per_layer": result.per_layer(),
                     "per_feature": result.per_feature(),
                     "worst_by_width": result.worst_moves("width"),
                     "worst_by_force": result.worst_moves("force")}
@@ -73,27 +73,26 @@ def render_simulation(result: SimulationResult) -> None:
     """Print the summary table and the worst moves with rich."""
     s = result.summary()
 
-    def pct(v: object) -> str:
-        return f"{100 * float(v):+.2f} %" if v is not None else "-"  # type: ignore[arg-type]
+    def pct(v: float | None) -> str:
+        return f"{100 * v:+.2f} %" if v is not None else "-"
 
     rows = [
-        ("file", s["file"]), ("machine", f"{s['machine']} ({s['printer']}, {s['firmware']})"),
-        ("pressure advance", s["pressure_advance"]),
-        ("print time", fmt_duration(float(s["total_time_s"]))),  # type: ignore[arg-type]
+        ("file", s.file), ("machine", f"{s.machine} ({s.printer}, {s.firmware})"),
+        ("pressure advance", s.pressure_advance),
+        ("print time", fmt_duration(s.total_time_s)),
         ("commanded / delivered melt",
-         f"{s['commanded_volume_mm3']:.1f} / {s['delivered_volume_mm3']:.1f} mm³"),
-        ("volume error", pct(s["volume_error"])),
-        ("RMS flow error (beads)", f"{100 * float(s['rms_flow_error']):.2f} %"),  # type: ignore[arg-type]
+         f"{s.commanded_volume_mm3:.1f} / {s.delivered_volume_mm3:.1f} mm³"),
+        ("volume error", pct(s.volume_error)),
+        ("RMS flow error (beads)", f"{100 * s.rms_flow_error:.2f} %"),
         ("peak over- / under-extrusion",
-         f"{pct(s['peak_overextrusion'])} / {pct(-float(s['peak_underextrusion']))}"),  # type: ignore[arg-type]
-        ("worst width error", f"{float(s['worst_width_error_mm']):.3f} mm"),  # type: ignore[arg-type]
-        ("mean slip", f"{100 * float(s['mean_slip']):.2f} %"),  # type: ignore[arg-type]
+         f"{pct(s.peak_overextrusion)} / {pct(-s.peak_underextrusion)}"),
+        ("worst width error", f"{s.worst_width_error_mm:.3f} mm"),
+        ("mean slip", f"{100 * s.mean_slip:.2f} %"),
         ("max feed force / min margin",
-         f"{float(s['max_feed_force_n']):.2f} N / "  # type: ignore[arg-type]
-         + (f"{float(s['min_force_margin_n']):.2f} N" if s["min_force_margin_n"] is not None  # type: ignore[arg-type]
-            else "-")),
-        ("grinding events", s["grinding_events"]),
-        ("ooze (travels and stops)", f"{float(s['ooze_volume_mm3']):.2f} mm³"),  # type: ignore[arg-type]
+         f"{s.max_feed_force_n:.2f} N / "
+         + (f"{s.min_force_margin_n:.2f} N" if s.min_force_margin_n is not None else "-")),
+        ("grinding events", s.grinding_events),
+        ("ooze (travels and stops)", f"{s.ooze_volume_mm3:.2f} mm³"),
     ]
     console.print(table_from_rows("Simulation", ["", ""], rows))
     worst = result.worst_moves("width", 8)
@@ -107,7 +106,7 @@ def render_simulation(result: SimulationResult) -> None:
         "Smallest margins to grinding", ["line", "layer", "peak force (N)", "margin (N)"],
         [(w["line"], w["layer"], f"{w['peak_force_n']:.2f}", f"{w['force_margin_n']:.2f}")
          for w in force]))
-    for w in s["warnings"]:  # type: ignore[attr-defined]
+    for w in s.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", markup=True)
 
 
@@ -148,7 +147,7 @@ def register(app: typer.Typer) -> None:
                 streamed = simulate_stream(str(gcode), machine=profile,
                                            klipper_config=klipper_config,
                                            pressure_advance=not no_pa)
-            summary = streamed.summary()
+            summary = streamed.summary().as_dict()
             if json_out:
                 print_json(summary)
             else:
@@ -160,7 +159,7 @@ def register(app: typer.Typer) -> None:
                                 out_dir=out, series=series, pressure_advance=not no_pa,
                                 slicer_limits=slicer_limits, show_progress=not json_out)
         if json_out:
-            print_json(result.summary())
+            print_json(result.summary().as_dict())
             return
         render_simulation(result)
         if out is not None:

@@ -12,8 +12,9 @@ from flowtwin.compensation.advance import AdvanceLaw, AdvanceOptions
 from flowtwin.compensation.guard import GuardOptions
 from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
 from flowtwin.compensation.metrics import FlowFigures, flow_figures
+from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
 from flowtwin.compensation.pace import PaceOptions, PaceReport
-from flowtwin.compensation.pipeline import CompensationReport, compensate
+from flowtwin.compensation.pipeline import compensate
 from flowtwin.compensation.refine import RefineOptions
 from flowtwin.compensation.settings import AdvanceFit, adaptive_pa_table, best_pressure_advance
 from flowtwin.compensation.slip import SlipOptions
@@ -23,6 +24,7 @@ __all__ = [
     "AdvanceFit",
     "AdvanceLaw",
     "AdvanceOptions",
+    "AdvancePassSummary",
     "CompensationReport",
     "ExtruderLimits",
     "FlowFigures",

@@ -189,7 +189,7 @@ th{background:#f3f3f3} td:first-child,th:first-child{text-align:left}
 
 def write_report(result: SimulationResult, path: str | os.PathLike[str]) -> Path:
     """Write the HTML report of ``result`` to ``path`` atomically and return the path."""
-    s = result.summary()
+    s = result.summary().as_dict()
     figs = [_fig_flow(result), _fig_width(result), _fig_map(result), _fig_slip_force(result)]
     parts = []
     for k, fig in enumerate(figs):

@@ -17,6 +17,7 @@ import numpy.typing as npt
 from flowtwin.dynamics import DynamicsResult
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.simulation.parameters import MoveParameters
+from flowtwin.simulation.summary import SimulationSummary
 
 __all__ = ["Aggregates"]
 
@@ -162,27 +163,25 @@ class Aggregates:
             acc[_WORST] = max(acc[_WORST], row[_WORST])
             acc[_FMAX] = max(acc[_FMAX], row[_FMAX])
 
-    def summary(self) -> dict[str, object]:
+    def summary(self) -> SimulationSummary:
         """The figures of ``SimulationResult.summary()``."""
-        return {
-            "file": self.file, "machine": self.machine, "printer": self.printer,
-            "firmware": self.firmware, "pressure_advance": self.advance,
-            "total_time_s": self.total_time_s, "moves": self.moves,
-            "layers": self.max_layer + 1,
-            "commanded_volume_mm3": self.cmd, "delivered_volume_mm3": self.delivered,
-            "delivered_in_beads_mm3": self.in_beads,
-            "volume_error": _ratio(self.delivered, self.cmd),
-            "rms_flow_error": math.sqrt(self.we2 / self.w) if self.w > 0 else 0.0,
-            "peak_overextrusion": self.peak_over, "peak_underextrusion": self.peak_under,
-            "worst_width_error_mm": self.worst_width,
-            "mean_slip": _share(self.slip_loss, self.fed_forward),
-            "max_feed_force_n": self.max_force,
-            "min_force_margin_n": None if math.isinf(self.min_margin) else self.min_margin,
-            "grinding_events": self.grinding_events, "grinding_moves": self.grinding_moves,
-            "ooze_volume_mm3": self.ooze, "narrow_beads": self.narrow,
-            "net_filament_mm": {str(k): v for k, v in sorted(self.net_filament.items())},
-            "warnings": list(self.warnings),
-        }
+        return SimulationSummary(
+            file=self.file, machine=self.machine, printer=self.printer,
+            firmware=self.firmware, pressure_advance=self.advance,
+            total_time_s=self.total_time_s, moves=self.moves, layers=self.max_layer + 1,
+            commanded_volume_mm3=self.cmd, delivered_volume_mm3=self.delivered,
+            delivered_in_beads_mm3=self.in_beads,
+            volume_error=_ratio(self.delivered, self.cmd),
+            rms_flow_error=math.sqrt(self.we2 / self.w) if self.w > 0 else 0.0,
+            peak_overextrusion=self.peak_over, peak_underextrusion=self.peak_under,
+            worst_width_error_mm=self.worst_width,
+            mean_slip=_share(self.slip_loss, self.fed_forward),
+            max_feed_force_n=self.max_force,
+            min_force_margin_n=None if math.isinf(self.min_margin) else self.min_margin,
+            grinding_events=self.grinding_events, grinding_moves=self.grinding_moves,
+            ooze_volume_mm3=self.ooze, narrow_beads=self.narrow,
+            net_filament_mm={str(k): v for k, v in sorted(self.net_filament.items())},
+            warnings=tuple(self.warnings))
 
     def rows(self, name: str) -> list[dict[str, float | int]]:
         """Per-group rows as ``SimulationResult._grouped`` makes them."""
