@@ -32,7 +32,8 @@ from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_
 from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
-__all__ = ["DEFAULT_PRINTER", "PlanResult", "PlanSummary", "load_printer", "plan_gcode"]
+__all__ = ["DEFAULT_PRINTER", "PlanResult", "PlanSummary", "load_printer", "plan_gcode",
+           "plan_table"]
 
 #: Printer used when none is given.
 DEFAULT_PRINTER = "generic-klipper"
@@ -238,3 +239,22 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         # the slicer describes its machine completely (classic jerk and all): use it as is
         ms = marlin_settings_from_slicer_config(table.metadata) or ms
     return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
+
+
+def plan_table(table: MoveTable, settings: KlipperSettings | MarlinSettings, *,
+               printer: str) -> PlanResult:
+    """Plan a move table (read, or made in memory) with given firmware settings.
+
+    Parameters
+    ----------
+    table
+        The moves.
+    settings
+        Klipper's or Marlin's settings (e.g. :attr:`PlanResult.settings` of a plan of the
+        same printer).
+    printer
+        Name of the printer (for the result).
+    """
+    if isinstance(settings, KlipperSettings):
+        return PlanResult(table, plan_klipper(table, settings), printer, settings)
+    return PlanResult(table, plan_marlin(table, settings), printer, settings)

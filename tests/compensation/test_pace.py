@@ -19,6 +19,7 @@ import pytest
 
 from flowtwin.compensation import compensate
 from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.original import read_original
 from flowtwin.compensation.pace import (
     PaceOptions,
     drop_envelope,
@@ -27,7 +28,6 @@ from flowtwin.compensation.pace import (
     staircase,
     step_speed_mm_s,
 )
-from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.compensation.stages import printing_pieces
 from flowtwin.errors import ProfileError
 from flowtwin.gcode.reader import read_gcode
@@ -96,8 +96,8 @@ def _draft(path: Path) -> tuple[Draft, SimulationResult, float]:
     m = load_machine(DEFAULT_MACHINE)
     sim = simulate(path, machine=m, pressure_advance=False)
     table = sim.plan.table
-    scanned = scan_source(read_source(path), table, home_xyz=read_options(m.printer).home_xyz)
-    return Draft.identity(scanned, table, row_e_grid(scanned, table)), sim, scanned.e_unit
+    orig = read_original(path, table, home_xyz=read_options(m.printer).home_xyz)
+    return Draft.identity(orig, table), sim, orig.e_unit
 
 
 def _pace(draft: Draft, sim: SimulationResult, options: PaceOptions,

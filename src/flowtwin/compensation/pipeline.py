@@ -27,10 +27,9 @@ the figures are a :class:`~flowtwin.compensation.outcome.CompensationReport`.
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TypeVar
 
@@ -39,13 +38,14 @@ import numpy.typing as npt
 
 from flowtwin.compensation.advance import AdvanceOptions
 from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions
 from flowtwin.compensation.limits import extruder_limits
 from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.original import read_original
 from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
 from flowtwin.compensation.pace import PaceOptions, PaceReport
 from flowtwin.compensation.slip import SlipOptions
-from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.compensation.stages import (
     Current,
     Setting,
@@ -58,7 +58,8 @@ from flowtwin.compensation.stages import (
     trajectory_stage,
 )
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
-from flowtwin.errors import DataError
+from flowtwin.errors import DataError, GcodeError
+from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import read_options
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.profiles.machine import Machine, load_machine
@@ -167,36 +168,64 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
           else bool(firmware_pressure_advance))
     src = Path(source)
     dst = Path(destination)
-    with tempfile.TemporaryDirectory(prefix="flowtwin-compensate-") as tmpdir:
-        work = Path(tmpdir) / ("draft" + "".join(src.suffixes[-1:]) if src.suffix else "draft")
-        twin = Twin(m, klipper_config, pa, work)
-        step("simulate original")
-        setting, draft = _read(src, twin)
-        record = _Record([], [])
-        current = _run_stages(setting, Current(draft, setting.original), stages,
-                              advance_passes, record, step)
-        step("write")
-        written = current.draft.render(dst)
-        step("simulate result")
-        after = twin.simulate_written(current.draft, dst)
+    step("simulate original")
+    setting, draft = _read(src, Twin(m, klipper_config, pa))
+    record = _Record([], [])
+    current = _run_stages(setting, Current(draft, setting.original), stages, advance_passes,
+                          record, step)
+    step("write")
+    layout = current.draft.layout()
+    current.draft.render(dst, layout)
+    step("simulate result")
+    after = _written(setting, current, layout, dst)
     return _report(setting, current.draft, after, record, src, dst,
-                   lines_rewritten=written.lines_rewritten,
+                   lines_rewritten=layout.lines_rewritten,
                    baked_advance=stages.advance is not None,
                    seconds=time.perf_counter() - t_start)
 
 
 def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
-    """Simulate the original, read its lines and states: the setting and the identity
+    """Simulate the original, read its text and modes: the setting and the identity
     draft."""
     original = twin.simulate(src)
     table = original.plan.table
     if twin.klipper_config is not None:
-        home = klipper_read_options(load_printer_cfg(twin.klipper_config)).home_xyz
+        options = klipper_read_options(load_printer_cfg(twin.klipper_config))
     else:
-        home = read_options(twin.machine.printer).home_xyz
-    scanned = scan_source(read_source(src), table, home_xyz=home)
-    draft = Draft.identity(scanned, table, row_e_grid(scanned, table))
-    return Setting(twin, original, scanned, extruder_limits(original.plan.settings)), draft
+        options = read_options(twin.machine.printer)
+    text = read_original(src, table, home_xyz=options.home_xyz)
+    draft = Draft.identity(text, table)
+    twin = replace(twin, settings=original.plan.settings, printer=original.plan.printer)
+    return Setting(twin, original, text, extruder_limits(original.plan.settings),
+                   options), draft
+
+
+def _written(setting: Setting, current: Current, layout: Layout, dst: Path
+             ) -> SimulationResult:
+    """The twin's simulation of the written file.
+
+    The file is read back; where its moves are the draft's table bit for bit (always, but
+    for relative coordinates after a rewritten line), the draft's simulation is the
+    file's, else the file is simulated as read.
+
+    Raises
+    ------
+    GcodeError
+        The written file does not read back as the pieces written.
+    """
+    read = read_gcode(dst, options=setting.read_options)
+    if len(read) != len(current.draft):
+        raise GcodeError("the rewritten file does not read back as the pieces written "
+                         f"({len(read)} moves, {len(current.draft)} pieces)", source=dst,
+                         allowed="a reader/writer round trip that keeps every piece")
+    mine = layout.rows
+    same = all(np.array_equal(read.moves[k], mine[k])
+               for k in ("x", "y", "z", "e", "de", "feed_mm_s", "kind", "layer", "tool",
+                         "flow", "feature", "line"))
+    if same and np.array_equal(np.asarray(read.layer_z, dtype=np.float64),
+                               np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
+        return current.sim
+    return setting.twin.simulate_table(read)
 
 
 def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_passes: int,
@@ -247,7 +276,7 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
     original = setting.original
     m = setting.twin.machine
     table = original.plan.table
-    e_unit = setting.scanned.e_unit
+    e_unit = setting.original_file.e_unit
     window = float(m.hotend.nozzle_diameter_mm)
     before = flow_figures(original, original, np.arange(len(table), dtype=np.int64),
                           window_mm=window)

@@ -22,15 +22,19 @@ from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.guard import GuardOptions, guard_feeds
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
 from flowtwin.compensation.slip import SlipOptions, slip_feedforward
-from flowtwin.compensation.source import ScannedSource
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
-from flowtwin.errors import GcodeError
-from flowtwin.gcode.moves import MoveKind
+from flowtwin.errors import DataError
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.gcode.reader import ReadOptions
+from flowtwin.planner.klipper_config import KlipperSettings
+from flowtwin.planner.marlin import MarlinSettings
+from flowtwin.planning import plan_table
 from flowtwin.profiles.machine import Machine
-from flowtwin.simulation import SimulationResult, simulate
+from flowtwin.simulation import SimulationResult, simulate, simulate_plan
 
 __all__ = ["AdvanceOutcome", "Current", "GuardOutcome", "PaceOutcome", "Setting",
            "SlipOutcome", "TrajectoryOutcome", "Twin", "advance_stage", "guard_stage",
@@ -44,7 +48,7 @@ _GRIND_MARGIN = 0.9
 
 @dataclass(frozen=True, slots=True)
 class Twin:
-    """The machine a draft is simulated on, and where drafts are rendered for it.
+    """The machine a draft is simulated on.
 
     Attributes
     ----------
@@ -54,14 +58,18 @@ class Twin:
         A Klipper ``printer.cfg`` to plan with instead of the set-up's printer, or ``None``.
     pressure_advance
         Simulate the firmware's own pressure advance (by default).
-    work_path
-        Where a draft is rendered to be simulated.
+    settings
+        The firmware settings the original was planned with (drafts are planned with the
+        same), ``None`` until the original is read.
+    printer
+        Name of the printer.
     """
 
     machine: Machine
     klipper_config: str | os.PathLike[str] | None
     pressure_advance: bool
-    work_path: Path
+    settings: KlipperSettings | MarlinSettings | None = None
+    printer: str = ""
 
     def simulate(self, path: Path, *, pressure_advance: bool | None = None
                  ) -> SimulationResult:
@@ -70,35 +78,21 @@ class Twin:
         return simulate(path, machine=self.machine, klipper_config=self.klipper_config,
                         pressure_advance=pa)
 
+    def simulate_table(self, table: MoveTable, *, pressure_advance: bool | None = None
+                       ) -> SimulationResult:
+        """Plan a move table with the original's firmware settings and simulate it."""
+        if self.settings is None:
+            raise DataError("the twin has no firmware settings yet", field="settings",
+                            allowed="a twin made from the original's plan")
+        pa = self.pressure_advance if pressure_advance is None else pressure_advance
+        plan = plan_table(table, self.settings, printer=self.printer)
+        return simulate_plan(plan, machine=self.machine, klipper_config=self.klipper_config,
+                             pressure_advance=pa)
+
     def simulate_draft(self, draft: Draft, *, pressure_advance: bool | None = None
                        ) -> SimulationResult:
-        """Render ``draft`` to :attr:`work_path` and simulate it.
-
-        Raises
-        ------
-        GcodeError
-            The rendered file does not read back as the draft's pieces.
-        """
-        draft.render(self.work_path)
-        return self.simulate_written(draft, self.work_path, pressure_advance=pressure_advance)
-
-    def simulate_written(self, draft: Draft, path: Path, *,
-                         pressure_advance: bool | None = None) -> SimulationResult:
-        """Simulate the file ``draft`` was rendered to, checking it reads back as its
-        pieces.
-
-        Raises
-        ------
-        GcodeError
-            The file does not read back as the draft's pieces.
-        """
-        sim = self.simulate(path, pressure_advance=pressure_advance)
-        if len(sim.plan.table) != len(draft):
-            raise GcodeError("the rewritten file does not read back as the pieces written "
-                             f"({len(sim.plan.table)} moves, {len(draft)} pieces)",
-                             source=path,
-                             allowed="a reader/writer round trip that keeps every piece")
-        return sim
+        """Simulate the draft as its written file would read (its move table, in memory)."""
+        return self.simulate_table(draft.to_table(), pressure_advance=pressure_advance)
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,16 +105,19 @@ class Setting:
         The machine and the work file.
     original
         The original file simulated (the intent every figure is measured against).
-    scanned
-        The original file's motion lines and their modal states.
+    original
+        The original file's text and the modes of its rows.
     limits
         The firmware's extruder limits.
+    read_options
+        How the original was read (the written file is read the same way).
     """
 
     twin: Twin
     original: SimulationResult
-    scanned: ScannedSource
+    original_file: OriginalFile
     limits: ExtruderLimits
+    read_options: ReadOptions
 
 
 @dataclass(frozen=True, slots=True)
@@ -193,13 +190,6 @@ def printing_pieces(sim: SimulationResult, draft: Draft) -> BoolArray:
     return orig[draft.row] & ((kind & MoveKind.XY) != 0) & (draft.e_grid > 0)
 
 
-def _speed_factors(scanned: ScannedSource, lines: npt.NDArray[np.int32]
-                   ) -> npt.NDArray[np.float64]:
-    """The ``M220`` factor in force on every line."""
-    return np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
-                     else 1.0 for ln in lines.tolist()])
-
-
 def trajectory_stage(setting: Setting, current: Current,
                      options: TrajectoryOptions) -> TrajectoryOutcome:
     """Nozzle paths that lay the intended road (:mod:`flowtwin.compensation.trajectory`)."""
@@ -213,7 +203,7 @@ def guard_stage(setting: Setting, current: Current, options: GuardOptions) -> Gu
     time0 = current.sim.plan.timeline.total_time_s
     slowed = np.zeros(setting.original.plan.table.moves.shape[0], dtype=bool)
     for _ in range(options.iterations):
-        draft, now = _guard_step(current, setting.scanned, options)
+        draft, now = _guard_step(current, setting.original_file, options)
         if not np.any(now):
             break
         slowed |= now
@@ -221,7 +211,7 @@ def guard_stage(setting: Setting, current: Current, options: GuardOptions) -> Gu
     return GuardOutcome(current, slowed, current.sim.plan.timeline.total_time_s - time0)
 
 
-def _guard_step(current: Current, scanned: ScannedSource,
+def _guard_step(current: Current, original: OriginalFile,
                 options: GuardOptions) -> tuple[Draft, BoolArray]:
     draft, sim = current.draft, current.sim
     d = sim.dynamics.moves
@@ -234,10 +224,10 @@ def _guard_step(current: Current, scanned: ScannedSource,
     cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         flow = np.where((path > 0) & (length > 0), d["cmd_mm3"] / path * cruise, 0.0)
-    speed_factor = _speed_factors(scanned, draft.table.moves["line"])
+    speed_factor = original.speed_factor
     pp = sim.parameters.params
     with np.errstate(divide="ignore", invalid="ignore"):
-        v_e = np.where(path > 0, draft.e_grid * scanned.e_unit / path * cruise, 0.0)
+        v_e = np.where(path > 0, draft.e_grid * original.e_unit / path * cruise, 0.0)
     steady = np.asarray(pp.lag_k_s, dtype=np.float64) * v_e / np.asarray(
         pp.compliance_mm_per_n, dtype=np.float64)
     return guard_feeds(draft, cruise, d["peak_force_n"], steady, pp.max_feed_force_n, flow,
@@ -255,7 +245,7 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> Pace
     cmd = np.asarray(sim.dynamics.moves["cmd_mm3"], dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         area = np.where(length > 0, cmd / length, 0.0)
-    speed_factor = _speed_factors(setting.scanned, draft.table.moves["line"][draft.row])
+    speed_factor = setting.original_file.speed_factor[draft.row]
     limits = setting.limits
     push = (float(setting.twin.machine.filament.area_mm2)
             * min(limits.jump_mm_s, limits.max_e_speed_mm_s))
@@ -299,7 +289,7 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
             continue
         draft, rep = advance_pass(
             draft, cur.plan.table, cur.plan.timeline, cur.parameters.params.lag_k_s,
-            setting.limits, options, e_unit_mm=setting.scanned.e_unit, split=k == 0,
+            setting.limits, options, e_unit_mm=setting.original_file.e_unit, split=k == 0,
             relief=(k == 0 and options.relief), state_max=_grinding_state(cur, setting),
             delivered=_delivered_grid(setting.original, cur, draft) if ilc else None)
         cur = twin.simulate_draft(draft, pressure_advance=False)
@@ -329,7 +319,8 @@ def _grinding_state(sim: SimulationResult, setting: Setting) -> npt.NDArray[np.f
     E grid units, per row of ``sim``."""
     pp = sim.parameters.params
     return (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
-            * np.asarray(pp.compliance_mm_per_n, dtype=np.float64) / setting.scanned.e_unit)
+            * np.asarray(pp.compliance_mm_per_n, dtype=np.float64)
+            / setting.original_file.e_unit)
 
 
 def _delivered_grid(original: SimulationResult, sim: SimulationResult,
