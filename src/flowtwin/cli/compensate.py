@@ -27,9 +27,16 @@ from flowtwin.compensation import (
     best_pressure_advance,
     compensate,
 )
+from flowtwin.compensation.nonlinear import (
+    NONLINEAR_FIRMWARES,
+    NonlinearExtrusionFit,
+    fit_nonlinear_extrusion,
+)
+from flowtwin.errors import FlowtwinError
+from flowtwin.profiles.machine import load_machine
 from flowtwin.simulation import DEFAULT_MACHINE
 
-__all__ = ["register", "render_report"]
+__all__ = ["nonlinear_settings", "register", "render_nonlinear", "render_report"]
 
 
 def _pct(v: float) -> str:
@@ -177,11 +184,21 @@ def register(app: typer.Typer) -> None:
         accels: Annotated[str, typer.Option(
             "--accels", help="Adaptive table accelerations, mm/s², comma-separated."
         )] = "1000,3000,6000",
+        nonlinear: Annotated[bool, typer.Option(
+            "--nonlinear", help="Also fit the firmware's nonlinear extrusion (M592) to the "
+                                "twin's slip.")] = False,
+        firmware: Annotated[str | None, typer.Option(
+            "--firmware", help="Nonlinear extrusion for this firmware: marlin, "
+                               "reprapfirmware or klipper (default: the printer's).")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
         fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
         out: dict[str, object] = {"best": fit.as_dict()}
+        slip_fit = None
+        if nonlinear or firmware is not None:
+            slip_fit = nonlinear_settings(profile, klipper_config, firmware)
+            out["nonlinear_extrusion"] = slip_fit.as_dict()
         table_text = None
         if adaptive or table_out is not None:
             table, _fits = adaptive_pa_table(
@@ -204,3 +221,26 @@ def register(app: typer.Typer) -> None:
         if table_text is not None:
             console.print("OrcaSlicer adaptive pressure advance (PA, flow, accel):")
             console.print(table_text.rstrip())
+        if slip_fit is not None:
+            render_nonlinear(slip_fit)
+
+
+def nonlinear_settings(profile: str, klipper_config: Path | None,
+                       firmware: str | None) -> NonlinearExtrusionFit:
+    """The nonlinear-extrusion fit for the set-up's (or the given) firmware."""
+    m = load_machine(profile)
+    fw = firmware or ("klipper" if klipper_config is not None else m.printer.firmware)
+    if fw not in NONLINEAR_FIRMWARES:
+        raise FlowtwinError("no nonlinear extrusion known for this firmware", field="--firmware",
+                            value=fw, allowed=", ".join(NONLINEAR_FIRMWARES))
+    return fit_nonlinear_extrusion(m, fw)
+
+
+def render_nonlinear(fit: NonlinearExtrusionFit) -> None:
+    """Print a nonlinear-extrusion fit with rich."""
+    rows = [("firmware", fit.firmware), ("command", fit.command or "(none)"),
+            ("feed range", f"{fit.feed_min_mm_s:g}–{fit.feed_max_mm_s:.1f} mm/s of filament"),
+            ("residual", f"{100 * fit.rms_residual:.2f} % RMS, "
+                         f"{100 * fit.max_residual:.2f} % worst")]
+    console.print(table_from_rows("Nonlinear extrusion (the twin's slip)", ["", ""], rows))
+    console.print(fit.note)
