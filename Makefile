@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean services
+.PHONY: install demo test bench lint clean services fuzz
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,3 +42,8 @@ lint: $(STAMP)
 
 clean:
 	rm -rf $(VENV) $(DEMO_OUT) build .pytest_cache .mypy_cache .ruff_cache
+
+# the long fuzz campaign (not part of make test): FUZZ_DOCS documents through every reader
+FUZZ_DOCS ?= 1000000
+fuzz: $(STAMP)
+	$(PY) -m fuzz --documents $(FUZZ_DOCS) --out fuzz-out

@@ -21,11 +21,11 @@ import numpy as np
 from flowtwin.dynamics import (
     AdvanceSettings,
     ExtrusionParams,
-    Firmware,
     apply_advance,
     integrate,
     nominal_feed,
 )
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import MOVE_DTYPE, MoveKind, MoveTable
 from flowtwin.planner.timeline import PHASE_DTYPE, Timeline
 

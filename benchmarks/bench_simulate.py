@@ -108,8 +108,9 @@ def _warm(path: Path, cfg: Path | None, repeat: int, *, stream: bool = False
 def _stages(path: Path, cfg: Path | None, repeat: int) -> dict[str, float]:
     """Process CPU seconds of each stage of ``simulate`` (best of ``repeat``): read, plan,
     parameters, nominal feed, pressure advance, integration, bead metrics."""
-    from flowtwin.dynamics import AdvanceSettings, Firmware, apply_advance, integrate
+    from flowtwin.dynamics import AdvanceSettings, apply_advance, integrate
     from flowtwin.dynamics.feed import nominal_feed
+    from flowtwin.firmware import Firmware
     from flowtwin.gcode.reader import read_gcode
     from flowtwin.planner.from_profile import marlin_settings, read_options
     from flowtwin.planner.klipper import plan_klipper

@@ -12,11 +12,13 @@ from os import PathLike
 __all__ = [
     "CalibrationError",
     "DataError",
+    "FileAccessError",
     "FlowtwinError",
     "GcodeError",
     "PrinterConnectionError",
     "ProfileError",
     "VisionError",
+    "file_access_error",
     "format_location",
 ]
 
@@ -99,3 +101,37 @@ class CalibrationError(FlowtwinError):
 
 class PrinterConnectionError(FlowtwinError):
     """A printer host could not be reached or answered with an error."""
+
+
+class FileAccessError(FlowtwinError):
+    """A file could not be read or written: the path and the system's reason (no space
+    left, permission denied, read-only file system, not found, ...)."""
+
+
+def file_access_error(exc: OSError, path: str | PathLike[str] | None = None, *,
+                      writing: bool | None) -> FileAccessError:
+    """The :class:`FileAccessError` for an operating-system error on ``path``.
+
+    Parameters
+    ----------
+    exc
+        The ``OSError`` (its ``strerror`` and ``errno`` name the cause).
+    path
+        The file the user named (default: the error's own ``filename``).
+    writing
+        Whether the file was being written (the message says the old file, if any, is
+        unchanged: outputs are written atomically), read (False) or either (None).
+    """
+    import errno as _errno
+
+    where = path if path is not None else exc.filename
+    reason = exc.strerror or type(exc).__name__
+    code = _errno.errorcode.get(exc.errno or -1)
+    if code:
+        reason += f" ({code})"
+    if writing:
+        return FileAccessError(f"cannot write the file: {reason}; nothing was written "
+                               "(an existing file there is unchanged)", source=where)
+    if writing is None:
+        return FileAccessError(f"cannot open the file: {reason}", source=where)
+    return FileAccessError(f"cannot read the file: {reason}", source=where)

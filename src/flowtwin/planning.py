@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
 
 from flowtwin.errors import DataError, ProfileError
+from flowtwin.firmware import PlannerFamily
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner._totals_kernel import plan_totals
@@ -29,6 +30,7 @@ from flowtwin.planner.klipper_config import (
     load_printer_cfg,
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
+from flowtwin.planner.marlin_delta import segment_moves
 from flowtwin.planner.timeline import Timeline, feature_seconds, time_by_layer
 from flowtwin.profiles.printer import PrinterProfile
 
@@ -231,13 +233,17 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                           ksettings)
     profile = load_printer(printer)
     table = read_gcode(source, options=read_options(profile, strict=strict))
-    if profile.firmware == "klipper":
+    if profile.firmware.planner is PlannerFamily.KLIPPER:
         ks = klipper_settings(profile)
         return PlanResult(table, plan_klipper(table, ks), profile.name, ks)
     ms = marlin_settings(profile)
     if use_slicer_limits:
-        # the slicer describes its machine completely (classic jerk and all): use it as is
-        ms = marlin_settings_from_slicer_config(table.metadata) or ms
+        # the slicer describes its machine's limits completely (classic jerk and all): use
+        # them as they are; the delta geometry is the printer's
+        sl = marlin_settings_from_slicer_config(table.metadata)
+        ms = replace(sl, delta=ms.delta) if sl is not None else ms
+    if ms.delta is not None:
+        table = segment_moves(table, ms.delta)   # Marlin plans a delta's segments
     return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
 
 
@@ -257,4 +263,6 @@ def plan_table(table: MoveTable, settings: KlipperSettings | MarlinSettings, *,
     """
     if isinstance(settings, KlipperSettings):
         return PlanResult(table, plan_klipper(table, settings), printer, settings)
+    if settings.delta is not None:
+        table = segment_moves(table, settings.delta)   # Marlin plans a delta's segments
     return PlanResult(table, plan_marlin(table, settings), printer, settings)

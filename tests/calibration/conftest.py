@@ -11,12 +11,12 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.kfit import kline_for_machine
 from flowtwin.calibration.kline import KLineParams
 from flowtwin.calibration.lagmodel import LagParams
 from flowtwin.calibration.pattern_base import Pattern, PrintSettings
 from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.profiles.machine import Machine, load_machine

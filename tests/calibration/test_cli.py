@@ -59,9 +59,9 @@ def test_help_says_what_to_measure(command: str) -> None:
     assert result.exit_code == 0, result.output
     text = " ".join(result.output.split())
     if command == "pattern":
-        for kind in ("kline:", "chevron:", "tower:", "flow:", "maxflow:", "flowline:"):
+        for kind in ("kline", "chevron", "tower", "flow", "maxflow", "flowline"):
             assert kind in text
-        assert "pick the K" in text
+        assert "--no-check" in text
     else:
         assert "What to measure" in text
 
@@ -91,12 +91,63 @@ def test_pattern_text_warns_about_unreached_speeds(tmp_path: Path) -> None:
     assert out.exists()
 
 
-def test_pattern_option_that_does_not_apply(tmp_path: Path) -> None:
+# every kind: how to read it, its own options and the shared ones, no other kind's options
+_OWN_OPTIONS = {
+    "kline": (["--k-start", "--k-end", "--k-step", "--slow-speed", "--fast-speed",
+               "--mark-every"], "pick the K"),
+    "chevron": (["--k-start", "--k-end", "--k-step", "--speed", "--first-layer-speed",
+                 "--walls", "--layers", "--mark-every"], "sharp apex"),
+    "tower": (["--k-start", "--k-step-per-mm", "--height", "--size", "--walls", "--speed",
+               "--first-layer-speed"], "calipers"),
+    "flow": (["--multiplier-start", "--multiplier-end", "--multiplier-step", "--block-size",
+              "--layers"], "flat top"),
+    "maxflow": (["--flow-start", "--flow-end", "--flow-step"], "maximum volumetric speed"),
+    "flowline": (["--flow", "--cycles", "--k-start", "--k-end", "--k-step"], "lag fit"),
+}
+_ALL_OPTIONS = {o for opts, _ in _OWN_OPTIONS.values() for o in opts}
+
+
+def test_every_pattern_kind_has_its_command_options_and_help() -> None:
+    from flowtwin.calibration.guide import PATTERN_KIND_HELP
+    from flowtwin.calibration.patterns import PATTERN_KINDS
+    from flowtwin.cli.calibrate_pattern import _KIND_OPTIONS
+
+    assert set(PATTERN_KINDS) == set(_KIND_OPTIONS) == set(PATTERN_KIND_HELP) == set(
+        _OWN_OPTIONS)
+
+
+@pytest.mark.parametrize("kind", list(_OWN_OPTIONS))
+def test_each_pattern_kind_has_only_its_options(kind: str) -> None:
+    result = runner.invoke(APP, ["calibrate", "pattern", kind, "--help"],
+                           env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    own, how = _OWN_OPTIONS[kind]
+    assert how in text
+    shown = {w.strip(",") for w in text.split() if w.startswith("--")}
+    assert set(own) <= shown and not (_ALL_OPTIONS - set(own)) & shown
+    for shared in ("--output", "--firmware", "--accel", "--printer", "--no-check", "--json"):
+        assert shared in shown
+
+
+def test_pattern_option_of_another_kind_is_a_usage_error(tmp_path: Path) -> None:
     result = runner.invoke(APP, ["calibrate", "pattern", "kline", "--speed", "30", "-o",
                                  str(tmp_path / "x.gcode")])
-    assert isinstance(result.exception, CalibrationError)
-    assert "--speed does not apply to the kline pattern" in str(result.exception)
+    assert result.exit_code == 2
+    assert "No such option: --speed" in result.output
     assert not (tmp_path / "x.gcode").exists()
+
+
+def test_pattern_defaults_are_the_kinds_defaults(tmp_path: Path) -> None:
+    # options left out give the parameter object's defaults (the same file as the API)
+    from flowtwin.calibration.patterns import generate_pattern
+
+    for kind in _OWN_OPTIONS:
+        out = tmp_path / f"{kind}.gcode"
+        result = runner.invoke(APP, ["calibrate", "pattern", kind, "-o", str(out),
+                                     "--no-check", "--json"])
+        assert result.exit_code == 0, result.output
+        assert out.read_text() == generate_pattern(kind).text()
 
 
 def test_fit_viscosity_writes_a_valid_fragment(tmp_path: Path) -> None:

@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.flow import (
     FlowBlockParams,
     FlowLineParams,
@@ -20,6 +19,7 @@ from flowtwin.calibration.flow import (
 from flowtwin.calibration.pattern_base import PrintSettings
 from flowtwin.calibration.verify import verify_pattern
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 
 
 def _lengths(table: Any) -> np.ndarray:

@@ -9,7 +9,6 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.kfit import kline_for_machine
 from flowtwin.calibration.kimage import analyse_kline_image, load_grey
 from flowtwin.calibration.kline import KLineParams
@@ -17,6 +16,7 @@ from flowtwin.calibration.pattern_base import Pattern, PrintSettings
 from flowtwin.calibration.patterns import generate_pattern
 from flowtwin.calibration.render import ImageConditions, RenderedImage
 from flowtwin.errors import CalibrationError, VisionError
+from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine
 
 Render = Callable[[float, ImageConditions], RenderedImage]

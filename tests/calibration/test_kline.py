@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.kline import KLineParams, kline_pattern
 from flowtwin.calibration.pattern_base import PrintSettings
 from flowtwin.calibration.verify import verify_pattern
+from flowtwin.firmware import Firmware
 
 
 def test_defaults_follow_tronvoll_table_1() -> None:

@@ -7,11 +7,11 @@ from typing import Any
 
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
 from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern, pattern_params
 from flowtwin.calibration.verify import verify_pattern
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 
 #: Small versions of every pattern (fast to plan).
 SMALL: dict[str, dict[str, Any]] = {

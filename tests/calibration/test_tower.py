@@ -7,11 +7,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.pattern_base import PrintSettings
 from flowtwin.calibration.tower import TowerParams, tower_k_at, tower_pattern
 from flowtwin.calibration.verify import verify_pattern
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 
 PARAMS = TowerParams(k_start=0.02, k_step_per_mm=0.01, height_mm=3.0, size_mm=20.0, walls=2)
 

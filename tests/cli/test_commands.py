@@ -97,6 +97,23 @@ def test_missing_file_and_unknown_profile_exit_2(tmp_path: Path,
     assert "no-such-printer" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("argv", [
+    ["plan", "x.gcode", "--no-such-option"],
+    ["calibrate", "pattern", "kline", "-o", "x.gcode", "--speed", "30"],  # chevron's option
+    ["calibrate", "pattern", "spiral", "-o", "x.gcode"],
+])
+def test_usage_errors_exit_2_with_typers_message(argv: list[str], tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # typer (>= 0.23) raises its vendored click's exceptions: still usage errors, not
+    # internal errors
+    with pytest.raises(SystemExit) as exc:
+        main([a.replace("x.gcode", str(tmp_path / "x.gcode")) for a in argv])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Usage: " in err and ("No such option" in err or "No such command" in err)
+    assert "internal error" not in err and not (tmp_path / "x.gcode").exists()
+
+
 def test_simulate_stream_equals_whole_simulation(small_gcode: Path) -> None:
     whole = json.loads(runner.invoke(app, ["simulate", str(small_gcode), "--json"]).stdout)
     res = runner.invoke(app, ["simulate", str(small_gcode), "--json", "--stream"])

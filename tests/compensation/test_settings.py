@@ -9,8 +9,8 @@ import pytest
 from flowtwin.calibration.adaptive_pa import parse_orca_model
 from flowtwin.compensation import adaptive_pa_table, best_pressure_advance
 from flowtwin.compensation.settings import pa_test_gcode
-from flowtwin.dynamics import Firmware
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.profiles.machine import load_machine
 

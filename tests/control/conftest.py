@@ -316,8 +316,8 @@ def check_moonraker_exchange(path: Path) -> None:
     """
     import json
 
-    from flowtwin.control.firmware import Channel
     from flowtwin.control.moonraker import factors_from_status, split_rpc_message
+    from flowtwin.firmware import Channel
 
     record = json.loads(path.read_text())
     events = record["events"]

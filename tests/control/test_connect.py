@@ -9,12 +9,12 @@ from flowtwin.control._net import guarded_client, websocket_url
 from flowtwin.control.clock import SimClock
 from flowtwin.control.connect import open_printer
 from flowtwin.control.credentials import ApiKey
-from flowtwin.control.firmware import Firmware
 from flowtwin.control.marlin_serial import SerialPrinter
 from flowtwin.control.moonraker import MoonrakerPrinter
 from flowtwin.control.octoprint import OctoPrintPrinter
 from flowtwin.control.twin import TwinPrinter
 from flowtwin.errors import PrinterConnectionError, ProfileError
+from flowtwin.firmware import Firmware
 
 KEY = ApiKey("k" * 32, origin="test")
 

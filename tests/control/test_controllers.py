@@ -15,8 +15,8 @@ from flowtwin.control.controllers import (
     make_controller,
     window_mean,
 )
-from flowtwin.control.firmware import Channel
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import Channel
 
 WIDE = Limits(50.0, 150.0, 1000.0)  # rate limit out of the way
 

@@ -6,9 +6,9 @@ import re
 
 import pytest
 
-from flowtwin.control.firmware import Channel
 from flowtwin.control.marlin_serial import MarlinLineCodec, SerialPrinter, checksum, parse_reply
 from flowtwin.control.printer import ConnectionLost
+from flowtwin.firmware import Channel
 
 
 def test_checksum_is_xor_of_the_bytes() -> None:

@@ -12,13 +12,13 @@ import pytest
 
 from flowtwin.control.clock import RealClock
 from flowtwin.control.controllers import Limits, PIController
-from flowtwin.control.firmware import Channel
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import SyntheticSlipSource
 from flowtwin.control.moonraker import MoonrakerPrinter
 from flowtwin.control.printer import CommandRejected
 from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
 from flowtwin.errors import GcodeError
+from flowtwin.firmware import Channel
 
 pytestmark = [pytest.mark.service, pytest.mark.xdist_group("moonraker")]
 

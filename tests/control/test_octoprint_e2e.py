@@ -17,12 +17,12 @@ from flowtwin.cli import control as control_cli
 from flowtwin.control.clock import RealClock
 from flowtwin.control.controllers import GreeffController, Limits
 from flowtwin.control.credentials import ApiKey
-from flowtwin.control.firmware import Firmware
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import SyntheticSlipSource
 from flowtwin.control.octoprint import OctoPrintPrinter
 from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
 from flowtwin.errors import GcodeError, PrinterConnectionError
+from flowtwin.firmware import Firmware
 
 pytestmark = [pytest.mark.service, pytest.mark.xdist_group("octoprint")]
 

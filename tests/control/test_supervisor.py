@@ -9,11 +9,11 @@ import pytest
 
 from flowtwin.control.clock import SimClock
 from flowtwin.control.controllers import GreeffController, Limits, PIController, WindowState
-from flowtwin.control.firmware import Channel, Firmware
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import Measurement, SyntheticSlipSource
 from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
 from flowtwin.control.twin import TwinPrinter
+from flowtwin.firmware import Channel, Firmware
 
 
 def _rig(*, firmware: Firmware = Firmware.MARLIN, duration_s: float = 30.0, seed: int = 3,

@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 
 from flowtwin.control.clock import AcceleratedClock, SimClock
-from flowtwin.control.firmware import Firmware
 from flowtwin.control.printer import CommandRejected, ConnectionLost, Printer
 from flowtwin.control.twin import TwinPrinter
 from flowtwin.errors import FlowtwinError, GcodeError
+from flowtwin.firmware import Firmware
 
 
 def test_is_a_printer() -> None:

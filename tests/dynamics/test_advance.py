@@ -11,7 +11,6 @@ from flowtwin.dynamics import (
     AdvanceSettings,
     DynamicsResult,
     ExtrusionParams,
-    Firmware,
     advance_eligible,
     advance_schedule,
     apply_advance,
@@ -19,6 +18,7 @@ from flowtwin.dynamics import (
     nominal_feed,
 )
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import Event
 
 
@@ -95,7 +95,8 @@ def test_klipper_advance_only_on_xy_moves_with_increasing_e(make_print, Move):
     mt, _ = make_print([Move(10, 0, de=0.5), Move(10, 0, de=-0.5), Move(10, 0, de=0.5),
                         Move(10, 0, 1.0, de=0.2), Move(20, 0)])
     assert advance_eligible(mt, Firmware.KLIPPER).tolist() == [True, False, False, False, False]
-    assert advance_eligible(mt, Firmware.RRF).tolist() == [True, False, False, False, False]
+    rrf = advance_eligible(mt, Firmware.REPRAPFIRMWARE)
+    assert rrf.tolist() == [True, False, False, False, False]
     # Marlin: XYZ motion (a Z-only extruding move counts), de/D <= 3
     assert advance_eligible(mt, Firmware.MARLIN).tolist() == [True, False, False, True, False]
     mt2, _ = make_print([Move(0.1, 0, de=0.5)])
@@ -126,7 +127,7 @@ def test_gcode_commands_per_firmware(mixed_print):
     ma = advance_schedule(mt, AdvanceSettings(Firmware.MARLIN))
     assert ma.k_s.tolist() == [0.0, 0.0, 0.0, 0.0, 0.07, 0.07, 0.07]
     assert any("out of range" in w for w in ma.warnings)
-    rrf = advance_schedule(mt, AdvanceSettings(Firmware.RRF))
+    rrf = advance_schedule(mt, AdvanceSettings(Firmware.REPRAPFIRMWARE))
     assert rrf.k_s.tolist() == [0, 0, 0, 0, 0, 0.02, 0.02]
     assert rrf.smooth_time_s[6] == pytest.approx(0.04)  # RRF has no smoothing window
     prusa = advance_schedule(mt, AdvanceSettings(Firmware.PRUSA))
@@ -181,7 +182,7 @@ def test_rrf_advances_within_moves_only(make_print, Move):
                         accel=1000)
     k = 0.05
     feed = nominal_feed(mt, tl)
-    adv = apply_advance(feed, mt, AdvanceSettings(Firmware.RRF, k_s=k))
+    adv = apply_advance(feed, mt, AdvanceSettings(Firmware.REPRAPFIRMWARE, k_s=k))
     ts = np.linspace(0.0, tl.end_time_s[-1], 200)
     acc = np.array([feed.coef[np.clip(np.searchsorted(feed.t0_s, t, "right") - 1, 0, None), 1]
                     for t in ts])
@@ -198,7 +199,7 @@ def test_linear_advance_k_equal_lag_delivers_the_command(make_print, Move):
     mt, tl = make_print(moves, accel=1500)
     p = ExtrusionParams.build(3, lag_k_s=lag, compliance_mm_per_n=0.01)
     feed = nominal_feed(mt, tl)
-    for fw in (Firmware.MARLIN, Firmware.RRF):
+    for fw in (Firmware.MARLIN, Firmware.REPRAPFIRMWARE):
         res = integrate(apply_advance(feed, mt, AdvanceSettings(fw, k_s=lag)), p,
                         series_dt_s=0.001)
         np.testing.assert_allclose(res.moves["out_mm3"], res.moves["cmd_mm3"], rtol=1e-9)

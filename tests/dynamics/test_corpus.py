@@ -11,11 +11,11 @@ import pytest
 from flowtwin.dynamics import (
     AdvanceSettings,
     ExtrusionParams,
-    Firmware,
     apply_advance,
     integrate,
     nominal_feed,
 )
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg

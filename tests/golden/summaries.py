@@ -79,7 +79,9 @@ def run(kind: str, path: Path) -> str:
     from flowtwin.cli.main import main
 
     with tempfile.TemporaryDirectory() as tmp:
-        argv = [tmp + "/out.gcode" if a == "OUT" else path.name if a == "FILE" else a
+        # paths relative to the file's folder: the records hold no absolute path
+        argv = [tmp + "/out.gcode" if a == "OUT" else path.name if a == "FILE"
+                else os.path.relpath(a, path.parent) if a == str(KLIPPER_A) else a
                 for a in KINDS[kind]]
         out, err = io.StringIO(), io.StringIO()
         with _cwd(path.parent), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

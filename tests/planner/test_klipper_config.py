@@ -184,7 +184,7 @@ def test_probe_endstop_needs_no_position(tmp_path):
      "position_endstop: 500", "[stepper_x] position_endstop", "between"),
     ("filament_diameter: 1.750", "filament_diameter: 0.3", "filament_diameter",
      "[extruder] filament_diameter", "out of range"),
-    ("kinematics: cartesian", "kinematics: delta", "delta", "[printer] kinematics",
+    ("kinematics: cartesian", "kinematics: scara", "scara", "[printer] kinematics",
      "kinematics"),
     ("max_accel: 3000   # inline comment", "max_accel 3000", "max_accel 3000", None,
      "cannot parse"),

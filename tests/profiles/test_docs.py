@@ -20,6 +20,7 @@ from flowtwin.profiles import (
     FirmwareRetraction,
     HotendProfile,
     KlipperLimits,
+    MarlinDeltaGeometry,
     MarlinLimits,
     MaterialProfile,
     MaxFeedForceFit,
@@ -35,7 +36,8 @@ from flowtwin.profiles import (
 )
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "profiles.md"
-MODELS = [PrinterProfile, KlipperLimits, MarlinLimits, AxisFeedrates, AxisAccelerations,
+MODELS = [PrinterProfile, KlipperLimits, MarlinLimits, MarlinDeltaGeometry, AxisFeedrates,
+          AxisAccelerations,
           AxisJerks, FirmwareExtruder, PressureAdvance, FirmwareRetraction, ArcSettings,
           Position, DriveProfile, SlipOverrides, Roller, MaxFeedForceFit, RollerTable,
           HotendProfile, BowdenTube, MaterialProfile, ExponentialViscosity,

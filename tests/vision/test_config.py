@@ -82,8 +82,12 @@ def test_conflicts_and_missing_things() -> None:
     rois = parse_rois(["gear=0,0,20,20", "before=0,0,20,20", "after=0,0,20,20"])
     with pytest.raises(VisionError, match="not both"):
         build_config(rois=rois, mm_per_px=0.02, calib_width_mm=1.75)
-    with pytest.raises(VisionError, match="without the gear centre"):
-        build_config(rois=rois, gear_radius_mm=4.0)
+    with pytest.raises(VisionError, match="gear radius given in tangential mode"):
+        build_config(rois=rois, gear_radius_mm=4.0, gear_method="tangential")
+    with pytest.raises(VisionError, match="does not use the gear centre"):
+        build_config(rois=rois, gear_center_px=(1.0, 2.0), gear_method="tangential")
+    with pytest.raises(VisionError, match="unknown gear mode"):
+        build_config(rois=rois, gear_method="spin")  # type: ignore[arg-type]
     with pytest.raises(VisionError, match="missing region"):
         build_config(rois={"gear": rois["gear"]})
     with pytest.raises(VisionError, match="unknown tracking parameter"):
@@ -91,7 +95,9 @@ def test_conflicts_and_missing_things() -> None:
     with pytest.raises(VisionError, match="cannot read"):
         load_config_file("/nonexistent/cam.toml")
     cfg = build_config(rois=rois)
-    assert isinstance(cfg, VisionConfig) and cfg.gear_mode == "tangential"
+    # no centre: estimated from the motion, tangential if that shows no rotation
+    assert isinstance(cfg, VisionConfig) and cfg.gear_mode == "auto"
+    assert build_config(rois=rois, gear_radius_mm=4.0).gear_radius_mm == 4.0
     assert cfg.tracking == TrackingParams()
 
 

@@ -42,7 +42,7 @@ from flowtwin.profiles.setup import SetupProfile
 __all__ = ["GCODE_SUFFIXES", "RunSummary", "expand_inputs", "run_batch", "run_sweep"]
 
 #: File endings a folder is searched for (each also with ``.gz``).
-GCODE_SUFFIXES = (".gcode", ".gco", ".g")
+GCODE_SUFFIXES = (".gcode", ".gco", ".g", ".bgcode")
 
 ProfileSpec = str | os.PathLike[str] | SetupProfile | Machine | None
 

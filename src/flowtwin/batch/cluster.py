@@ -159,7 +159,7 @@ def dask_client(*, scheduler: str | None = None, workers: int | None = None,
 
 def _report_path(folder: Path, job: Job) -> Path:
     stem = Path(job.file).name
-    for suffix in (".gz", ".gcode", ".gco", ".g"):
+    for suffix in (".gz", ".gcode", ".bgcode", ".gco", ".g"):
         stem = stem.removesuffix(suffix)
     return folder / f"{stem or 'gcode'}-{job.row_id[:8]}.json"
 

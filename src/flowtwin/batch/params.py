@@ -34,6 +34,7 @@ Values
 
 from __future__ import annotations
 
+import enum
 import math
 import types
 import typing
@@ -249,6 +250,9 @@ def resolve_path(path: str) -> PathInfo:
     elif leaf and typing.get_origin(leaf[0]) is Literal:
         kind = "str"
         choices = tuple(str(v) for v in typing.get_args(leaf[0]))
+    elif leaf and isinstance(leaf[0], type) and issubclass(leaf[0], enum.Enum):
+        kind = "str"  # e.g. the printer's firmware (flowtwin.firmware.Firmware)
+        choices = tuple(str(m.value) for m in leaf[0])
     else:  # pragma: no cover - every profile field is one of the above
         raise _path_error(path, "has a type that cannot be swept", "a number, flag or name")
     allowed = (" and ".join(field_bounds) if field_bounds

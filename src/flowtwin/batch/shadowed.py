@@ -5,47 +5,43 @@ The twin, like the printer, obeys the G-code: ``M104``/``M109`` set the nozzle t
 ``SET_VELOCITY_LIMIT`` the accelerations. A profile value swept over a file that sets the
 same quantity only applies before that command, so the rows can look alike for a reason
 that has nothing to do with the physics. :func:`shadowed_parameters` finds such cases so the
-sweep can say so.
+sweep can say so. The file is read by flowtwin's reader (its events), so a command counts
+exactly when the twin would obey it (comments, line numbers and checksums as the reader
+treats them).
 """
 
 from __future__ import annotations
 
-import gzip
 import os
-import re
-from collections.abc import Iterable
-from pathlib import Path
+from collections.abc import Callable, Iterable
+
+from flowtwin.gcode.moves import Event
+from flowtwin.gcode.reader import iter_move_chunks
 
 __all__ = ["SHADOWING", "shadowed_parameters"]
 
-_FLAGS = re.MULTILINE | re.IGNORECASE
 
-#: Path prefix -> (commands in words, pattern of a G-code line that sets the quantity).
-SHADOWING: dict[str, tuple[str, re.Pattern[bytes]]] = {
+def _has_number(ev: Event, key: str) -> bool:
+    return isinstance(ev.params.get(key), float)
+
+
+#: Path prefix -> (commands in words, whether an event of the file sets the quantity).
+SHADOWING: dict[str, tuple[str, Callable[[Event], bool]]] = {
     "setup.temperature_c": (
         "M104/M109 S (nozzle temperature)",
-        re.compile(rb"^[ \t]*(?:N\d+[ \t]*)?M10[49](?![0-9])[^;\n]*\bS[ \t]*[0-9.]", _FLAGS)),
+        lambda ev: ev.code in ("M104", "M109") and _has_number(ev, "S")),
     "printer.pressure_advance.": (
         "M900 K / M572 / SET_PRESSURE_ADVANCE (pressure advance)",
-        re.compile(rb"^[ \t]*(?:N\d+[ \t]*)?(?:M900(?![0-9])[^;\n]*\bK|M572(?![0-9])|"
-                   rb"SET_PRESSURE_ADVANCE\b)", _FLAGS)),
+        lambda ev: (ev.code == "M900" and "K" in ev.params)
+        or ev.code in ("M572", "SET_PRESSURE_ADVANCE")),
     "printer.limits.max_accel": (
         "SET_VELOCITY_LIMIT ACCEL / M204 (acceleration)",
-        re.compile(rb"^[ \t]*(?:N\d+[ \t]*)?(?:SET_VELOCITY_LIMIT\b[^;\n]*\bACCEL|"
-                   rb"M204(?![0-9]))", _FLAGS)),
+        lambda ev: (ev.code == "SET_VELOCITY_LIMIT" and "ACCEL" in ev.params)
+        or ev.code == "M204"),
     "printer.marlin.": (
         "M201/M203/M204/M205 (machine limits)",
-        re.compile(rb"^[ \t]*(?:N\d+[ \t]*)?M20[1345](?![0-9])", _FLAGS)),
+        lambda ev: ev.code in ("M201", "M203", "M204", "M205")),
 }
-
-
-def _read(path: Path) -> bytes:
-    with open(path, "rb") as fh:
-        head = fh.read(2)
-    if head == b"\x1f\x8b":
-        with gzip.open(path, "rb") as gz:
-            return gz.read()
-    return path.read_bytes()
 
 
 def shadowed_parameters(source: str | os.PathLike[str], paths: Iterable[str]) -> list[str]:
@@ -54,7 +50,7 @@ def shadowed_parameters(source: str | os.PathLike[str], paths: Iterable[str]) ->
     Parameters
     ----------
     source
-        The G-code file (plain or gzip).
+        The G-code file (plain, gzip or Prusa binary .bgcode).
     paths
         Canonical parameter paths of the sweep.
 
@@ -62,17 +58,24 @@ def shadowed_parameters(source: str | os.PathLike[str], paths: Iterable[str]) ->
     -------
     list of str
         One message per shadowed path, naming the command and its first line.
+
+    Raises
+    ------
+    GcodeError
+        The file cannot be read (as the sweep's simulations would report).
     """
-    wanted = [(p, prefix, what, pattern) for p in paths
-              for prefix, (what, pattern) in SHADOWING.items() if p.startswith(prefix)]
+    wanted = [(p, what, sets) for p in paths
+              for prefix, (what, sets) in SHADOWING.items() if p.startswith(prefix)]
     if not wanted:
         return []
-    data = _read(Path(source))
-    out: list[str] = []
-    for path, _, what, pattern in wanted:
-        found = pattern.search(data)
-        if found is not None:
-            line = data.count(b"\n", 0, found.start()) + 1
-            out.append(f"{source}:{line}: the G-code sets {path} itself ({what}); the swept "
-                       "value applies only before that line, as on the printer")
-    return out
+    first: dict[str, int] = {}
+    for table in iter_move_chunks(source):
+        for ev in table.events:
+            for path, _, sets in wanted:
+                if path not in first and sets(ev):
+                    first[path] = ev.line
+        if len(first) == len(wanted):
+            break
+    return [f"{source}:{first[path]}: the G-code sets {path} itself ({what}); the swept "
+            "value applies only before that line, as on the printer"
+            for path, what, _ in wanted if path in first]

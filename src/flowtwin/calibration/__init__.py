@@ -2,7 +2,8 @@
 
 Quick start::
 
-    from flowtwin.calibration import Firmware, PrintSettings, generate_pattern, verify_pattern
+    from flowtwin.calibration import PrintSettings, generate_pattern, verify_pattern
+    from flowtwin.firmware import Firmware
 
     pattern = generate_pattern("kline", PrintSettings(firmware=Firmware.MARLIN),
                                {"k_start": 0.0, "k_end": 0.1, "k_step": 0.01})
@@ -11,7 +12,7 @@ Quick start::
 
 Patterns (:mod:`~flowtwin.calibration.patterns`): K-factor lines, Ellis-style chevrons, a
 PA tower, extrusion-multiplier blocks, a max-volumetric-speed ramp and a flow line, for
-Klipper, Marlin, RepRapFirmware and Prusa, every bead from [001 Eq. 7]. Fits: the lag ``K``
+every firmware of :mod:`flowtwin.firmware`, every bead from [001 Eq. 7]. Fits: the lag ``K``
 (dead time, gain) from widths along test lines by fitting the twin
 (:mod:`~flowtwin.calibration.lagfit`, :mod:`~flowtwin.calibration.kfit`) or from an image of
 a K-line pattern (:mod:`~flowtwin.calibration.kimage`, tested on images from
@@ -40,7 +41,6 @@ from flowtwin.calibration.adaptive_pa import (
     write_orca_model,
 )
 from flowtwin.calibration.csvdata import Column, Table, read_table, read_table_text
-from flowtwin.calibration.firmware import Firmware, accel_command, pa_command, parse_firmware
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.pattern_base import (
     PaSetting,
@@ -95,7 +95,6 @@ __all__ = [
     "PATTERN_KINDS",
     "AdaptivePaTable",
     "Column",
-    "Firmware",
     "ImageConditions",
     "KLineImageResult",
     "LagFit",
@@ -116,7 +115,6 @@ __all__ = [
     "ViscosityFit",
     "ViscositySweep",
     "WidthProfile",
-    "accel_command",
     "analyse_kline_image",
     "apparent_viscosity_pa_s",
     "append_measurement",
@@ -128,8 +126,6 @@ __all__ = [
     "generate_pattern",
     "kline_for_machine",
     "lag_model",
-    "pa_command",
-    "parse_firmware",
     "parse_orca_model",
     "pattern_params",
     "read_orca_model",

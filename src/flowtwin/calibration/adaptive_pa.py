@@ -42,8 +42,9 @@ import numpy.typing as npt
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.calibration.csvdata import Column, Table
-from flowtwin.calibration.firmware import MAX_K_S, format_number
 from flowtwin.errors import DataError
+from flowtwin.firmware import MAX_K_S
+from flowtwin.gcode.emitter import format_number
 from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = [

@@ -9,38 +9,56 @@ says the same at more length.
 from __future__ import annotations
 
 __all__ = ["ADAPTIVE_HELP", "FIT_K_HELP", "FIT_SLIP_HELP", "FROM_IMAGE_HELP", "PATTERN_HELP",
-           "STRAND_HELP", "VISCOSITY_HELP"]
+           "PATTERN_KIND_HELP", "STRAND_HELP", "VISCOSITY_HELP"]
 
 PATTERN_HELP = """Write a calibration test pattern as G-code for your firmware.
 
-KIND is one of:
-
-kline: K-factor lines (Marlin style). Each line is 20 mm slow, 40 mm
-fast, 20 mm slow, one advance factor K per line, front to back. Where
-the speed steps up and down, pick the K whose line keeps an even width.
-
-chevron: Ellis-style chevrons, nested 90-degree corners, one K per
-whole chevron, left to right. Pick the chevron with a sharp apex and
-no gap before it.
-
-tower: a square tower with K = k_start + k_step_per_mm * z. Measure
-with calipers the height z of the best corners; K follows from it.
-
-flow: extrusion-multiplier blocks, front left first. Pick the block
-with a closed, flat top; multiply your flow setting by its value.
-
-maxflow: lines of rising volumetric flow (mm3/s), front to back. The
-last line that is still full and even is your maximum volumetric speed.
-
-flowline: one line alternating v/4 and v for a target flow (one line
-per K if --k-start/--k-end/--k-step are given). Measure its width along
-the line (microscope, scanner, camera) every ~0.5 mm for a lag fit.
+One command per pattern kind (flowtwin calibrate pattern KIND --help for
+its options): kline, chevron and tower test the advance factor K; flow
+the extrusion multiplier; maxflow the maximum volumetric speed; flowline
+writes a line for a measured lag fit.
 
 Every extrusion uses the slicer bead A = w*h - (1 - pi/4)*h^2. Unless
 --no-check, the file is read back and planned with flowtwin's reader
 and planner for --printer, and the test speeds are checked to be
 reached (a warning names every move that falls short).
 """
+
+#: What each pattern kind prints and how to read it (the help of its command).
+PATTERN_KIND_HELP = {
+    "kline": """K-factor lines (Marlin style).
+
+Each line is 20 mm slow, 40 mm fast, 20 mm slow, one advance factor K
+per line, front to back. Where the speed steps up and down, pick the K
+whose line keeps an even width.
+""",
+    "chevron": """Ellis-style chevrons.
+
+Nested 90-degree corners, one K per whole chevron, left to right. Pick
+the chevron with a sharp apex and no gap before it.
+""",
+    "tower": """A pressure-advance tower.
+
+A square tower with K = k_start + k_step_per_mm * z. Measure with
+calipers the height z of the best corners; K follows from it.
+""",
+    "flow": """Extrusion-multiplier blocks.
+
+Solid blocks, front left first. Pick the block with a closed, flat
+top; multiply your flow setting by its value.
+""",
+    "maxflow": """Lines of rising volumetric flow (maximum volumetric speed).
+
+Lines of rising flow (mm3/s), front to back. The last line that is
+still full and even is your maximum volumetric speed.
+""",
+    "flowline": """One line alternating v/4 and v for a target flow.
+
+One line per K if --k-start/--k-end/--k-step are given. Measure its
+width along the line (microscope, scanner, camera) every ~0.5 mm for a
+lag fit.
+""",
+}
 
 VISCOSITY_HELP = """Fit a viscosity law to a temperature sweep; write a viscosity fragment.
 
@@ -119,25 +137,33 @@ writes a pressure_advance printer-profile fragment (k_s = K);
 adaptive-pa (one run per flow and acceleration).
 """
 
-FROM_IMAGE_HELP = """Read the advance factor from an image of a printed K-line pattern.
+FROM_IMAGE_HELP = """Read the advance factor from a photo or scan of a printed line pattern.
 
-What to measure: print pattern kline (keep its tick marks), let it
-cool, then scan it on a flatbed scanner (600 dpi or more; give --dpi) or
-photograph it square on, evenly lit, the whole pattern and its prime
-line in view, beads darker than the background. A print scanned face
-down is mirrored; that is found from the prime line and the ticks.
+--pattern names what you printed: kline (flowtwin's), marlin (Marlin's
+K-factor generator), prusa (Prusa's linear-advance lines), orca
+(OrcaSlicer's PA line) or orca-legacy (OrcaSlicer 1.x / Bambu Studio).
+Give the K range and any setting you changed from the tool's defaults
+(--k-start, --k-end, --k-step, speeds, lengths, --pitch) and the
+--machine it printed on.
 
-Give the pattern options you printed with (--k-start, --k-end,
---k-step, speeds, lengths, --layer-height, --line-width, --accel) and
-the --machine it printed on.
+What to measure: photograph the whole pattern with a margin, roughly square on,
+in focus, without a flash reflection on the lines. Beads may be lighter
+or darker than the sheet (found from the image; --polarity to force);
+textured and glossy sheets, labels and numbers beside the lines are fine.
+No tick marks are needed: the lines' ends and spacing give the frame and
+the scale, the pattern's marks (prime lines, numbers, reference marks)
+or the widths give its direction. A print scanned face down: --view
+mirrored. A scan's resolution (--dpi) fixes the width scale.
 
-The lines are found (OpenCV), registered to the bed by a homography
-from their ends (the pattern is its own scale bar; --dpi/--mm-per-px
-fixes the width scale), the width measured every --step mm along each
-line, each line scored by how even it stays after its speed changes
-(best line; K for acceleration and deceleration where the errors cross
-zero, as Tronvoll et al. 2019 Table II), and the twin's lag fitted to all lines
-without gaps (K +- 1 sigma). -o writes a pressure_advance fragment.
+Each line is scored by how even it stays after its speed changes (the
+most even line; K where the errors cross zero, Tronvoll et al. 2019
+Table II) and the twin's lag is fitted to all lines (K +- 1 sigma);
+-o writes the [pressure_advance] fragment, --annotate an annotated copy
+of the photo, --json everything (k_s, k_err_s, k_best_line_s, scores).
+
+A photo that cannot support an answer is refused with the reason: blur,
+too few lines, lines cut by the frame, a line count that is not the
+pattern's, a direction neither the marks nor the widths decide.
 """
 
 FIT_SLIP_HELP = """Fit a drive's slip law from test-stand records; write a drive fragment.

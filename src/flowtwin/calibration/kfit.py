@@ -21,24 +21,19 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
-from flowtwin.calibration.firmware import Firmware
 from flowtwin.calibration.kline import KLineParams, kline_pattern
 from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
 from flowtwin.calibration.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
 from flowtwin.calibration.pattern_base import Pattern, PrintSettings
 from flowtwin.errors import CalibrationError
+from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine
 
 __all__ = ["fit_k", "kline_for_machine", "pattern_firmware"]
 
-_PATTERN_FIRMWARE = {"klipper": Firmware.KLIPPER, "marlin": Firmware.MARLIN,
-                     "reprapfirmware": Firmware.REPRAPFIRMWARE, "prusa": Firmware.PRUSA,
-                     "repetier": Firmware.MARLIN}
-
-
 def pattern_firmware(machine: Machine) -> Firmware:
-    """The pattern dialect of a machine's printer (its advance command must be understood)."""
-    return _PATTERN_FIRMWARE[machine.printer.firmware]
+    """The firmware a pattern for ``machine`` is written for: its printer's."""
+    return machine.printer.firmware
 
 
 def kline_for_machine(machine: Machine, settings: PrintSettings, params: KLineParams

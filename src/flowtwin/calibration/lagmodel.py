@@ -40,13 +40,12 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.dynamics import (
-    DEFAULT_SMOOTH_TIME_S,
     AdvanceSettings,
     ExtrusionParams,
     advance_schedule,
     predict,
+    printer_advance,
 )
-from flowtwin.dynamics import Firmware as DynFirmware
 from flowtwin.errors import CalibrationError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_width_mm
@@ -60,7 +59,6 @@ __all__ = [
     "LagModel",
     "LagParams",
     "TestLine",
-    "dynamics_firmware",
     "lag_model",
     "printed_runs",
 ]
@@ -73,21 +71,11 @@ DEFAULT_MACHINE = "tronvoll2019"
 #: Largest dead time the model accepts, s (the series starts this long before a line).
 DEAD_TIME_MAX_S = 0.5
 
-#: Printer-profile firmware name → the dynamics' pressure-advance algorithm.
-_FIRMWARE = {"klipper": DynFirmware.KLIPPER, "marlin": DynFirmware.MARLIN,
-             "reprapfirmware": DynFirmware.RRF, "prusa": DynFirmware.PRUSA,
-             "repetier": DynFirmware.MARLIN}
-
 #: Path resolution of the flow series: the sample interval is chosen so the nozzle moves
 #: about this far between samples at the line's top speed (mm), within 0.5–2 ms. The flow
 #: relaxes with the time constant K, so linear interpolation between samples errs by about
 #: (dt/K)²/8 of a flow step: 3e-5 at 1 ms and K = 0.06 s, 0.1 % at 2 ms and K = 0.02 s.
 _SAMPLE_PATH_MM = 0.07
-
-
-def dynamics_firmware(printer_firmware: str) -> DynFirmware:
-    """The pressure-advance algorithm of a printer profile's firmware name."""
-    return _FIRMWARE[printer_firmware]
 
 
 @dataclass(frozen=True, slots=True)
@@ -453,10 +441,7 @@ def lag_model(source: str | os.PathLike[str] | bytes | BinaryIO,
                                      filament_diameter_mm=m.filament.diameter_mm)
     advance = None
     if pressure_advance:
-        smooth = (m.printer.pa_smooth_time_s or m.printer.pressure_advance.smooth_time_s
-                  or DEFAULT_SMOOTH_TIME_S)
-        advance = AdvanceSettings(dynamics_firmware(m.printer.firmware),
-                                  k_s=m.printer.pressure_advance.k_s, smooth_time_s=smooth)
+        advance = printer_advance(m.printer)
         k_adv = advance_schedule(plan.table, advance).k_eff_s
     else:
         k_adv = np.zeros(len(plan.table))

@@ -18,21 +18,23 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from flowtwin.atomic import atomic_open
-from flowtwin.calibration.firmware import (
+from flowtwin.errors import CalibrationError
+from flowtwin.firmware import (
+    ACCEL_MAX_MM_S2,
+    MAX_SMOOTH_TIME_S,
     Firmware,
     accel_command,
-    format_number,
     pa_command,
-    parse_firmware,
 )
-from flowtwin.errors import CalibrationError
+from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, Retraction, WordFormats
 from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = [
+    "PATTERN_FORMATS",
     "PaSetting",
     "Pattern",
     "PatternWriter",
@@ -112,7 +114,7 @@ class PrintSettings:
 
     def __post_init__(self) -> None:
         # a firmware name ("marlin", "rrf") is accepted too and turned into the enum
-        object.__setattr__(self, "firmware", parse_firmware(self.firmware))
+        object.__setattr__(self, "firmware", Firmware.parse(self.firmware))
         n = self.nozzle_diameter_mm
         check_param("nozzle_diameter_mm", n, 0.05 <= n <= 3.0, "0.05 .. 3 mm")
         check_param("filament_diameter_mm", self.filament_diameter_mm,
@@ -138,9 +140,15 @@ class PrintSettings:
                     self.retract_min_travel_mm >= 0.0, ">= 0 mm")
         check_param("z_hop_mm", self.z_hop_mm, 0.0 <= self.z_hop_mm <= 5.0, "0 .. 5 mm")
         if self.accel_mm_s2 is not None:
-            accel_command(self.firmware, self.accel_mm_s2)  # validates
+            a = self.accel_mm_s2
+            check_param("accel_mm_s2", a, 0.0 < a <= ACCEL_MAX_MM_S2,
+                        f"0 < a <= {ACCEL_MAX_MM_S2:g} mm/s²")
         if self.pa_smooth_time_s is not None:
-            pa_command(self.firmware, 0.0, smooth_time_s=self.pa_smooth_time_s)
+            t = self.pa_smooth_time_s
+            check_param("pa_smooth_time_s", t, self.firmware.smooths_advance,
+                        f"leave it out: {self.firmware.value} has no advance smoothing window")
+            check_param("pa_smooth_time_s", t, 0.0 < t <= MAX_SMOOTH_TIME_S,
+                        f"0 < t <= {MAX_SMOOTH_TIME_S:g} s")
         for i, size in enumerate(self.bed_size_mm):
             check_param("bed_size_mm", size, 10.0 <= size <= 2000.0, "10 .. 2000 mm")
             c = self.center_xy_mm[i]
@@ -292,77 +300,106 @@ def write_pattern(path: str | os.PathLike[str], pattern: Pattern) -> int:
     return len(pattern.lines)
 
 
-@dataclass
+#: Number formats of pattern files: positions to 1 µm, E to 10 nm and F to 0.001 mm/min,
+#: trailing zeros of E and F removed.
+PATTERN_FORMATS = WordFormats(xyz=NumberFormat(3), e=NumberFormat(5, trim=True),
+                              f=NumberFormat(3, trim=True))
+
+
 class PatternWriter:
-    """Builds a pattern's G-code line by line, tracking position and filament.
+    """Builds a pattern's G-code line by line (:class:`~flowtwin.gcode.emitter.GcodeEmitter`),
+    tracking position and filament.
 
     Lines are numbered from 1 as the reader numbers them, so the recorded
     :class:`TestSegment` and :class:`PaSetting` lines point at the written commands.
+    Travel, Z and retraction feed rates are written in whole mm/min.
     """
 
-    settings: PrintSettings
-    lines: list[str] = field(default_factory=list)
-    segments: list[TestSegment] = field(default_factory=list)
-    pa_settings: list[PaSetting] = field(default_factory=list)
-    x: float = 0.0
-    y: float = 0.0
-    z: float = 0.0
-    filament_mm: float = 0.0
-    bead_filament_mm: float = 0.0
-    e_words: int = 0
-    retracted: bool = False
-    _bounds: list[float] = field(default_factory=lambda: [math.inf, math.inf,
-                                                          -math.inf, -math.inf])
+    def __init__(self, settings: PrintSettings) -> None:
+        self.settings = settings
+        self.out = GcodeEmitter(PATTERN_FORMATS)
+        self.segments: list[TestSegment] = []
+        self.pa_settings: list[PaSetting] = []
+        self.bead_filament_mm = 0.0
+        self._bounds = [math.inf, math.inf, -math.inf, -math.inf]
+
+    @property
+    def lines(self) -> list[str]:
+        """The lines written so far."""
+        return self.out.lines
+
+    @property
+    def x(self) -> float:
+        """Nozzle X after the last line, mm."""
+        return self.out.x
+
+    @property
+    def y(self) -> float:
+        """Nozzle Y after the last line, mm."""
+        return self.out.y
+
+    @property
+    def z(self) -> float:
+        """Nozzle Z of the current layer, mm."""
+        return self.out.z
+
+    @property
+    def filament_mm(self) -> float:
+        """Net filament of the E words so far, mm."""
+        return self.out.filament_mm
+
+    @property
+    def e_words(self) -> int:
+        """E words written so far."""
+        return self.out.e_words
 
     # -- raw lines -------------------------------------------------------------------
     def emit(self, line: str) -> int:
         """Append a line; return its 1-based number."""
-        self.lines.append(line)
-        return len(self.lines)
+        return self.out.line(line)
 
     def comment(self, text: str) -> None:
-        """Append ``;text``."""
-        self.emit(f";{text}")
+        """Append ``;text`` (``" text"`` gives ``; text``)."""
+        if text.startswith(" "):
+            self.out.comment(text[1:])
+        else:
+            self.out.marker(text)
 
     def feature(self, name: str) -> None:
         """Mark a feature type the reader picks up (``;TYPE:name``)."""
-        self.emit(f";TYPE:{name}")
+        self.out.marker("TYPE", name)
 
-    def _e(self, e_mm: float) -> str:
-        self.e_words += 1
-        return format_number(e_mm, 5)
+    def _retraction(self) -> Retraction:
+        s = self.settings
+        return Retraction(s.retract_mm, round(s.retract_speed_mm_s * 60), s.z_hop_mm,
+                          round(s.z_speed_mm_s * 60))
 
     # -- start and end -----------------------------------------------------------------
     def start(self, title: str, description: list[str]) -> None:
         """Header comments, units and modes, heating, homing, acceleration."""
         s = self.settings
+        out = self.out
         from flowtwin import __version__
 
-        self.comment(f" {title} -- generated by flowtwin {__version__}")
+        out.comment(f"{title} -- generated by flowtwin {__version__}")
         for text in description:
-            self.comment(f" {text}")
-        self.comment(f" firmware = {s.firmware.value}")
-        self.comment(f" nozzle_diameter = {s.nozzle_diameter_mm:g}")
-        self.comment(f" filament_diameter = {s.filament_diameter_mm:g}")
-        self.comment(f" layer_height = {s.layer_height_mm:g}")
-        self.comment(f" extrusion_width = {s.line_width_mm:g}")
-        self.comment(f" bead_area_mm2 = {s.bead_area_mm2():.6f} (A = w*h - (1 - pi/4)*h^2)")
-        self.emit("G21 ; millimetres")
-        self.emit("G90 ; absolute XYZ")
-        self.emit("M83 ; relative E")
-        self.emit(f"M140 S{s.bed_temp_c:.0f}")
-        self.emit(f"M104 S{s.nozzle_temp_c:.0f}")
-        self.emit("G28 ; home")
-        self.x, self.y, self.z = 0.0, 0.0, 0.0
-        self.emit(f"M190 S{s.bed_temp_c:.0f}")
-        self.emit(f"M109 S{s.nozzle_temp_c:.0f}")
+            out.comment(text)
+        out.comment(f"firmware = {s.firmware.value}")
+        out.comment(f"nozzle_diameter = {s.nozzle_diameter_mm:g}")
+        out.comment(f"filament_diameter = {s.filament_diameter_mm:g}")
+        out.comment(f"layer_height = {s.layer_height_mm:g}")
+        out.comment(f"extrusion_width = {s.line_width_mm:g}")
+        out.comment(f"bead_area_mm2 = {s.bead_area_mm2():.6f} (A = w*h - (1 - pi/4)*h^2)")
+        out.begin(relative_e=True)
+        out.heat_bed(round(s.bed_temp_c))
+        out.heat_nozzle(round(s.nozzle_temp_c))
+        out.home()
+        out.heat_bed(round(s.bed_temp_c), wait=True)
+        out.heat_nozzle(round(s.nozzle_temp_c), wait=True)
         if s.accel_mm_s2 is not None:
-            self.emit(accel_command(s.firmware, s.accel_mm_s2))
-        if s.fan_percent > 0:
-            self.emit(f"M106 S{round(255 * s.fan_percent / 100.0)}")
-        else:
-            self.emit("M107")
-        self.emit("G92 E0")
+            out.line(accel_command(s.firmware, s.accel_mm_s2))
+        out.fan(s.fan_percent)
+        out.reset_e()
 
     def prime(self, x0: float, x1: float, y: float) -> None:
         """Start the first layer with a prime line from ``(x0, y)`` to ``(x1, y)``."""
@@ -376,28 +413,27 @@ class PatternWriter:
     def end(self) -> None:
         """Retract, lift, heaters and fan off, motors off."""
         s = self.settings
-        if not self.retracted and s.retract_mm > 0:
-            self.emit(f"G1 E{self._e(-s.retract_mm)} F{s.retract_speed_mm_s * 60:.0f}")
-            self.filament_mm -= s.retract_mm
+        out = self.out
+        if s.retract_mm > 0:
+            out.move(e_mm=-s.retract_mm, f_mm_min=round(s.retract_speed_mm_s * 60))
         self.move_z(self.z + 10.0)
-        self.emit("M104 S0")
-        self.emit("M140 S0")
-        self.emit("M107")
-        self.emit("M84")
+        out.heat_nozzle(0)
+        out.heat_bed(0)
+        out.fan(0.0)
+        out.line("M84")
 
     # -- motion ----------------------------------------------------------------------------
     def move_z(self, z: float) -> None:
         """Move Z only, at :attr:`PrintSettings.z_speed_mm_s` (nothing if already there)."""
         if abs(z - self.z) < 5e-4:
             return
-        self.emit(f"G1 Z{z:.3f} F{self.settings.z_speed_mm_s * 60:.0f}")
-        self.z = z
+        self.out.move(z=z, f_mm_min=round(self.settings.z_speed_mm_s * 60))
 
     def layer(self, index: int, z: float) -> None:
         """Start layer ``index`` at nozzle height ``z`` (PrusaSlicer-style markers)."""
-        self.emit(";LAYER_CHANGE")
-        self.emit(f";Z:{z:.3f}")
-        self.emit(f";HEIGHT:{self.settings.layer_height_mm:.3f}")
+        self.out.marker("LAYER_CHANGE")
+        self.out.marker("Z", f"{z:.3f}")
+        self.out.marker("HEIGHT", f"{self.settings.layer_height_mm:.3f}")
         self.move_z(z)
 
     def travel(self, x: float, y: float, *, retract: bool | None = None) -> None:
@@ -410,20 +446,8 @@ class PatternWriter:
         if retract is None:
             retract = dist >= s.retract_min_travel_mm
         retract = retract and s.retract_mm > 0
-        if retract and not self.retracted:
-            self.emit(f"G1 E{self._e(-s.retract_mm)} F{s.retract_speed_mm_s * 60:.0f}")
-            self.filament_mm -= s.retract_mm
-            self.retracted = True
-            if s.z_hop_mm:
-                self.emit(f"G1 Z{self.z + s.z_hop_mm:.3f} F{s.z_speed_mm_s * 60:.0f}")
-        self.emit(f"G1 X{x:.3f} Y{y:.3f} F{s.travel_speed_mm_s * 60:.0f}")
-        self.x, self.y = x, y
-        if self.retracted:
-            if s.z_hop_mm:
-                self.emit(f"G1 Z{self.z:.3f} F{s.z_speed_mm_s * 60:.0f}")
-            self.emit(f"G1 E{self._e(s.retract_mm)} F{s.retract_speed_mm_s * 60:.0f}")
-            self.filament_mm += s.retract_mm
-            self.retracted = False
+        self.out.travel(x, y, round(s.travel_speed_mm_s * 60),
+                        self._retraction() if retract else None)
 
     def extrude_to(self, x: float, y: float, speed_mm_s: float, *, multiplier: float = 1.0,
                    role: str | None = None, group: int = -1, must_cruise: bool = True) -> int:
@@ -434,7 +458,8 @@ class PatternWriter:
         s = self.settings
         # coordinates are written with 3 decimals: measure the length actually commanded
         x, y = round(x, 3), round(y, 3)
-        length = math.hypot(x - self.x, y - self.y)
+        x0, y0 = self.x, self.y
+        length = math.hypot(x - x0, y - y0)
         if length < 1e-9:
             raise CalibrationError("zero-length extrusion in a pattern (internal geometry)",
                                    field=role or "extrude", value=(x, y))
@@ -442,14 +467,11 @@ class PatternWriter:
         e = multiplier * area * length / s.filament_area_mm2
         feed_mm_min = round(speed_mm_s * 60.0, 3)
         speed_mm_s = feed_mm_min / 60.0       # the speed actually written
-        line = self.emit(f"G1 X{x:.3f} Y{y:.3f} E{self._e(e)} "
-                         f"F{format_number(feed_mm_min, 3)}")
-        self.filament_mm += e
+        line = self.out.move(x=x, y=y, e_mm=e, f_mm_min=feed_mm_min)
         self.bead_filament_mm += e
         b = self._bounds
-        b[0], b[1] = min(b[0], self.x, x), min(b[1], self.y, y)
-        b[2], b[3] = max(b[2], self.x, x), max(b[3], self.y, y)
-        self.x, self.y = x, y
+        b[0], b[1] = min(b[0], x0, x), min(b[1], y0, y)
+        b[2], b[3] = max(b[2], x0, x), max(b[3], y0, y)
         if role is not None:
             self.segments.append(TestSegment(line, role, group, speed_mm_s,
                                              multiplier * area * speed_mm_s, length,
@@ -459,7 +481,7 @@ class PatternWriter:
     def set_pa(self, k_s: float, group: int) -> int:
         """Write the advance command for ``k_s`` and record it."""
         s = self.settings
-        line = self.emit(pa_command(s.firmware, k_s, smooth_time_s=s.pa_smooth_time_s))
+        line = self.out.line(pa_command(s.firmware, k_s, smooth_time_s=s.pa_smooth_time_s))
         self.pa_settings.append(PaSetting(line, k_s, group, self.z))
         return line
 

@@ -6,10 +6,9 @@ A thin layer over :mod:`flowtwin.calibration`; every command that reports result
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import typer
 
@@ -20,29 +19,27 @@ from flowtwin.calibration.adaptive_pa import (
     write_orca_model,
 )
 from flowtwin.calibration.csvdata import read_table
-from flowtwin.calibration.firmware import parse_firmware
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.guide import (
     ADAPTIVE_HELP,
     FIT_K_HELP,
     FIT_SLIP_HELP,
     FROM_IMAGE_HELP,
-    PATTERN_HELP,
     STRAND_HELP,
     VISCOSITY_HELP,
 )
 from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
-from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
+from flowtwin.calibration.pattern_base import PrintSettings
 from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
-from flowtwin.calibration.verify import verify_pattern
 from flowtwin.calibration.viscosity_fit import (
     VISCOSITY_COLUMNS,
     ViscosityLawName,
     fit_viscosity_law,
     sweep_from_table,
 )
-from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
+from flowtwin.cli._common import console, err_console, print_json, table_from_rows
+from flowtwin.cli.calibrate_image import from_image_cmd
+from flowtwin.cli.calibrate_pattern import register_patterns
 from flowtwin.errors import CalibrationError
 from flowtwin.physics.strand import StrandModel
 from flowtwin.profiles.drive import DriveProfile
@@ -75,152 +72,7 @@ def _load_drive(name: str) -> DriveProfile:
     return profile
 
 
-#: CLI option → pattern parameter field.
-_PATTERN_OPTIONS = {
-    "k-start": "k_start", "k-end": "k_end", "k-step": "k_step",
-    "k-step-per-mm": "k_step_per_mm", "slow-speed": "slow_speed_mm_s",
-    "fast-speed": "fast_speed_mm_s", "speed": "speed_mm_s",
-    "first-layer-speed": "first_layer_speed_mm_s", "layers": "layers", "walls": "walls",
-    "height": "height_mm", "size": "size_mm", "block-size": "block_size_mm",
-    "multiplier-start": "multiplier_start", "multiplier-end": "multiplier_end",
-    "multiplier-step": "multiplier_step", "flow-start": "flow_start_mm3_s",
-    "flow-end": "flow_end_mm3_s", "flow-step": "flow_step_mm3_s", "flow": "flow_mm3_s",
-    "cycles": "cycles", "mark-every": "mark_every",
-}
-
-
-def _pattern_params(kind: str, options: dict[str, Any]) -> dict[str, Any]:
-    entry = PATTERN_KINDS.get(kind)
-    if entry is None:
-        raise CalibrationError("unknown pattern", field="KIND", value=kind,
-                               allowed=", ".join(PATTERN_KINDS))
-    fields = {f.name for f in dataclasses.fields(entry.params_type)}
-    usable = sorted(f"--{opt}" for opt, fld in _PATTERN_OPTIONS.items() if fld in fields)
-    params: dict[str, Any] = {}
-    for opt, value in options.items():
-        if value is None:
-            continue
-        fld = _PATTERN_OPTIONS[opt]
-        if fld not in fields:
-            raise CalibrationError(f"--{opt} does not apply to the {kind} pattern",
-                                   field=f"--{opt}", value=value,
-                                   allowed="options of " + kind + ": " + ", ".join(usable))
-        params[fld] = value
-    return params
-
-
 # ---------------------------------------------------------------------- commands ---
-
-def _pattern_cmd(
-    kind: Annotated[str, typer.Argument(help="kline, chevron, tower, flow, maxflow or "
-                                             "flowline.")],
-    output: Annotated[Path, typer.Option("--output", "-o", help="G-code file to write.")],
-    firmware: Annotated[str, typer.Option(help="klipper, marlin, reprapfirmware (rrf) or "
-                                               "prusa (Buddy: MK4/XL/MINI; 8-bit MK3S/MK2.5 "
-                                               "use marlin).")] = "klipper",
-    k_start: Annotated[float | None, typer.Option(help="First advance factor, s.")] = None,
-    k_end: Annotated[float | None, typer.Option(help="Last advance factor, s.")] = None,
-    k_step: Annotated[float | None, typer.Option(help="Advance factor step, s.")] = None,
-    k_step_per_mm: Annotated[float | None, typer.Option(
-        help="tower: advance factor added per mm of height, s/mm.")] = None,
-    slow_speed: Annotated[float | None, typer.Option(help="kline: slow speed, mm/s.")] = None,
-    fast_speed: Annotated[float | None, typer.Option(help="kline: fast speed, mm/s.")] = None,
-    speed: Annotated[float | None, typer.Option(help="chevron/tower: print speed, "
-                                                     "mm/s.")] = None,
-    first_layer_speed: Annotated[float | None, typer.Option(
-        help="chevron/tower: first-layer speed, mm/s.")] = None,
-    layers: Annotated[int | None, typer.Option(help="chevron/flow: layers.")] = None,
-    walls: Annotated[int | None, typer.Option(help="chevron/tower: walls.")] = None,
-    height: Annotated[float | None, typer.Option(help="tower: height, mm.")] = None,
-    size: Annotated[float | None, typer.Option(help="tower: side length, mm.")] = None,
-    block_size: Annotated[float | None, typer.Option(help="flow: block side, mm.")] = None,
-    multiplier_start: Annotated[float | None, typer.Option(
-        help="flow: first extrusion multiplier (1 = 100 %).")] = None,
-    multiplier_end: Annotated[float | None, typer.Option(
-        help="flow: last extrusion multiplier.")] = None,
-    multiplier_step: Annotated[float | None, typer.Option(
-        help="flow: multiplier step.")] = None,
-    flow_start: Annotated[float | None, typer.Option(help="maxflow: first flow, "
-                                                          "mm3/s.")] = None,
-    flow_end: Annotated[float | None, typer.Option(help="maxflow: last flow, mm3/s.")] = None,
-    flow_step: Annotated[float | None, typer.Option(help="maxflow: flow step, "
-                                                         "mm3/s.")] = None,
-    flow: Annotated[float | None, typer.Option(help="flowline: target flow at v, "
-                                                    "mm3/s.")] = None,
-    cycles: Annotated[int | None, typer.Option(help="flowline: slow/fast cycles.")] = None,
-    mark_every: Annotated[int | None, typer.Option(
-        help="kline/chevron: a tick every N lines (0 = none).")] = None,
-    nozzle_diameter: Annotated[float, typer.Option(help="Nozzle, mm.")] = 0.4,
-    filament_diameter: Annotated[float, typer.Option(help="Filament, mm.")] = 1.75,
-    layer_height: Annotated[float, typer.Option(help="Layer height, mm.")] = 0.2,
-    line_width: Annotated[float, typer.Option(help="Line width, mm.")] = 0.48,
-    nozzle_temp: Annotated[float, typer.Option(help="Nozzle temperature, C.")] = 215.0,
-    bed_temp: Annotated[float, typer.Option(help="Bed temperature, C.")] = 60.0,
-    fan: Annotated[float, typer.Option(help="Part fan, %.")] = 0.0,
-    accel: Annotated[float | None, typer.Option(
-        help="Set this print/travel acceleration, mm/s2 (default: the printer's).")] = None,
-    pa_smooth_time: Annotated[float | None, typer.Option(
-        help="Klipper SMOOTH_TIME / Prusa W with every advance command, s.")] = None,
-    center_x: Annotated[float, typer.Option(help="Pattern centre X, mm.")] = 110.0,
-    center_y: Annotated[float, typer.Option(help="Pattern centre Y, mm.")] = 110.0,
-    bed_x: Annotated[float, typer.Option(help="Bed size X, mm.")] = 220.0,
-    bed_y: Annotated[float, typer.Option(help="Bed size Y, mm.")] = 220.0,
-    retract: Annotated[float, typer.Option(help="Retraction on travels, mm.")] = 0.8,
-    printer: Annotated[str | None, typer.Option(
-        help="Printer profile to check the pattern with (built-in name or TOML); default "
-             "generic-klipper / generic-marlin.")] = None,
-    check: Annotated[bool, typer.Option("--check/--no-check",
-                                        help="Read back and plan the pattern.")] = True,
-    json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-) -> None:
-    params = _pattern_params(kind, {
-        "k-start": k_start, "k-end": k_end, "k-step": k_step, "k-step-per-mm": k_step_per_mm,
-        "slow-speed": slow_speed, "fast-speed": fast_speed, "speed": speed,
-        "first-layer-speed": first_layer_speed, "layers": layers, "walls": walls,
-        "height": height, "size": size, "block-size": block_size,
-        "multiplier-start": multiplier_start, "multiplier-end": multiplier_end,
-        "multiplier-step": multiplier_step, "flow-start": flow_start, "flow-end": flow_end,
-        "flow-step": flow_step, "flow": flow, "cycles": cycles, "mark-every": mark_every})
-    settings = PrintSettings(
-        firmware=parse_firmware(firmware),
-        nozzle_diameter_mm=nozzle_diameter, filament_diameter_mm=filament_diameter,
-        layer_height_mm=layer_height, line_width_mm=line_width, nozzle_temp_c=nozzle_temp,
-        bed_temp_c=bed_temp, fan_percent=fan, accel_mm_s2=accel,
-        pa_smooth_time_s=pa_smooth_time, center_xy_mm=(center_x, center_y),
-        bed_size_mm=(bed_x, bed_y), retract_mm=retract)
-    pattern = generate_pattern(kind, settings, params)
-    result = verify_pattern(pattern, printer=printer) if check else None
-    write_pattern(output, pattern)
-    summary: dict[str, Any] = {"output": str(output), **pattern.summary()}
-    summary["check"] = None if result is None else result.summary()
-    if json_out:
-        print_json(summary)
-        return
-    rows: list[tuple[str, object]] = [
-        ("pattern", f"{kind} ({PATTERN_KINDS[kind].description})"),
-        ("firmware", settings.firmware.value), ("file", f"{output} ({len(pattern.lines)} "
-                                                        "lines)"),
-        (pattern.value_name, ", ".join(f"{v:g}" for v in pattern.values)),
-        ("filament", f"{pattern.filament_mm:.1f} mm"),
-        ("bead area", f"{settings.bead_area_mm2():.5f} mm² (w {settings.line_width_mm:g}, "
-                      f"h {settings.layer_height_mm:g})")]
-    if result is not None:
-        rows.append(("checked with", f"{result.printer} ({result.firmware} planner): "
-                     f"{fmt_duration(result.total_time_s)}"))
-        rows.append(("test speeds reached", f"{len(result.segments) - len(result.shortfalls)}"
-                     f" of {len(result.segments)}"))
-    console.print(table_from_rows("Calibration pattern", ["", ""], rows))
-    for note in pattern.notes:
-        console.print(f"  • {note}")
-    if result is not None:
-        for c in result.shortfalls[:10]:
-            err_console.print(f"[yellow]warning:[/] line {c.segment.line} ({c.segment.role}, "
-                              f"group {c.segment.group}) reaches {c.cruise_v_mm_s:.1f} of "
-                              f"{c.segment.speed_mm_s:.1f} mm/s on {result.printer}: the "
-                              "pattern does not test that speed there")
-        for name, count in result.unknown_commands.items():
-            err_console.print(f"[yellow]warning:[/] {count}× {name} unknown to flowtwin")
-
 
 def _fit_viscosity_cmd(
     data: Annotated[Path, typer.Argument(help="Temperature sweep CSV (see above).")],
@@ -478,84 +330,6 @@ def _fit_k_cmd(
     _report_lag(fit, f"Lag from {profile}", output, text, appended, append_to)
 
 
-def _from_image_cmd(
-    image: Annotated[Path, typer.Argument(help="Scan or photo of the K-line pattern.")],
-    machine: _Machine = "tronvoll2019",
-    k_start: Annotated[float, typer.Option(help="First K of the pattern, s.")] = 0.0,
-    k_end: Annotated[float, typer.Option(help="Last K of the pattern, s.")] = 0.2,
-    k_step: Annotated[float, typer.Option(help="K step of the pattern, s.")] = 0.01,
-    slow_speed: _SlowSpeed = 20.0, fast_speed: _FastSpeed = 70.0,
-    slow_length: _SlowLength = 20.0, fast_length: _FastLength = 40.0,
-    layer_height: Annotated[float, typer.Option(help="Layer height, mm.")] = 0.2,
-    line_width: _LineWidth = 0.48, nozzle_diameter: _Nozzle = 0.4,
-    filament_diameter: _Filament = 1.75, accel: _Accel = None,
-    mark_every: Annotated[int, typer.Option(help="Tick every N lines, as printed.")] = 5,
-    dpi: Annotated[float | None, typer.Option(help="Scan resolution (sets the width "
-                                                   "scale: 25.4/dpi mm/px).")] = None,
-    mm_per_px: Annotated[float | None, typer.Option(help="Image resolution, mm/px.")
-                         ] = None,
-    view: Annotated[str, typer.Option(help="auto, top, or mirrored (scanned face down).")
-                    ] = "auto",
-    method: Annotated[str, typer.Option(help="Width from the bead's integrated darkness "
-                                             "(area) or its edges.")] = "area",
-    step: Annotated[float, typer.Option(help="Width sample spacing along a line, mm.")
-                    ] = 0.25,
-    fit_dead_time: Annotated[bool, typer.Option(help="Also fit a dead time.")] = False,
-    output: _Output = None,
-    json_out: _Json = False,
-) -> None:
-    from flowtwin.calibration.kfit import kline_for_machine
-    from flowtwin.calibration.kimage import analyse_kline_image
-    from flowtwin.profiles.machine import load_machine
-
-    if dpi is not None and mm_per_px is not None:
-        raise CalibrationError("give --dpi or --mm-per-px, not both", field="--dpi",
-                               value=dpi, allowed="one of them")
-    if dpi is not None:
-        if not dpi > 0:
-            raise CalibrationError("scan resolution must be positive", field="--dpi",
-                                   value=dpi, allowed="> 0 dots per inch")
-        mm_per_px = 25.4 / dpi
-    m = load_machine(machine)
-    settings, params = _kline_parts(k_start, k_end, k_step, slow_speed, fast_speed,
-                                    slow_length, fast_length, layer_height, line_width,
-                                    nozzle_diameter, filament_diameter, accel, mark_every)
-    pattern = kline_for_machine(m, settings, params)
-    res = analyse_kline_image(image, pattern, machine=m, mm_per_px=mm_per_px, view=view,
-                              step_mm=step, method=method, fit_dead_time=fit_dead_time)
-    text = None
-    if res.lag is not None:
-        text = res.lag.fragment(header=[
-            f"flowtwin calibrate from-image: lag fitted to {image.name} "
-            f"({len(res.lag.lines)} K-lines, RMS {res.lag.rms_mm * 1000:.1f} µm)",
-            f"most even line K = {res.k_best_line_s:g} s; ± are 1-sigma errors"])
-        if output is not None:
-            write_fragment(output, text)
-    elif output is not None:
-        raise CalibrationError(f"no lag fit to write: {res.lag_problem}", field="--output")
-    if json_out:
-        print_json({**res.summary(), "output": None if output is None else str(output)})
-        return
-    console.print(table_from_rows(
-        f"K-lines in {image}", ["K (s)", "score", "accel err", "decel err", "width (mm)",
-                                "measured"],
-        [(f"{r.k_la_s:g}" + (" ◀" if i == res.best_index else ""), _fmt(r.score),
-          _fmt(r.accel_error), _fmt(r.decel_error), _fmt(r.steady_width_mm),
-          f"{r.measured_fraction:.0%}") for i, r in enumerate(res.lines)]))
-    console.print(f"most even line: K = {res.k_best_line_s:g} s; zero crossings: "
-                  f"acceleration {_fmt(res.k_accel_s)} s, deceleration "
-                  f"{_fmt(res.k_decel_s)} s [001 Table II]")
-    console.print(f"view {res.view}, {res.px_per_mm:.2f} px/mm, line ends fit the pattern "
-                  f"within {res.reprojection_rms_mm:.2f} mm RMS")
-    for note in res.notes:
-        console.print(f"  • {note}")
-    if res.lag is None:
-        err_console.print(f"[yellow]warning:[/] no lag fit: {res.lag_problem}")
-        return
-    assert text is not None
-    _report_lag(res.lag, "Lag fitted to all lines", output, text, None, None)
-
-
 def _fmt(x: float | None) -> str:  # NaN and None: "-"
     return "-" if x is None or x != x else f"{x:.4g}"
 
@@ -593,9 +367,9 @@ def register(app: typer.Typer) -> None:
     sub = typer.Typer(name="calibrate", no_args_is_help=True, add_completion=False,
                       help="Calibration: test patterns, fits of measurements, profile "
                            "fragments, adaptive pressure-advance tables.")
-    sub.command("pattern", help=PATTERN_HELP)(_pattern_cmd)
+    register_patterns(sub)
     sub.command("fit-k", help=FIT_K_HELP)(_fit_k_cmd)
-    sub.command("from-image", help=FROM_IMAGE_HELP)(_from_image_cmd)
+    sub.command("from-image", help=FROM_IMAGE_HELP)(from_image_cmd)
     sub.command("fit-viscosity", help=VISCOSITY_HELP)(_fit_viscosity_cmd)
     sub.command("fit-strand", help=STRAND_HELP)(_fit_strand_cmd)
     sub.command("fit-slip", help=FIT_SLIP_HELP)(_fit_slip_cmd)

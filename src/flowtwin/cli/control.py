@@ -16,13 +16,13 @@ from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
 from flowtwin.control.connect import open_printer
 from flowtwin.control.controllers import Limits, make_controller
 from flowtwin.control.credentials import DEFAULT_KEY_ENV, load_api_key
-from flowtwin.control.firmware import Channel, Firmware
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import MeasurementSource, SyntheticSlipSource
 from flowtwin.control.printer import Factors, Printer
 from flowtwin.control.supervisor import LoopSettings, RunSummary, Status, run_control
 from flowtwin.control.twin import TwinPrinter
 from flowtwin.errors import FlowtwinError
+from flowtwin.firmware import Channel, Firmware
 
 __all__ = ["register", "render_summary"]
 

@@ -102,7 +102,7 @@ def profile_report(name: str) -> dict[str, Any]:
     elif isinstance(profile, RollerTable):
         report["eq9_checks"] = {str(r.number): _eq9(r) for r in profile.roller}
     elif isinstance(profile, PrinterProfile):
-        if profile.firmware == "klipper":
+        if profile.limits is not None:
             report["resolved_limits"] = profile.resolved_klipper_limits().model_dump(
                 mode="json")
         report["pa_smooth_time_s"] = profile.pa_smooth_time_s

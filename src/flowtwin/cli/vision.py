@@ -7,6 +7,7 @@ A thin layer over :mod:`flowtwin.vision`: ROIs come from ``--config FILE.toml`` 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -50,8 +51,10 @@ def _source(text: str) -> str | int:
 
 def _config(config: Path | None, roi: list[str] | None, mm_per_px: float | None,
             calib_width_mm: float | None, gear_center: str | None,
-            gear_radius_mm: float | None, direction: str | None) -> VisionConfig:
+            gear_radius_mm: float | None, direction: str | None,
+            gear_mode: str | None = None, diameter_mm: float | None = None) -> VisionConfig:
     from flowtwin.vision import build_config, parse_rois
+    from flowtwin.vision.config import GEAR_MODES
 
     if mm_per_px is not None and calib_width_mm is not None:
         raise VisionError("give the scale either as --mm-per-px or as --calib-width-mm",
@@ -62,10 +65,17 @@ def _config(config: Path | None, roi: list[str] | None, mm_per_px: float | None,
     if direction is not None and feed is None:
         raise VisionError("unknown filament direction", field="--direction",
                           value=direction, allowed="down, up")
+    mode = None
+    if gear_mode is not None:
+        mode = next((m for m in GEAR_MODES if m == gear_mode), None)
+        if mode is None:
+            raise VisionError("unknown gear mode", field="--gear-mode", value=gear_mode,
+                              allowed=", ".join(GEAR_MODES))
     return build_config(config_path=config, rois=parse_rois(roi or []), mm_per_px=mm_per_px,
                         calib_width_mm=calib_width_mm,
                         gear_center_px=_pair(gear_center, "--gear-center"),
-                        gear_radius_mm=gear_radius_mm, direction=feed)
+                        gear_radius_mm=gear_radius_mm, direction=feed, gear_method=mode,
+                        diameter_mm=diameter_mm)
 
 
 @vision_app.command("measure")
@@ -78,9 +88,15 @@ def measure_cmd(
         None, "--calib-width-mm", help="Known filament width (micrometer), mm: k_cal "
         "= w/w_detected [003 Eq. 4]."),
     gear_center: str | None = typer.Option(
-        None, "--gear-center", help="Gear axis x,y in px: gear speed from the rotation."),
+        None, "--gear-center", help="Gear axis x,y in px: gear speed from the rotation "
+        "(default: estimated from the motion in the gear ROI)."),
     gear_radius_mm: float | None = typer.Option(
         None, "--gear-radius-mm", help="Effective drive radius, mm (default: measured)."),
+    gear_mode: str | None = typer.Option(
+        None, "--gear-mode", help="auto (default), rotation or tangential."),
+    diameter_mm: float | None = typer.Option(
+        None, "--filament-diameter-mm", help="Nominal filament diameter, mm: widths "
+        "beyond ±5 % are refused (default: 1.75 or 2.85 mm ± 8 %)."),
     direction: str | None = typer.Option(None, "--direction",
                                          help="Feed direction in the image: down or up."),
     timestamps: Path | None = typer.Option(
@@ -89,13 +105,15 @@ def measure_cmd(
     csv: Path | None = typer.Option(None, "--csv", help="Write the series as CSV."),
     parquet: Path | None = typer.Option(None, "--parquet", help="Write the series as Parquet."),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG plot."),
+    strict: bool = typer.Option(False, "--strict", help="Exit with status 3 when the "
+                                "summary has warnings (e.g. few valid gear steps)."),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
 ) -> None:
     """Measure gear speed, filament speed, slip, width and volume flow."""
     from flowtwin.vision import measure, write_csv, write_parquet, write_plot
 
     cfg = _config(config, roi, mm_per_px, calib_width_mm, gear_center, gear_radius_mm,
-                  direction)
+                  direction, gear_mode, diameter_mm)
     result = measure(_source(source), cfg, timestamps=timestamps, max_frames=frames)
     written: dict[str, str] = {}
     if csv is not None:
@@ -108,29 +126,39 @@ def measure_cmd(
         write_plot(result, plot)
         written["plot"] = str(plot)
     summary = result.summary.to_dict()
-    if result.summary.truncated:
-        err_console.print(f"[yellow]warning:[/] {result.summary.source}: decoded "
-                          f"{result.summary.frames} of {result.summary.frames_expected} "
-                          "declared frames (truncated or damaged file)")
+    s = result.summary
+    if s.truncated:
+        err_console.print(f"[yellow]warning:[/] {s.source}: decoded {s.frames} of "
+                          f"{s.frames_expected} declared frames (truncated or damaged file)")
+    for text in s.warnings:
+        err_console.print(f"[bold red]WARNING:[/] {text}")
     if json_out:
         print_json({**summary, "outputs": written})
-        return
-    s = result.summary
-    rows = [
-        ("gear speed", f"{s.gear_speed_mm_s:.4f} mm/s ({s.gear_mode})"),
-        ("filament speed", f"{s.filament_speed_mm_s:.4f} mm/s"),
-        ("slip", f"{s.slip_pct:.3f} %"),
-        ("width", f"{s.width_mm:.4f} ± {s.width_std_mm:.4f} mm"),
-        ("volume flow", f"{s.volume_flow_mm3_s:.3f} mm³/s"),
-        ("frames", f"{s.valid_frames} valid of {s.frames} ({s.dropped_frames} dropped, "
-                   f"{s.blank_frames} blank, {s.duplicate_frames} duplicate)"),
-        ("scale", f"{s.mm_per_px:.6f} mm/px ({s.scale_source})"),
-        ("timestamps", s.timestamp_source),
-        ("speed", f"{s.processing_fps:.0f} frames/s"),
-    ]
-    console.print(table_from_rows(f"vision measure: {s.source}", ["", ""], rows))
-    for kind, path in written.items():
-        console.print(f"wrote {kind}: {path}")
+    else:
+        slip_text = (f"{s.slip_pct:.3f} % (from {s.slip_steps} steps)"
+                     if math.isfinite(s.slip_pct) else f"undefined: {s.slip_note}")
+        axis = ("-" if s.gear_axis_px is None else
+                f"({s.gear_axis_px[0]:.1f}, {s.gear_axis_px[1]:.1f}) px, {s.gear_axis_source}")
+        rows = [
+            ("gear speed", f"{s.gear_speed_mm_s:.4f} mm/s ({s.gear_mode}, {s.gear_state})"),
+            ("gear axis", axis),
+            ("filament speed", f"{s.filament_speed_mm_s:.4f} mm/s ({s.filament_state})"),
+            ("slip", slip_text),
+            ("width", f"{s.width_mm:.4f} ± {s.width_std_mm:.4f} mm "
+                      f"({s.width_valid_frames} of {s.frames} frames)"),
+            ("volume flow", f"{s.volume_flow_mm3_s:.3f} mm³/s"),
+            ("frames", f"{s.valid_frames} valid of {s.frames} ({s.dropped_frames} dropped, "
+                       f"{s.blank_frames} blank, {s.duplicate_frames} duplicate)"),
+            ("scale", f"{s.mm_per_px:.6f} mm/px ({s.scale_source})"),
+            ("timestamps", s.timestamp_source),
+            ("speed", f"{s.processing_fps:.0f} frames/s"),
+        ]
+        console.print(table_from_rows(f"vision measure: {s.source}", ["", ""], rows))
+        for kind, path in written.items():
+            console.print(f"wrote {kind}: {path}")
+    if strict and s.warnings:
+        err_console.print(f"[bold red]--strict:[/] {len(s.warnings)} warning(s)")
+        raise typer.Exit(code=3)
 
 
 @vision_app.command("inspect")
@@ -138,14 +166,19 @@ def inspect_cmd(
     source: str = typer.Argument(..., help=_SOURCE_HELP),
     out: Path = typer.Option(Path("vision-inspect.png"), "--out", "-o",
                              help="Annotated PNG to write."),
-    frame: int = typer.Option(0, "--frame", help="Frame index to annotate."),
+    frame: int = typer.Option(0, "--frame", help="First frame of the window."),
+    frames: int = typer.Option(30, "--frames", help="Frames in the window (tracks and the "
+                               "gear axis need motion; 1: features and edges only)."),
     config: Path | None = typer.Option(None, "--config", "-c", help=_CONFIG_HELP),
     roi: list[str] | None = typer.Option(None, "--roi", help=_ROI_HELP),
     mm_per_px: float | None = typer.Option(None, "--mm-per-px", help="Image scale, mm/px."),
-    gear_center: str | None = typer.Option(None, "--gear-center", help="Gear axis x,y, px."),
+    gear_center: str | None = typer.Option(None, "--gear-center", help="Gear axis x,y, px "
+                                           "(default: estimated from the motion)."),
+    diameter_mm: float | None = typer.Option(
+        None, "--filament-diameter-mm", help="Nominal filament diameter, mm."),
     json_out: bool = typer.Option(False, "--json", help="Print the report as one JSON object."),
 ) -> None:
-    """Write an annotated frame to check ROIs, features, edges and the gear axis."""
+    """Draw what the measurement finds: edges, tracks kept and rejected, the gear axis."""
     from flowtwin.vision import TrackingParams, inspect_source, load_config_file, parse_rois
 
     base: dict[str, Any] = load_config_file(config) if config is not None else {}
@@ -154,17 +187,25 @@ def inspect_cmd(
     tracking = TrackingParams(**base.get("tracking", {}))
     center = _pair(gear_center, "--gear-center") or base.get("gear_center_px")
     scale = mm_per_px if mm_per_px is not None else base.get("mm_per_px")
-    report = inspect_source(_source(source), rois, out, frame_index=frame, params=tracking,
-                            gear_center_px=center, mm_per_px=scale)
+    diameter = diameter_mm if diameter_mm is not None else base.get("diameter_mm")
+    report = inspect_source(_source(source), rois, out, frame_index=frame, frames=frames,
+                            params=tracking, gear_center_px=center, mm_per_px=scale,
+                            diameter_mm=diameter, direction=base.get("direction", "down"))
     if json_out:
         print_json({**report.to_dict(), "output": str(out)})
     else:
-        rows = [(name, f"{r}", str(report.features.get(name, "-")))
+        rows = [(name, f"{r}", str(report.features.get(name, "-")),
+                 str(report.tracks_kept.get(name, "-")),
+                 str(report.tracks_rejected.get(name, "-")))
                 for name, r in report.rois.items()]
-        console.print(table_from_rows(f"vision inspect: frame {report.frame}",
-                                      ["ROI", "x, y, w, h", "features"], rows))
+        console.print(table_from_rows(
+            f"vision inspect: frames {report.frame - report.frames_used + 1}–{report.frame}",
+            ["ROI", "x, y, w, h", "features", "kept", "rejected"], rows))
         if report.filament_width_px is not None:
             console.print(f"filament width: {report.filament_width_px:.2f} px")
+        if report.gear_axis_px is not None:
+            console.print(f"gear axis: ({report.gear_axis_px[0]:.1f}, "
+                          f"{report.gear_axis_px[1]:.1f}) px, {report.gear_axis_source}")
         console.print(f"wrote {out}")
     for problem in report.problems:
         err_console.print(f"[yellow]warning:[/] {problem}")

@@ -28,10 +28,16 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from flowtwin.calibration.adaptive_pa import AdaptivePaTable
-from flowtwin.calibration.firmware import Firmware as CalFirmware
-from flowtwin.calibration.firmware import accel_command, format_number, pa_command
-from flowtwin.dynamics import AdvanceSettings, Firmware, predict
+from flowtwin.dynamics import AdvanceSettings, predict
 from flowtwin.errors import CalibrationError, GcodeError
+from flowtwin.firmware import (
+    DEFAULT_SMOOTH_TIME_S,
+    AdvanceAlgorithm,
+    Firmware,
+    accel_command,
+    pa_command,
+)
+from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, WordFormats, format_number
 from flowtwin.gcode.generator import PrintSpec, generate_print
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.physics.deposition import bead_area_mm2
@@ -42,10 +48,9 @@ from flowtwin.simulation import DEFAULT_MACHINE, move_parameters
 
 __all__ = ["AdvanceFit", "adaptive_pa_table", "best_pressure_advance", "pa_test_gcode"]
 
-_FW = {"klipper": Firmware.KLIPPER, "marlin": Firmware.MARLIN, "repetier": Firmware.MARLIN,
-       "reprapfirmware": Firmware.RRF, "prusa": Firmware.PRUSA}
-_CAL = {Firmware.KLIPPER: CalFirmware.KLIPPER, Firmware.MARLIN: CalFirmware.MARLIN,
-        Firmware.RRF: CalFirmware.REPRAPFIRMWARE, Firmware.PRUSA: CalFirmware.PRUSA}
+#: Number formats of the test prints (feed rates to 0.1 mm/min).
+_TEST_FORMATS = WordFormats(xyz=NumberFormat(3, trim=True), e=NumberFormat(5),
+                            f=NumberFormat(1))
 
 
 @dataclass(slots=True)
@@ -103,11 +108,13 @@ class _Scorer:
         self.machine = machine
         self.klipper_config = klipper_config
         self.firmware = Firmware.KLIPPER if klipper_config is not None else \
-            _FW[machine.printer.firmware]
-        self.replan = self.firmware is Firmware.MARLIN and klipper_config is None
+            machine.printer.firmware
+        # Marlin's planner caps the acceleration by K: every K is planned anew
+        self.replan = (self.firmware.advance is AdvanceAlgorithm.LINEAR_ADVANCE
+                       and klipper_config is None)
         printer = machine.printer
         self.smooth = (printer.pa_smooth_time_s or printer.pressure_advance.smooth_time_s
-                       or 0.04)
+                       or DEFAULT_SMOOTH_TIME_S)
         self._plans: dict[float, tuple[PlanResult, object]] = {}
         base = self._plan(0.0)[0]
         mv = base.table.moves
@@ -213,7 +220,7 @@ def best_pressure_advance(source: str | os.PathLike[str] | bytes | None = None, 
     _, peak_best = scorer.score(best_k)
     fw = scorer.firmware
     k_round = float(format_number(best_k, 4))
-    command = pa_command(_CAL[fw], k_round)
+    command = pa_command(fw, k_round)
     fit = AdvanceFit(k_s=k_round, command=command, firmware=fw.value, rms_at_best=best_rms,
                      rms_without=rms0, rms_at_lag=rms_lag, peak_at_best=peak_best,
                      peak_without=peak0, lag_k_s=lag_mean, lag_k_range_s=(lag_lo, lag_hi),
@@ -224,15 +231,15 @@ def best_pressure_advance(source: str | os.PathLike[str] | bytes | None = None, 
 
 def _explain(fit: AdvanceFit, fw: Firmware, smooth_s: float) -> str:
     why = {
-        Firmware.KLIPPER: f"Klipper averages the advance over {smooth_s:g} s, which delays "
-                          "it, and applies it only to printing moves",
-        Firmware.PRUSA: f"Prusa's firmware averages the advance over {smooth_s:g} s",
-        Firmware.MARLIN: "Marlin's linear advance reaches K·v_E through a speed offset "
-                         "limited by the E jerk, and its planner lowers the acceleration of "
-                         "printing moves (E-jerk / (K·e/D))",
-        Firmware.RRF: "RepRapFirmware advances within each move but not across a jump of "
-                      "the extrusion ratio between moves",
-    }[fw]
+        AdvanceAlgorithm.SMOOTHED: f"{fw.label} averages the advance over {smooth_s:g} s, "
+                                   "which delays it, and applies it only to printing moves",
+        AdvanceAlgorithm.LINEAR_ADVANCE: "Marlin's linear advance reaches K·v_E through a "
+                                         "speed offset limited by the E jerk, and its planner "
+                                         "lowers the acceleration of printing moves (E-jerk / "
+                                         "(K·e/D))",
+        AdvanceAlgorithm.WITHIN_MOVE: f"{fw.label} advances within each move but not across "
+                                      "a jump of the extrusion ratio between moves",
+    }[fw.advance]
     lo, hi = fit.lag_k_range_s
     text = (f"The twin's lag factor of this print is {fit.lag_k_s:.3f} s "
             f"({lo:.3f}–{hi:.3f} s over its layer heights and temperatures). "
@@ -263,23 +270,27 @@ def pa_test_gcode(machine: Machine, *, flow_mm3_s: float, accel_mm_s2: float,
     area_fil = machine.filament.area_mm2
     bead = float(bead_area_mm2(w, h))
     v = flow_mm3_s / bead
-    temp = machine.temperature_c
-    out = ["G21", "G90", "M83", f"M104 S{temp:g}", f"M109 S{temp:g}",
-           accel_command(_CAL[firmware], accel_mm_s2), "G92 E0", f"G1 Z{h:g} F600"]
+    temp = float(machine.temperature_c)
+    out = GcodeEmitter(_TEST_FORMATS)
+    out.begin(relative_e=True)
+    out.heat_nozzle(temp)
+    out.heat_nozzle(temp, wait=True)
+    out.line(accel_command(firmware, accel_mm_s2))
+    out.reset_e()
+    out.move(z=h, f_mm_min=600.0)
     y = 20.0
     for _ in range(lines):
         x = 20.0
-        out.append(f"G1 X{x:g} Y{y:g} F9000")
+        out.move(x=x, y=y, f_mm_min=9000.0)
         for length, speed in ((15.0, 10.0), (60.0, v), (15.0, 10.0)):
             x += length
-            e = bead * length / area_fil
-            out.append(f"G1 X{x:.3f} Y{y:g} E{e:.5f} F{60.0 * speed:.1f}")
-        out.append("G1 E-0.8 F2100")
+            out.move(x=x, y=y, e_mm=bead * length / area_fil, f_mm_min=60.0 * speed)
+        out.move(e_mm=-0.8, f_mm_min=2100.0)
         y += 5.0
-        out.append(f"G1 X20 Y{y:g} F9000")
-        out.append("G1 E0.8 F2100")
-    out.append("M104 S0")
-    return "\n".join(out) + "\n"
+        out.move(x=20.0, y=y, f_mm_min=9000.0)
+        out.move(e_mm=0.8, f_mm_min=2100.0)
+    out.heat_nozzle(0)
+    return out.text()
 
 
 def adaptive_pa_table(*, machine: Machine | SetupProfile | str | os.PathLike[str] | None = None,
@@ -317,7 +328,7 @@ def adaptive_pa_table(*, machine: Machine | SetupProfile | str | os.PathLike[str
         raise CalibrationError("an adaptive table needs at least two positive flows and "
                                "positive accelerations", field="flows_mm3_s",
                                value=(flows, accels), allowed=">= 2 flows > 0, accels > 0")
-    fw = Firmware.KLIPPER if klipper_config is not None else _FW[m.printer.firmware]
+    fw = Firmware.KLIPPER if klipper_config is not None else m.printer.firmware
     ks: list[float] = []
     qs: list[float] = []
     aa: list[float] = []

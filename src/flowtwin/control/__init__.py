@@ -34,7 +34,6 @@ from flowtwin.control.extrusion import (
     step_extrusion,
     step_params,
 )
-from flowtwin.control.firmware import Channel, Firmware, encode_factor
 from flowtwin.control.job import PrintJob
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import (
@@ -48,6 +47,7 @@ from flowtwin.control.printer import CommandRejected, ConnectionLost, Factors, P
 from flowtwin.control.supervisor import Fault, FaultKind, LoopSettings, RunSummary, run_control
 from flowtwin.control.twin import TwinPrinter
 from flowtwin.control.twinjob import JobHistory, JobRunner, JobTotals
+from flowtwin.firmware import Channel
 
 __all__ = [
     "AcceleratedClock",
@@ -62,7 +62,6 @@ __all__ = [
     "Fault",
     "FaultKind",
     "FeedForwardController",
-    "Firmware",
     "GreeffController",
     "JobHistory",
     "JobRunner",
@@ -85,7 +84,6 @@ __all__ = [
     "StepParams",
     "SyntheticSlipSource",
     "TwinPrinter",
-    "encode_factor",
     "limit_command",
     "load_api_key",
     "make_controller",

@@ -21,13 +21,13 @@ from urllib.parse import parse_qs, urlsplit
 
 from flowtwin.control.clock import Clock
 from flowtwin.control.credentials import ApiKey
-from flowtwin.control.firmware import Firmware
 from flowtwin.control.marlin_serial import SerialPrinter
 from flowtwin.control.moonraker import MoonrakerPrinter
 from flowtwin.control.octoprint import OctoPrintPrinter
 from flowtwin.control.printer import Printer
 from flowtwin.control.twin import TwinPrinter
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import Firmware
 
 __all__ = ["SCHEMES", "open_printer"]
 
@@ -78,7 +78,7 @@ def open_printer(url: str, *, api_key: ApiKey | None = None, clock: Clock | None
         raise ProfileError("unknown printer URL parameter", field="--printer",
                            value=sorted(extra), allowed=", ".join(sorted(_ALLOWED_QUERY[base]))
                            or "none")
-    fw = firmware or (Firmware(query["firmware"]) if "firmware" in query else None)
+    fw = firmware or (Firmware.parse(query["firmware"]) if "firmware" in query else None)
     if base in ("octoprint", "moonraker"):
         if not parts.hostname:
             raise ProfileError("printer URL has no host", field="--printer", value=url,

@@ -30,8 +30,8 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Protocol, TypeVar
 
-from flowtwin.control.firmware import Channel
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import Channel
 
 __all__ = [
     "Controller",

@@ -23,7 +23,6 @@ import re
 import time
 from dataclasses import dataclass
 
-from flowtwin.control.firmware import Channel, Firmware, check_command, parse_factor_report
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -31,6 +30,7 @@ from flowtwin.control.printer import (
     FactorTracker,
     Response,
 )
+from flowtwin.firmware import Channel, Firmware, check_command, parse_factor_report
 
 __all__ = ["MarlinLineCodec", "Reply", "SerialPrinter", "checksum", "parse_reply"]
 

@@ -29,7 +29,6 @@ import httpx
 
 from flowtwin.control._net import PushSocket, guarded_client, websocket_url
 from flowtwin.control.credentials import ApiKey
-from flowtwin.control.firmware import Channel, Firmware, check_command
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -38,6 +37,7 @@ from flowtwin.control.printer import (
     Response,
 )
 from flowtwin.errors import PrinterConnectionError
+from flowtwin.firmware import Channel, Firmware, check_command
 
 __all__ = [
     "SUBSCRIPTION",

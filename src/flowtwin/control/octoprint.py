@@ -30,13 +30,6 @@ import httpx
 
 from flowtwin.control._net import PushSocket, guarded_client, websocket_url
 from flowtwin.control.credentials import ApiKey
-from flowtwin.control.firmware import (
-    Channel,
-    Firmware,
-    check_command,
-    parse_factor_report,
-    query_command,
-)
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -45,6 +38,13 @@ from flowtwin.control.printer import (
     Response,
 )
 from flowtwin.errors import PrinterConnectionError
+from flowtwin.firmware import (
+    Channel,
+    Firmware,
+    check_command,
+    parse_factor_report,
+    query_command,
+)
 
 __all__ = ["OctoPrintPrinter", "normalize_sent"]
 

@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 
 from flowtwin.errors import GcodeError
+from flowtwin.gcode.emitter import GcodeEmitter, WordFormats
 from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = ["PolygonSpec", "polygon_gcode"]
@@ -135,7 +136,8 @@ class PolygonSpec:
 
 
 def polygon_gcode(spec: PolygonSpec | None = None) -> str:
-    """G-code of the test polygon (Marlin dialect, relative E, PrusaSlicer comments).
+    """G-code of the test polygon (Marlin dialect, relative E, PrusaSlicer comments), written
+    by :class:`~flowtwin.gcode.emitter.GcodeEmitter`.
 
     Parameters
     ----------
@@ -154,58 +156,66 @@ def polygon_gcode(spec: PolygonSpec | None = None) -> str:
             cy + r * math.sin(2 * math.pi * k / s.sides)) for k in range(s.sides + 1)]
     f_travel = s.travel_speed_mm_s * 60.0
     f_retract = s.retract_speed_mm_s * 60.0
+    out = GcodeEmitter(WordFormats())
 
-    def retract(sign: float) -> str:
-        return f"G1 E{sign * s.retract_mm:.5f} F{f_retract:.0f}"
+    def retract(sign: float) -> None:
+        out.move(e_mm=sign * s.retract_mm, f_mm_min=f_retract)
 
     t0 = s.layer_temperature_c(0)
-    out = [
-        "; flowtwin: print-job test part of Greeff & Schilling [003 sec. 3.3]",
-        f"; {s.sides}-sided polygon, {s.diameter_mm:g} mm, {s.layers} layers of "
-        f"{s.layer_height_mm:g} mm",
-        f"; layer_height = {s.layer_height_mm}",
-        f"; nozzle_diameter = {s.nozzle_diameter_mm}",
-        f"; filament_diameter = {s.filament_diameter_mm}",
-        f"; extrusion_width = {s.line_width_mm}",
-        "G21 ; millimetres", "G90 ; absolute XYZ", "M83 ; relative E",
-        f"M104 S{t0:.0f}", "G28 ; home", f"M109 S{t0:.0f}", "G92 E0",
-        f"G1 Z{s.layer_height_mm:.3f} F600",
-    ]
+    out.comment("flowtwin: print-job test part of Greeff & Schilling [003 sec. 3.3]")
+    out.comment(f"{s.sides}-sided polygon, {s.diameter_mm:g} mm, {s.layers} layers of "
+                f"{s.layer_height_mm:g} mm")
+    out.comment(f"layer_height = {s.layer_height_mm}")
+    out.comment(f"nozzle_diameter = {s.nozzle_diameter_mm}")
+    out.comment(f"filament_diameter = {s.filament_diameter_mm}")
+    out.comment(f"extrusion_width = {s.line_width_mm}")
+    out.begin(relative_e=True)
+    out.heat_nozzle(round(t0))
+    out.home()
+    out.heat_nozzle(round(t0), wait=True)
+    out.reset_e()
+    out.move(z=s.layer_height_mm, f_mm_min=600)
     # extruder test line, in front of the part, at the first-layer speed
     y_line = cy - r - 5.0
     x_line = cx - s.prime_length_mm / 2.0
     f_first = s.print_speed_mm_s(s.first_layer_feed_mm_s) * 60.0
     if s.prime_length_mm > 0:
-        out += [f"G1 X{x_line:.3f} Y{y_line:.3f} F{f_travel:.0f}", ";TYPE:Skirt/Brim",
-                f"G1 X{x_line + s.prime_length_mm:.3f} Y{y_line:.3f} "
-                f"E{s.prime_length_mm * s.e_per_mm:.5f} F{f_first:.0f}"]
+        out.move(x=x_line, y=y_line, f_mm_min=f_travel)
+        out.marker("TYPE", "Skirt/Brim")
+        out.move(x=x_line + s.prime_length_mm, y=y_line,
+                 e_mm=s.prime_length_mm * s.e_per_mm, f_mm_min=f_first)
         if s.retract_mm > 0:
-            out.append(retract(-1.0))
-    out.append(f"G1 X{pts[0][0]:.3f} Y{pts[0][1]:.3f} F{f_travel:.0f}")
+            retract(-1.0)
+    out.move(x=pts[0][0], y=pts[0][1], f_mm_min=f_travel)
     if s.prime_length_mm > 0 and s.retract_mm > 0:
-        out.append(retract(1.0))
+        retract(1.0)
     current = t0
     for layer in range(s.layers):
         z = s.layer_height_mm * (layer + 1)
         temp = s.layer_temperature_c(layer)
         if layer > 0:
             if temp != current:
-                out.append(f"M109 R{temp:.0f} ; next layer set [003 sec. 3.3]")
+                out.heat_nozzle(round(temp), either_way=True,
+                                comment="next layer set [003 sec. 3.3]")
                 current = temp
             if s.retract_mm > 0:
-                out.append(retract(-1.0))
-        out += [";LAYER_CHANGE", f";Z:{z:.3f}", f";HEIGHT:{s.layer_height_mm:.3f}"]
+                retract(-1.0)
+        out.marker("LAYER_CHANGE")
+        out.marker("Z", f"{z:.3f}")
+        out.marker("HEIGHT", f"{s.layer_height_mm:.3f}")
         if layer > 0:
-            out.append(f"G1 Z{z:.3f} F600")
+            out.move(z=z, f_mm_min=600)
             if s.retract_mm > 0:
-                out.append(retract(1.0))
-        out.append(";TYPE:External perimeter")
+                retract(1.0)
+        out.marker("TYPE", "External perimeter")
         feed = s.first_layer_feed_mm_s if layer == 0 else s.feed_mm_s
         f_print = s.print_speed_mm_s(feed) * 60.0
         for (x0, y0), (x1, y1) in itertools.pairwise(pts):
-            length = math.hypot(x1 - x0, y1 - y0)
-            out.append(f"G1 X{x1:.3f} Y{y1:.3f} E{length * s.e_per_mm:.5f} F{f_print:.0f}")
+            out.move(x=x1, y=y1, e_mm=math.hypot(x1 - x0, y1 - y0) * s.e_per_mm,
+                     f_mm_min=f_print)
     if s.retract_mm > 0:
-        out.append(retract(-1.0))
-    out += [f"G1 Z{s.layer_height_mm * s.layers + 10.0:.3f} F600", "M104 S0", "M84"]
-    return "\n".join(out) + "\n"
+        retract(-1.0)
+    out.move(z=s.layer_height_mm * s.layers + 10.0, f_mm_min=600)
+    out.heat_nozzle(0)
+    out.line("M84")
+    return out.text()

@@ -2,7 +2,7 @@
 
 A :class:`Printer` connects, sends single G-code commands and waits for the firmware's
 acknowledgement, sets the speed (``M220``) and flow (``M221``) multipliers with the
-firmware's own encoding (:mod:`flowtwin.control.firmware`), reads them back where the
+firmware's own encoding (:mod:`flowtwin.firmware.factors`), reads them back where the
 firmware can report them, and closes. Connections: OctoPrint, Moonraker, a serial port
 (Marlin line protocol) and the twin as a simulated printer.
 """
@@ -12,8 +12,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from flowtwin.control.firmware import Channel, Firmware, applied_percent, encode_factor
 from flowtwin.errors import PrinterConnectionError
+from flowtwin.firmware import (
+    Channel,
+    Firmware,
+    applied_percent,
+    check_factor_commands,
+    encode_factor,
+)
 
 __all__ = [
     "CommandRejected",
@@ -131,6 +137,9 @@ class FactorTracker:
     firmware: Firmware
     speed_pct: float = 100.0
     flow_pct: float = 100.0
+
+    def __post_init__(self) -> None:
+        check_factor_commands(self.firmware)
 
     def set(self, channel: Channel, pct: float, send: SendFn) -> Response:
         """Send the encoded command for ``channel``; record it if acknowledged."""

@@ -24,7 +24,6 @@ import numpy as np
 
 from flowtwin.control.clock import SimClock
 from flowtwin.control.controllers import Controller, GreeffController, OpenLoopController
-from flowtwin.control.firmware import Firmware
 from flowtwin.control.job import PrintJob
 from flowtwin.control.log import ControlLog
 from flowtwin.control.polygon import PolygonSpec, polygon_gcode
@@ -33,6 +32,7 @@ from flowtwin.control.twin import TwinPrinter
 from flowtwin.control.twin_camera import CameraRecord, TwinCameraSource, twin_scene
 from flowtwin.control.twinjob import JobHistory, JobRunner
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.vision.synth import SceneSpec
 

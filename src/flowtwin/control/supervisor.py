@@ -37,7 +37,6 @@ from typing import Any
 
 from flowtwin.control.clock import Clock
 from flowtwin.control.controllers import Controller
-from flowtwin.control.firmware import Channel, applied_percent, encode_factor
 from flowtwin.control.log import ControlLog
 from flowtwin.control.measurement import MeasurementLost, MeasurementSource
 from flowtwin.control.printer import (
@@ -48,6 +47,7 @@ from flowtwin.control.printer import (
     Response,
 )
 from flowtwin.errors import FlowtwinError, PrinterConnectionError
+from flowtwin.firmware import Channel, applied_percent, encode_factor
 
 __all__ = ["Fault", "FaultKind", "LoopSettings", "RunSummary", "Status", "run_control"]
 

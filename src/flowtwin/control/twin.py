@@ -21,11 +21,9 @@ feed force, hence the slip [003 §2.3]). A lost connection does not stop the pri
 from __future__ import annotations
 
 import bisect
-import re
 from dataclasses import dataclass, field
 
 from flowtwin.control.clock import Clock
-from flowtwin.control.firmware import Channel, Firmware, check_command
 from flowtwin.control.printer import (
     CommandRejected,
     ConnectionLost,
@@ -34,12 +32,11 @@ from flowtwin.control.printer import (
     Response,
 )
 from flowtwin.control.twinjob import JobRunner
+from flowtwin.errors import GcodeError
+from flowtwin.firmware import Channel, Firmware, check_command, read_factor_command
+from flowtwin.gcode.words import parse_line
 
 __all__ = ["TwinPrinter"]
-
-_CMD_RE = re.compile(r"^\s*(M22[01])\b(.*)$", re.IGNORECASE)
-_S_RE = re.compile(r"\bS\s*(-?[0-9]*\.?[0-9]+)", re.IGNORECASE)
-_MARLIN_INT_RE = re.compile(r"\bS\s*(-?[0-9]+)", re.IGNORECASE)
 
 
 @dataclass
@@ -150,21 +147,22 @@ class TwinPrinter:
         self.sync()
         text = line.strip()
         self.received.append((self.clock.now(), text))
-        m = _CMD_RE.match(text)
-        if not m:
-            if self.firmware is Firmware.KLIPPER and text.upper().startswith("M900"):
+        try:
+            parsed = parse_line(text)
+        except GcodeError:
+            return Response(text, True)  # not a command the twin acts on
+        command = read_factor_command(parsed)
+        if command is None:
+            if self.firmware is Firmware.KLIPPER and parsed.code == "M900":
                 return Response(text, True, ('// Unknown command:"M900"',))
             return Response(text, True)
-        channel = Channel.SPEED if m.group(1).upper() == "M220" else Channel.FLOW
-        rest = m.group(2)
+        channel, s_pct = command
         if self.firmware is Firmware.MARLIN:
-            sm = _MARLIN_INT_RE.search(rest)  # strtol: "S95.7" -> 95
-            if sm is None:
+            if s_pct is None:
                 return Response(text, True, (self._report(channel),))
-            self._apply(channel, float(int(sm.group(1))))
+            self._apply(channel, float(int(s_pct)))  # strtol: "S95.7" -> 95
             return Response(text, True)
-        sk = _S_RE.search(rest)
-        value = 100.0 if sk is None else float(sk.group(1))  # bare M221 resets on Klipper
+        value = 100.0 if s_pct is None else s_pct  # bare M221 resets on Klipper
         if value <= 0:
             raise CommandRejected(f"Error on '{text}': S must be above 0.0",
                                   source=self.description)

@@ -2,20 +2,19 @@
 
 Flow (SPEC §3.4, §3.6)::
 
-    MoveTable + Timeline ─► nominal_feed ─► apply_advance (Klipper/Marlin/RRF/Prusa)
+    MoveTable + Timeline ─► nominal_feed ─► apply_advance (the firmware's, flowtwin.firmware)
         ─► integrate (state Δl: lag [001], no backflow, slip [000], grinding) ─► DynamicsResult
 
 See ``docs/dynamics.md`` for the model, its assumptions and the public API.
 """
 
 from flowtwin.dynamics.advance import (
-    DEFAULT_SMOOTH_TIME_S,
     AdvanceSchedule,
     AdvanceSettings,
-    Firmware,
     advance_eligible,
     advance_schedule,
     apply_advance,
+    printer_advance,
 )
 from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
 from flowtwin.dynamics.integrator import integrate
@@ -30,7 +29,6 @@ from flowtwin.dynamics.result import (
 from flowtwin.dynamics.thermal import TemperatureSchedule, move_temperatures, temperature_schedule
 
 __all__ = [
-    "DEFAULT_SMOOTH_TIME_S",
     "MOVE_RESULT_DTYPE",
     "SERIES_DTYPE",
     "AdvanceSchedule",
@@ -39,7 +37,6 @@ __all__ = [
     "DynamicsResult",
     "DynamicsSummary",
     "ExtrusionParams",
-    "Firmware",
     "TemperatureSchedule",
     "advance_eligible",
     "advance_schedule",
@@ -48,6 +45,7 @@ __all__ = [
     "move_temperatures",
     "nominal_feed",
     "predict",
+    "printer_advance",
     "resolve_per_move",
     "temperature_schedule",
 ]

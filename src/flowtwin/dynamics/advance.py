@@ -1,6 +1,8 @@
 """Firmware pressure advance, applied to the commanded feed as each firmware does it.
 
-Which moves get advance (all firmwares: the advance factor ``K`` is in seconds):
+The three algorithms (:class:`flowtwin.firmware.AdvanceAlgorithm`; which firmware applies
+which, and how each reads its advance command, is :mod:`flowtwin.firmware`). Which moves
+get advance (all firmwares: the advance factor ``K`` is in seconds):
 
 * **Klipper** (``SET_PRESSURE_ADVANCE ADVANCE= SMOOTH_TIME=``; ``[extruder]
   pressure_advance``/``pressure_advance_smooth_time``): the advanced position
@@ -14,10 +16,10 @@ Which moves get advance (all firmwares: the advance factor ``K`` is in seconds):
   continuous window is used here (the difference is O(sample interval²)). Missing ``S``/``W``
   keep their value; ``S`` outside 0–10 s or ``W`` outside 0–0.2 s are ignored (as the
   firmware does, with a message).
-* **Marlin** Linear Advance 1.5 (``M900 K``, 0–10): advance ``K·v_E`` reached by a constant
-  speed offset ``K·a_E`` during acceleration/deceleration (tracking, ``_advance_kernels``),
-  on blocks with XYZ motion, ``de > 0`` and ``de/D ≤ 3``. The planner's acceleration cap
-  (E-jerk / (K·de/D)) belongs to the planner.
+* **Marlin** Linear Advance 1.5 (``M900 K``, 0–10; Repetier is given the same): advance
+  ``K·v_E`` reached by a constant speed offset ``K·a_E`` during acceleration/deceleration
+  (tracking, ``_advance_kernels``), on blocks with XYZ motion, ``de > 0`` and
+  ``de/D ≤ 3``. The planner's acceleration cap (E-jerk / (K·de/D)) belongs to the planner.
 * **RepRapFirmware** (``M572 D<extruder> S<K>``): ``v_E + K·dv_E/dt`` within each move with
   XY (non-Z) motion and forward extrusion, i.e. the drive is advanced by ``K·v_E`` along a
   move; a jump of ``v_E`` between two moves (a change of extrusion ratio) is not advanced
@@ -32,7 +34,7 @@ Commands the chosen firmware does not know are counted in the warnings, not appl
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import StrEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -46,31 +48,28 @@ from flowtwin.dynamics._advance_kernels import (
 )
 from flowtwin.dynamics.feed import PHASE_GAP, PHASE_MIXED, CommandedFeed
 from flowtwin.errors import ProfileError
-from flowtwin.gcode.moves import Event, MoveKind, MoveTable
+from flowtwin.firmware import (
+    DEFAULT_SMOOTH_TIME_S,
+    MAX_SMOOTH_TIME_S,
+    PA_CODES,
+    AdvanceAlgorithm,
+    Firmware,
+    read_pa_command,
+)
+from flowtwin.gcode.moves import MoveKind, MoveTable
+
+if TYPE_CHECKING:
+    from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = [
-    "DEFAULT_SMOOTH_TIME_S",
     "AdvanceSchedule",
     "AdvanceSettings",
-    "Firmware",
     "advance_eligible",
     "advance_schedule",
     "apply_advance",
     "apply_advance_carry",
+    "printer_advance",
 ]
-
-#: Klipper's default pressure_advance_smooth_time and Prusa's default M572 W, s.
-DEFAULT_SMOOTH_TIME_S = 0.040
-_MAX_SMOOTH_TIME_S = 0.200  # Klipper (maxval=.200) and Prusa (0-0.2)
-
-
-class Firmware(StrEnum):
-    """Firmware whose pressure advance is modelled."""
-
-    KLIPPER = "klipper"
-    MARLIN = "marlin"
-    RRF = "rrf"
-    PRUSA = "prusa"
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,9 +101,19 @@ class AdvanceSettings:
         if not (self.k_s >= 0.0 and np.isfinite(self.k_s)):
             raise ProfileError("pressure advance must be >= 0", field="k_s", value=self.k_s,
                                allowed="0 <= K (s)")
-        if not (0.0 < self.smooth_time_s <= _MAX_SMOOTH_TIME_S):
+        if not (0.0 < self.smooth_time_s <= MAX_SMOOTH_TIME_S):
             raise ProfileError("smooth time out of range", field="smooth_time_s",
                                value=self.smooth_time_s, allowed="0 < t <= 0.2 s")
+
+
+def printer_advance(printer: PrinterProfile, *, use_gcode: bool = True) -> AdvanceSettings:
+    """The pressure advance a printer profile describes: its firmware's algorithm, its
+    ``K`` and the smoothing window (the profile's, or the firmware default 0.040 s where
+    the profile has none; unused by the algorithms without a window)."""
+    smooth = (printer.pa_smooth_time_s or printer.pressure_advance.smooth_time_s
+              or DEFAULT_SMOOTH_TIME_S)
+    return AdvanceSettings(printer.firmware, k_s=printer.pressure_advance.k_s,
+                           smooth_time_s=smooth, use_gcode=use_gcode)
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,27 +149,18 @@ class AdvanceSchedule:
 def advance_eligible(moves: MoveTable, firmware: Firmware) -> npt.NDArray[np.bool_]:
     """Moves the firmware applies pressure advance to, shape ``(n_moves,)``.
 
-    Klipper, Prusa, RRF: XY motion and ``de > 0``. Marlin: XYZ motion, ``de > 0`` and
-    ``de/D <= 3`` (``D`` the XYZ length; higher ratios are taken for retract/prime moves).
+    Klipper, Prusa, RRF: XY motion and ``de > 0``. Marlin's linear advance: XYZ motion,
+    ``de > 0`` and ``de/D <= 3`` (``D`` the XYZ length; higher ratios are taken for
+    retract/prime moves).
     """
     mv = moves.moves
     de = np.asarray(mv["de"], dtype=np.float64)
-    if firmware is not Firmware.MARLIN:
+    if firmware.advance is not AdvanceAlgorithm.LINEAR_ADVANCE:
         return (de > 0.0) & ((mv["kind"] & int(MoveKind.XY)) != 0)
     out = np.empty(de.shape[0], dtype=np.bool_)
     x0, y0, z0 = (float(v) for v in np.asarray(moves.start_xyze[:3], dtype=np.float64))
     marlin_eligible(de, mv["x"], mv["y"], mv["z"], x0, y0, z0, out)
     return out
-
-
-def _num(ev: Event, key: str, warnings: list[str], source: str) -> float | None:
-    if key not in ev.params:
-        return None
-    val = ev.params[key]
-    if isinstance(val, str):
-        warnings.append(f"{source}:{ev.line}: {ev.code} {key}={val!r} is not a number; ignored")
-        return None
-    return float(val)
 
 
 def advance_schedule(moves: MoveTable, settings: AdvanceSettings) -> AdvanceSchedule:
@@ -190,69 +190,18 @@ def advance_schedule(moves: MoveTable, settings: AdvanceSettings) -> AdvanceSche
     applied = 0
     tool = 0 if settings.tool is None else settings.tool
     src = moves.source
-    pa_codes = {"M900", "M572", "SET_PRESSURE_ADVANCE"}
-    own = {Firmware.KLIPPER: "SET_PRESSURE_ADVANCE", Firmware.MARLIN: "M900",
-           Firmware.RRF: "M572", Firmware.PRUSA: "M572"}[fw]
+    own = fw.pa_syntax.code
     for ev in moves.events if settings.use_gcode else []:
-        if ev.code not in pa_codes:
+        if ev.code not in PA_CODES:
             continue
         if ev.code != own:
             ignored[ev.code] = ignored.get(ev.code, 0) + 1
             continue
-        new_k = k_cur
-        new_st = st_cur
-        if fw is Firmware.KLIPPER:
-            name = ev.params.get("EXTRUDER")
-            if name is not None and str(name) != ("extruder" if tool == 0 else f"extruder{tool}"):
-                continue
-            adv = _num(ev, "ADVANCE", warnings, src)
-            smooth = _num(ev, "SMOOTH_TIME", warnings, src)
-            if adv is not None:
-                if adv < 0.0:
-                    warnings.append(f"{src}:{ev.line}: ADVANCE={adv} < 0 rejected by Klipper")
-                else:
-                    new_k = adv
-            if smooth is not None:
-                if not (0.0 <= smooth <= _MAX_SMOOTH_TIME_S):
-                    warnings.append(f"{src}:{ev.line}: SMOOTH_TIME={smooth} outside 0-0.2 s "
-                                    "rejected by Klipper")
-                else:
-                    new_st = smooth
-        elif fw is Firmware.MARLIN:
-            t_sel = _num(ev, "T", warnings, src)
-            if t_sel is not None and int(t_sel) != tool:
-                continue
-            k = _num(ev, "K", warnings, src)
-            if k is None:
-                continue  # M900 without K reports only
-            if not (0.0 <= k <= 10.0):
-                warnings.append(f"{src}:{ev.line}: M900 K{k} out of range 0-10; ignored")
-                continue
-            new_k = k
-        else:
-            d_sel = ev.params.get("D")
-            if d_sel is not None and fw is Firmware.RRF:
-                wanted = {int(float(p)) for p in str(d_sel).split(":") if p.strip()}
-                if tool not in wanted:
-                    continue
-            s_val = _num(ev, "S", warnings, src)
-            if fw is Firmware.RRF:
-                if s_val is not None and s_val >= 0.0:
-                    new_k = s_val
-            else:
-                w_val = _num(ev, "W", warnings, src)
-                if s_val is not None:
-                    if 0.0 <= s_val <= 10.0:
-                        new_k = s_val
-                    else:
-                        warnings.append(f"{src}:{ev.line}: M572 S{s_val} out of range 0-10; "
-                                        "ignored")
-                if w_val is not None:
-                    if 0.0 <= w_val <= _MAX_SMOOTH_TIME_S:
-                        new_st = w_val
-                    else:
-                        warnings.append(f"{src}:{ev.line}: M572 W{w_val} out of range "
-                                        "0-0.2; ignored")
+        change = read_pa_command(fw, ev, tool=tool, source=src, warnings=warnings)
+        if change is None:
+            continue
+        new_k = k_cur if change.k_s is None else change.k_s
+        new_st = st_cur if change.smooth_time_s is None else change.smooth_time_s
         k_cur, st_cur = new_k, new_st
         at.append(ev.move_index)
         ks.append(k_cur)
@@ -310,9 +259,9 @@ def apply_advance_carry(feed: CommandedFeed, moves: MoveTable, settings: Advance
     sched = advance_schedule(moves, settings)
     fw = settings.firmware
     notes: list[str] = []
-    if fw in (Firmware.KLIPPER, Firmware.PRUSA):
+    if fw.advance is AdvanceAlgorithm.SMOOTHED:
         out, notes = _smoothed(feed, sched)
-    elif fw is Firmware.MARLIN:
+    elif fw.advance is AdvanceAlgorithm.LINEAR_ADVANCE:
         out = _marlin(feed, sched, marlin_state)
     else:
         out = _rrf(feed, sched)

@@ -84,8 +84,8 @@ class CommandedFeed:
     e_start_mm
         Extruder position before the first segment.
     advance
-        Which pressure advance shaped the feed (``"none"``, ``"klipper"``, ``"marlin"``,
-        ``"rrf"``, ``"prusa"``).
+        Which pressure advance shaped the feed: ``"none"``, or the value of the
+        :class:`~flowtwin.firmware.Firmware` whose advance it is.
     warnings
         Non-fatal notes.
     """

@@ -5,7 +5,8 @@ pillar (true ``G2`` arcs or a polygon), rectilinear infill alternating direction
 layer, travels with retractions, 0.2 mm layers. Extrusion per segment uses the slicer
 cross-section model [001 Eq. 7] (``A = w·h − (1 − π/4)·h²``), so the filament each line
 asks for is known exactly. Comments follow PrusaSlicer's conventions (``;LAYER_CHANGE``,
-``;Z:``, ``;HEIGHT:``, ``;TYPE:``) so the reader finds layers and features.
+``;Z:``, ``;HEIGHT:``, ``;TYPE:``) so the reader finds layers and features. Lines are
+written by :class:`~flowtwin.gcode.emitter.GcodeEmitter`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 
 from flowtwin.atomic import atomic_open
 from flowtwin.errors import GcodeError
+from flowtwin.gcode.emitter import GcodeEmitter, Retraction, WordFormats
 from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = ["PrintSpec", "generate_print", "write_print"]
@@ -72,48 +74,38 @@ class PrintSpec:
                                  "layer height <= nozzle, line width >= layer height)")
 
 
-class _Emitter:
-    """Keeps position and writes moves with E from the bead model."""
+class _Writer:
+    """The print's moves on a :class:`~flowtwin.gcode.emitter.GcodeEmitter`, E from the
+    bead model, retracting on long travels."""
 
     def __init__(self, spec: PrintSpec) -> None:
         self.spec = spec
-        self.x = 0.0
-        self.y = 0.0
-        self.z = 0.0
-        self.retracted = False
-        self.area_fil = math.pi * spec.filament_diameter_mm ** 2 / 4.0
-        self.e_per_mm = bead_area_mm2(spec.line_width_mm, spec.layer_height_mm) / self.area_fil
+        self.out = GcodeEmitter(WordFormats())
+        area_fil = math.pi * spec.filament_diameter_mm ** 2 / 4.0
+        self.e_per_mm = float(bead_area_mm2(spec.line_width_mm, spec.layer_height_mm)) / area_fil
+        self.retraction = Retraction(spec.retract_mm, spec.retract_speed_mm_s * 60,
+                                     spec.z_hop_mm, spec.travel_speed_mm_s * 60)
 
     def travel(self, x: float, y: float) -> Iterator[str]:
         s = self.spec
-        dist = math.hypot(x - self.x, y - self.y)
-        if dist < 1e-9:
-            return
-        far = dist >= s.min_travel_for_retract_mm
-        if far and not self.retracted:
-            yield f"G1 E{-s.retract_mm:.5f} F{s.retract_speed_mm_s * 60:.0f}"
-            if s.z_hop_mm:
-                yield f"G1 Z{self.z + s.z_hop_mm:.3f} F{s.travel_speed_mm_s * 60:.0f}"
-            self.retracted = True
-        yield f"G1 X{x:.3f} Y{y:.3f} F{s.travel_speed_mm_s * 60:.0f}"
-        self.x, self.y = x, y
-        if self.retracted:
-            if s.z_hop_mm:
-                yield f"G1 Z{self.z:.3f} F{s.travel_speed_mm_s * 60:.0f}"
-            yield f"G1 E{s.retract_mm:.5f} F{s.retract_speed_mm_s * 60:.0f}"
-            self.retracted = False
+        out = self.out
+        far = math.hypot(x - out.x, y - out.y) >= s.min_travel_for_retract_mm
+        out.travel(x, y, s.travel_speed_mm_s * 60, self.retraction if far else None)
+        yield from out.drain()
 
-    def extrude(self, x: float, y: float, speed_mm_s: float) -> str:
-        dist = math.hypot(x - self.x, y - self.y)
-        self.x, self.y = x, y
-        return f"G1 X{x:.3f} Y{y:.3f} E{dist * self.e_per_mm:.5f} F{speed_mm_s * 60:.0f}"
+    def extrude(self, x: float, y: float, speed_mm_s: float) -> Iterator[str]:
+        out = self.out
+        dist = math.hypot(x - out.x, y - out.y)
+        out.move(x=x, y=y, e_mm=dist * self.e_per_mm, f_mm_min=speed_mm_s * 60)
+        yield from out.drain()
 
-    def arc_circle(self, cx: float, cy: float, speed_mm_s: float) -> str:
+    def arc_circle(self, cx: float, cy: float, speed_mm_s: float) -> Iterator[str]:
         """A full counter-clockwise circle from the current point around (cx, cy)."""
-        r = math.hypot(self.x - cx, self.y - cy)
-        length = 2 * math.pi * r
-        return (f"G3 X{self.x:.3f} Y{self.y:.3f} I{cx - self.x:.3f} J{cy - self.y:.3f} "
-                f"E{length * self.e_per_mm:.5f} F{speed_mm_s * 60:.0f}")
+        out = self.out
+        length = 2 * math.pi * math.hypot(out.x - cx, out.y - cy)
+        out.arc(x=out.x, y=out.y, i=cx - out.x, j=cy - out.y, e_mm=length * self.e_per_mm,
+                f_mm_min=speed_mm_s * 60)
+        yield from out.drain()
 
 
 def _rect(cx: float, cy: float, hx: float, hy: float) -> list[tuple[float, float]]:
@@ -121,31 +113,31 @@ def _rect(cx: float, cy: float, hx: float, hy: float) -> list[tuple[float, float
             (cx - hx, cy - hy)]
 
 
-def _layer(spec: PrintSpec, em: _Emitter, index: int) -> Iterator[str]:
+def _layer(spec: PrintSpec, em: _Writer, index: int) -> Iterator[str]:
     cx, cy = spec.center_xy_mm
     w = spec.line_width_mm
     for p in range(spec.perimeters):
         inset = w * (p + 0.5)
         pts = _rect(cx, cy, spec.size_x_mm / 2 - inset, spec.size_y_mm / 2 - inset)
-        yield ";TYPE:External perimeter" if p == 0 else ";TYPE:Perimeter"
+        em.out.marker("TYPE", "External perimeter" if p == 0 else "Perimeter")
         yield from em.travel(*pts[0])
         for x, y in pts[1:]:
-            yield em.extrude(x, y, spec.perimeter_speed_mm_s)
+            yield from em.extrude(x, y, spec.perimeter_speed_mm_s)
     # round pillar in the middle
     if spec.pillar_radius_mm > 0:
-        yield ";TYPE:External perimeter"
+        em.out.marker("TYPE", "External perimeter")
         r = spec.pillar_radius_mm
         yield from em.travel(cx + r, cy)
         if spec.use_arcs:
-            yield em.arc_circle(cx, cy, spec.perimeter_speed_mm_s)
+            yield from em.arc_circle(cx, cy, spec.perimeter_speed_mm_s)
         else:
             n = spec.polygon_segments
             for k in range(1, n + 1):
                 a = 2 * math.pi * k / n
-                yield em.extrude(cx + r * math.cos(a), cy + r * math.sin(a),
-                                 spec.perimeter_speed_mm_s)
+                yield from em.extrude(cx + r * math.cos(a), cy + r * math.sin(a),
+                                      spec.perimeter_speed_mm_s)
     # rectilinear infill, direction alternating per layer, around the pillar
-    yield ";TYPE:Internal infill"
+    em.out.marker("TYPE", "Internal infill")
     inset = w * (spec.perimeters + 0.5)
     hx = spec.size_x_mm / 2 - inset
     hy = spec.size_y_mm / 2 - inset
@@ -168,10 +160,10 @@ def _layer(spec: PrintSpec, em: _Emitter, index: int) -> Iterator[str]:
                 continue
             if along_x:
                 yield from em.travel(cx + a, cy + off)
-                yield em.extrude(cx + b, cy + off, spec.infill_speed_mm_s)
+                yield from em.extrude(cx + b, cy + off, spec.infill_speed_mm_s)
             else:
                 yield from em.travel(cx + off, cy + a)
-                yield em.extrude(cx + off, cy + b, spec.infill_speed_mm_s)
+                yield from em.extrude(cx + off, cy + b, spec.infill_speed_mm_s)
         flip = not flip
 
 
@@ -191,42 +183,42 @@ def generate_print(spec: PrintSpec | None = None) -> Iterator[str]:
     spec = spec or PrintSpec()
     from flowtwin import __version__
 
-    em = _Emitter(spec)
-    yield f"; generated by flowtwin {__version__}"
-    yield (f"; layer_height = {spec.layer_height_mm}")
-    yield f"; nozzle_diameter = {spec.nozzle_diameter_mm}"
-    yield f"; filament_diameter = {spec.filament_diameter_mm}"
-    yield f"; extrusion_width = {spec.line_width_mm}"
-    yield "G21 ; millimetres"
-    yield "G90 ; absolute XYZ"
-    yield "M83 ; relative E"
-    yield f"M140 S{spec.bed_temp_c:.0f}"
-    yield f"M104 S{spec.nozzle_temp_c:.0f}"
-    yield "G28 ; home"
-    yield f"M190 S{spec.bed_temp_c:.0f}"
-    yield f"M109 S{spec.nozzle_temp_c:.0f}"
-    yield "G92 E0"
+    em = _Writer(spec)
+    out = em.out
+    out.comment(f"generated by flowtwin {__version__}")
+    out.comment(f"layer_height = {spec.layer_height_mm}")
+    out.comment(f"nozzle_diameter = {spec.nozzle_diameter_mm}")
+    out.comment(f"filament_diameter = {spec.filament_diameter_mm}")
+    out.comment(f"extrusion_width = {spec.line_width_mm}")
+    out.begin(relative_e=True)
+    out.heat_bed(round(spec.bed_temp_c))
+    out.heat_nozzle(round(spec.nozzle_temp_c))
+    out.home()
+    out.heat_bed(round(spec.bed_temp_c), wait=True)
+    out.heat_nozzle(round(spec.nozzle_temp_c), wait=True)
+    out.reset_e()
     # prime line along the front edge
     x0 = spec.center_xy_mm[0] - spec.size_x_mm / 2 - 5
     y0 = spec.center_xy_mm[1] - spec.size_y_mm / 2 - 5
-    yield f"G1 Z{spec.layer_height_mm:.3f} F600"
-    yield f"G1 X{x0:.3f} Y{y0:.3f} F{spec.travel_speed_mm_s * 60:.0f}"
-    em.x, em.y, em.z = x0, y0, spec.layer_height_mm
-    yield ";TYPE:Skirt/Brim"
-    yield em.extrude(x0 + spec.size_x_mm + 10, y0, spec.perimeter_speed_mm_s)
+    out.move(z=spec.layer_height_mm, f_mm_min=600)
+    out.move(x=x0, y=y0, f_mm_min=spec.travel_speed_mm_s * 60)
+    out.marker("TYPE", "Skirt/Brim")
+    yield from out.drain()
+    yield from em.extrude(x0 + spec.size_x_mm + 10, y0, spec.perimeter_speed_mm_s)
     for index in range(spec.layers):
         z = spec.layer_height_mm * (index + 1)
-        yield ";LAYER_CHANGE"
-        yield f";Z:{z:.3f}"
-        yield f";HEIGHT:{spec.layer_height_mm:.3f}"
-        em.z = z
-        yield f"G1 Z{z:.3f} F600"
+        out.marker("LAYER_CHANGE")
+        out.marker("Z", f"{z:.3f}")
+        out.marker("HEIGHT", f"{spec.layer_height_mm:.3f}")
+        out.move(z=z, f_mm_min=600)
+        yield from out.drain()
         yield from _layer(spec, em, index)
-    yield f"G1 E{-spec.retract_mm:.5f} F{spec.retract_speed_mm_s * 60:.0f}"
-    yield f"G1 Z{em.z + 10:.3f} F600"
-    yield "M104 S0"
-    yield "M140 S0"
-    yield "M84"
+    out.move(e_mm=-spec.retract_mm, f_mm_min=spec.retract_speed_mm_s * 60)
+    out.move(z=out.z + 10, f_mm_min=600)
+    out.heat_nozzle(0)
+    out.heat_bed(0)
+    out.line("M84")
+    yield from out.drain()
 
 
 def write_print(path: str | os.PathLike[str], spec: PrintSpec | None = None) -> int:

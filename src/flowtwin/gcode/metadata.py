@@ -87,6 +87,12 @@ def parse_duration_s(text: str) -> float | None:
     return total if found else None
 
 
+def _value_after(comment: str) -> str | None:
+    """The text after the first ``=`` or ``:`` of a ``key: value`` comment, else None."""
+    parts = re.split(r"[=:]", comment, maxsplit=1)
+    return parts[1] if len(parts) == 2 else None
+
+
 def _first_float(text: str) -> float | None:
     m = re.search(r"-?\d+(?:\.\d+)?", text)
     return float(m.group(0)) if m else None
@@ -169,35 +175,35 @@ class CommentInterpreter:
                 self._config[s3d.group(1)] = s3d.group(2)
 
     def _estimates(self, comment: str) -> None:
+        # Slicers write "key: value" or "key = value"; a comment with neither separator (or
+        # the other one) is free text and must never stop the read: it gives no estimate.
         c = comment.strip()
         low = c.lower()
-        if low.startswith("estimated printing time (normal mode)"):
-            self.metadata["slicer_time_s"] = parse_duration_s(c.split("=", 1)[1])
-        elif "total estimated time:" in low:
-            self.metadata["slicer_time_s"] = parse_duration_s(low.split("total estimated time:")[1])
-        elif low.startswith("time:") and "slicer_time_s" not in self.metadata:
-            self.metadata["slicer_time_s"] = parse_duration_s(c[5:])
-        elif low.startswith("print time:"):
-            self.metadata["slicer_time_s"] = parse_duration_s(c[11:])
-        elif low.startswith("build time:"):
-            self.metadata["slicer_time_s"] = parse_duration_s(c[11:])
-        elif low.startswith("estimated build time:"):
-            self.metadata["slicer_time_s"] = parse_duration_s(c.split(":", 1)[1])
+        if "total estimated time:" in low:
+            self._set_time(low.split("total estimated time:", 1)[1])
+        elif low.startswith(("estimated printing time (normal mode)", "print time:",
+                             "build time:", "estimated build time:")) or (
+                low.startswith("time:") and "slicer_time_s" not in self.metadata):
+            self._set_time(_value_after(c))
         elif low.startswith("filament used [mm]"):
-            text = re.split(r"[=:]", c, maxsplit=1)[-1]
-            vals = [float(v) for v in re.findall(r"\d+(?:\.\d+)?", text)]
+            vals = [float(v) for v in re.findall(r"\d+(?:\.\d+)?", _value_after(c) or "")]
             if vals:
                 self.metadata["slicer_filament_mm"] = sum(vals)
-        elif low.startswith("filament used =") or low.startswith("filament used:"):
-            text = c.split("=", 1)[1] if "=" in c else c.split(":", 1)[1]
-            pairs: list[tuple[str, str]] = re.findall(r"(\d+(?:\.\d+)?)\s*(mm|m)\b", text)
+        elif low.startswith(("filament used =", "filament used:")):
+            pairs: list[tuple[str, str]] = re.findall(r"(\d+(?:\.\d+)?)\s*(mm|m)\b",
+                                                      _value_after(c) or "")
             if pairs:
                 self.metadata["slicer_filament_mm"] = sum(
                     float(num) * (1000.0 if unit == "m" else 1.0) for num, unit in pairs)
-        elif low.startswith("filament length:") or low.startswith("total filament length [mm]"):
-            value = _first_float(c.split(":", 1)[1])
+        elif low.startswith(("filament length:", "total filament length [mm]")):
+            value = _first_float(_value_after(c) or "")
             if value is not None:
                 self.metadata["slicer_filament_mm"] = value
+
+    def _set_time(self, text: str | None) -> None:
+        seconds = parse_duration_s(text) if text is not None else None
+        if seconds is not None:
+            self.metadata["slicer_time_s"] = seconds
 
     def finish(self) -> dict[str, object]:
         """Complete :attr:`metadata` with the embedded configuration and return it."""

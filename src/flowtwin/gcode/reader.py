@@ -1,4 +1,4 @@
-"""Streaming G-code reader: text (path, gzip, stdin, bytes) → :class:`MoveTable`.
+"""Streaming G-code reader: text (path, gzip, .bgcode, stdin, bytes) → :class:`MoveTable`.
 
 The frequent commands are executed by a numba kernel over raw bytes
 (:mod:`flowtwin.gcode._kernel`); everything else (comments, events, unknown and rare
@@ -45,6 +45,7 @@ from flowtwin.gcode._commands import (
     number_param,
 )
 from flowtwin.gcode._rows import _Rows
+from flowtwin.gcode.bgcode.read import BgcodeText
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.source import DEFAULT_CHUNK_BYTES, line_chunks, open_source
@@ -484,7 +485,8 @@ def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     ----------
     source
         A path, ``"-"`` for standard input, the file's bytes, or a binary stream;
-        gzip-compressed input is detected and decompressed.
+        gzip-compressed input and Prusa binary G-code (``.bgcode``) are detected and
+        decoded.
     options
         Reading options (arcs, homing position, firmware retraction, strictness).
     chunk_bytes
@@ -510,10 +512,10 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
             size = os.path.getsize(source)
         except OSError:
             size = -1
-        if size >= 0 and not isinstance(stream, gzip.GzipFile):
+        if size >= 0 and not isinstance(stream, gzip.GzipFile | BgcodeText):
             # ask for no more than the file holds: a read allocates what it is asked for
             chunk_bytes = min(chunk_bytes, size + 1)
-        if accumulate and size >= 0:
+        if accumulate and size >= 0 and not isinstance(stream, BgcodeText):
             # about one row per 25 bytes of G-code; growth covers the rest
             reader.total_bytes = size
             hint = size // 25
@@ -541,6 +543,8 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
         last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))
         last.warnings = list(reader.warnings)
         last.n_lines = n_lines
+        if isinstance(stream, BgcodeText) and stream.info is not None:
+            last.metadata["bgcode"] = stream.info.as_metadata()
         yield last
 
     return reader, tables()
@@ -561,7 +565,8 @@ def read_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     Parameters
     ----------
     source
-        A path (plain or gzip), ``"-"`` for standard input, bytes, or a binary stream.
+        A path (plain, gzip or ``.bgcode``), ``"-"`` for standard input, bytes, or a
+        binary stream.
     options
         Reading options; defaults to :class:`ReadOptions`.
 

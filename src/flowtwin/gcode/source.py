@@ -1,7 +1,8 @@
-"""Where G-code comes from: a path (plain or gzip), standard input, bytes or a stream.
+"""Where G-code comes from: a path (plain, gzip or .bgcode), standard input, bytes or a stream.
 
 :func:`open_source` gives a binary stream (gzip is recognised by its magic bytes, Prusa's
-binary ``.bgcode`` is refused with a clear message) and :func:`line_chunks` cuts it into
+binary ``.bgcode`` by its own: it is read as the text G-code it stands for, see
+:class:`~flowtwin.gcode.bgcode.read.BgcodeText`) and :func:`line_chunks` cuts it into
 pieces that end on a line break, so the reader's memory stays bounded.
 """
 
@@ -26,12 +27,15 @@ DEFAULT_CHUNK_BYTES = 16 * 1024 * 1024
 
 
 def open_source(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[BinaryIO, str]:
-    """Return a binary stream (gzip transparently decompressed) and a display name.
+    """Return a binary stream of text G-code and a display name.
+
+    gzip is decompressed and a binary ``.bgcode`` decoded (block by block, as it is read)
+    transparently.
 
     Raises
     ------
     GcodeError
-        The file cannot be opened, or it is a binary ``.bgcode``.
+        The file cannot be opened (a corrupt ``.bgcode`` block raises while it is read).
     """
     if isinstance(source, bytes | bytearray | memoryview):
         raw: BinaryIO = io.BytesIO(bytes(source))
@@ -57,8 +61,9 @@ def open_source(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[Bina
     if peek[:2] == _GZIP_MAGIC:
         return gzip.GzipFile(fileobj=raw, mode="rb"), name  # type: ignore[return-value]
     if peek == _BGCODE_MAGIC:
-        raise GcodeError("this is a binary G-code (.bgcode) file, not text G-code",
-                         source=name, allowed="text G-code (export as .gcode)")
+        from flowtwin.gcode.bgcode.read import BgcodeText
+
+        return BgcodeText(raw, name, close_source=True), name  # type: ignore[return-value]
     return raw, name
 
 

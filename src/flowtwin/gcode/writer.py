@@ -2,13 +2,16 @@
 
 Every byte of every untouched line is copied as it was (line endings, comments, trailing
 spaces, a missing final newline), so a rewrite with no edits is byte-identical to the
-input. The output is written atomically: it appears complete or not at all.
+input. The output is written atomically: it appears complete or not at all. A Prusa binary
+G-code (``.bgcode``) source is edited as the text it stands for (the reader's line numbers)
+and written back as ``.bgcode`` stored the same way (checksum, compressions, encoding).
 """
 
 from __future__ import annotations
 
 import gzip
 import os
+import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import BinaryIO
@@ -68,7 +71,7 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
     Parameters
     ----------
     source
-        The G-code file to read (plain text, or gzip).
+        The G-code file to read (plain text, gzip or ``.bgcode``).
     destination
         Where to write; written atomically (a temporary file renamed into place). It may be
         the same path as ``source``.
@@ -95,6 +98,9 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
     touched = 0
     last_line = 0
     try:
+        if raw.peek(4)[:4] == b"GCDE":
+            raw.close()
+            return _rewrite_bgcode(src, Path(destination), edits)
         head = raw.peek(2)[:2] if hasattr(raw, "peek") else b""
         stream: BinaryIO = gzip.GzipFile(fileobj=raw) if head == b"\x1f\x8b" else raw  # type: ignore[assignment]
         compress = head == b"\x1f\x8b"
@@ -116,3 +122,31 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
     finally:
         raw.close()
     return touched
+
+
+def _rewrite_bgcode(src: Path, destination: Path, edits: Mapping[int, Edit]) -> int:
+    """Edit a ``.bgcode`` as text (in a temporary file), then store it as it was stored."""
+    from flowtwin.gcode.bgcode.read import read_bgcode_info
+    from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+    with open(src, "rb") as fh:
+        info = read_bgcode_info(fh, str(src))
+    options = BgcodeOptions.like(info.compression, info.checksum, info.gcode_encoding)
+    with tempfile.TemporaryDirectory(dir=destination.parent) as tmp:
+        decoded, text = Path(tmp) / "decoded.gcode", Path(tmp) / "edited.gcode"
+        _decode(src, decoded)
+        touched = rewrite_gcode(decoded, text, edits)
+        text_to_bgcode(text, destination, options=options, file_metadata=info.file_metadata)
+    return touched
+
+
+def _decode(src: Path, text: Path) -> None:
+    from flowtwin.gcode.source import open_source
+
+    stream, _ = open_source(src)
+    try:
+        with open(text, "wb") as out:
+            while block := stream.read(_CHUNK):
+                out.write(block)
+    finally:
+        stream.close()

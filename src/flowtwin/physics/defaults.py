@@ -29,6 +29,12 @@ tests/physics/test_defaults.py):
    unknown; 40 N (below roller #2's ``F_p,min = 112 N``, the steep part of Eq. 6) gives
    ≈ 10 % steady slip at 215 °C and 2 mm/s [003 §3.1] with the nozzle model in free
    extrusion (assumed hot end: 0.5 mm nozzle, 0.6 mm land, 3.2 mm bore, 30° cone).
+6. Melt zone (beyond the seeds, :mod:`flowtwin.physics.melt`): PLA ``k = 0.13 W/(m·K)``,
+   ``c_p = 1800 J/(kg·K)`` (typical values, provisional), filament entering at 25 °C; the
+   E3D V6 heats 11.5 mm of filament path (its heater block's height). The effective length
+   factor ``MELT_LENGTH_FACTOR`` is the ONE parameter of the melt model, fitted so that the
+   V6's melt capacity (:mod:`flowtwin.physics.melt_capacity`) at 215 °C is the 11 mm³/s
+   of the fit set (docs/physics.md §9); every other hot end is a check.
 """
 
 from __future__ import annotations
@@ -41,10 +47,16 @@ __all__ = [
     "E3D_V6_040",
     "GREEFF_RF1000",
     "HOBB_GOBLIN_80N",
+    "MELT_FIT_REFERENCE",
+    "MELT_INLET_C",
+    "MELT_LENGTH_FACTOR",
     "PLA_4043D",
+    "PLA_HEAT_CAPACITY_J_KGK",
+    "PLA_THERMAL_CONDUCTIVITY_W_MK",
     "RF1000_GEAR_40N",
     "RF1000_HOTEND_050",
     "TRONVOLL_MK25",
+    "V6_HEATED_LENGTH_MM",
     "DriveConstants",
     "HotendConstants",
     "MaterialConstants",
@@ -198,3 +210,19 @@ GREEFF_RF1000 = SetupConstants(
     material=PLA_4043D, hotend=RF1000_HOTEND_050, drive=RF1000_GEAR_40N,
     filament_diameter_mm=2.85, l_rt_mm=50.0, temp_c=215.0, line_width_mm=None,
 )
+
+#: Thermal conductivity of PLA, W/(m·K) (typical value, provisional; melt model).
+PLA_THERMAL_CONDUCTIVITY_W_MK = 0.13
+#: Specific heat of PLA over 25–215 °C, J/(kg·K) (typical value, provisional; melt model).
+PLA_HEAT_CAPACITY_J_KGK = 1800.0
+#: Temperature of the filament entering the melt zone, °C (room temperature, assumed).
+MELT_INLET_C = 25.0
+#: Heated length of the E3D V6 (its heater block's height), mm.
+V6_HEATED_LENGTH_MM = 11.5
+#: The fit point of the melt model: (hot end, published maximum flow mm³/s, set °C, source).
+MELT_FIT_REFERENCE = ("e3d-v6-0.4", 11.0, 215.0,
+                      "Ellis' Print Tuning Guide, 'Determining Maximum Volumetric Flow "
+                      "Rate', approximate values for a 0.4 mm brass nozzle: E3D V6 11 mm³/s")
+#: Effective / physical heated length of the melt model, fitted to MELT_FIT_REFERENCE with
+#: PLA 4043D's exponential law (re-derived by tests/physics/test_melt.py within 0.1 %).
+MELT_LENGTH_FACTOR = 2.1136

@@ -51,6 +51,7 @@ __all__ = [
     "SEG_JD",
     "SEG_VEL",
     "move_limits",
+    "move_starts",
     "run_toolhead",
 ]
 
@@ -324,10 +325,51 @@ EXTRUDE_ONLY_ACCEL = 99999999.9
 MIN_KINEMATIC_D = 1e-9
 
 
+@njit(cache=True, inline="always")
+def _home(px, py, pz, hm, home):  # type: ignore[no-untyped-def]
+    """Position after a G28 of the axes in ``hm`` (bits X=1, Y=2, Z=4)."""
+    if hm & 1:
+        px = home[0]
+    if hm & 2:
+        py = home[1]
+    if hm & 4:
+        pz = home[2]
+    return px, py, pz
+
+
+@njit(cache=True)
+def move_starts(x, y, z, start, home_mask, home, sx, sy, sz, length):  # type: ignore[no-untyped-def]
+    """Start position and XYZ length of every move (Klipper ``Move.__init__``).
+
+    ``home_mask[k]`` (bits X=1, Y=2, Z=4) puts those axes at ``home`` before move ``k``
+    (G28). A move shorter than 1 nm in XYZ is extrude-only: Klipper drops its XYZ motion,
+    so the next move starts where this one started. (:func:`move_limits` tracks the
+    position the same way.)
+    """
+    n = x.shape[0]
+    px = start[0]
+    py = start[1]
+    pz = start[2]
+    for k in range(n):
+        px, py, pz = _home(px, py, pz, home_mask[k], home)
+        sx[k] = px
+        sy[k] = py
+        sz[k] = pz
+        dx = x[k] - px
+        dy = y[k] - py
+        dz = z[k] - pz
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        length[k] = d
+        if d >= MIN_KINEMATIC_D:
+            px = x[k]
+            py = y[k]
+            pz = z[k]
+
+
 @njit(cache=True)
 def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,  # type: ignore[no-untyped-def]
-                z_vel, z_accel, pmin, pmax, move_d, ux, uy, uz, er, is_kin, valid,
-                max_cruise_v2, accel, smooth_delta_v2, jdev, icv, min_move_t, err):
+                z_vel, z_accel, pmin, pmax, cap_v, cap_a, move_d, ux, uy, uz, er, is_kin,
+                valid, max_cruise_v2, accel, smooth_delta_v2, jdev, icv, min_move_t, err):
     """Per-move geometry and limits: Klipper ``Move.__init__`` and every ``check_move``.
 
     For a move with XYZ length ``d`` (else an extrude-only move of length ``|ΔE|`` with
@@ -335,25 +377,22 @@ def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,
 
         v       = min(F, max_velocity);  a = max_accel;  Δv²_smooth = 2·d·max_accel_to_decel
         Z move: r = d/|Δz|;   v ≤ max_z_velocity·r,   a ≤ max_z_accel·r
+        kinematics caps (``cap_v``, ``cap_a``, when given): v ≤ cap_v, a ≤ cap_a
         E move without XY, or retraction: r = |ΔE|/d;  v ≤ v_e,max/r,  a ≤ a_e,max/r
         Δv²_smooth = min(Δv²_smooth, 2·d·a)
 
+    A move that changes an axis and ends outside ``pmin .. pmax`` on it is refused.
     ``home_mask[k]`` (bits X=1, Y=2, Z=4) puts the named axes at ``home`` before move
-    ``k`` (G28). ``err`` receives ``(code, move index, value, allowed)`` of the first
-    move Klipper would refuse (code 0: none).
+    ``k`` (G28), as in :func:`move_starts`. ``err`` receives ``(code, move index, value,
+    allowed)`` of the first move Klipper would refuse (code 0: none).
     """
     n = x.shape[0]
+    has_caps = cap_v.shape[0] == n and n > 0
     px = start[0]
     py = start[1]
     pz = start[2]
     for k in range(n):
-        hm = home_mask[k]
-        if hm & 1:
-            px = home[0]
-        if hm & 2:
-            py = home[1]
-        if hm & 4:
-            pz = home[2]
+        px, py, pz = _home(px, py, pz, home_mask[k], home)
         dx = x[k] - px
         dy = y[k] - py
         dz = z[k] - pz
@@ -415,6 +454,10 @@ def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,
                 lim = z_vel * z_ratio
                 v2 = min(v2, lim * lim)
                 a = min(a, z_accel * z_ratio)
+            if has_caps:
+                lim = cap_v[k]
+                v2 = min(v2, lim * lim)
+                a = min(a, cap_a[k])
         if d_e != 0.0:
             if ex_tab.shape[0] == 0:
                 err[0] = ERR_NO_EXTRUDER
@@ -445,5 +488,5 @@ def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,
         smooth_delta_v2[k] = min(sdv2, 2.0 * d * a)
         jdev[k] = seg_tab[s, SEG_JD]
         icv[k] = ex_tab[int(seg_tab[s, SEG_EXT]), EX_ICV] if ex_tab.shape[0] else 0.0
-        min_move_t[k] = d / np.sqrt(v2)
+        min_move_t[k] = d / np.sqrt(v2) if v2 > 0.0 else np.inf   # 0: refused by the caller
     err[0] = ERR_NONE

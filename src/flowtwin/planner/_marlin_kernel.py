@@ -206,7 +206,7 @@ def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
                 stop_before: npt.NDArray[np.bool_], dwell_before: npt.NDArray[np.float64],
                 use_jd: bool, legacy_jerk: bool, jd_small_segments: bool,
                 lin_advance: bool, v_min: float, buffer_blocks: int, slowdown_queued: int,
-                phases: Any) -> tuple[float, int]:
+                phases: Any, axis_d: npt.NDArray[np.float64]) -> tuple[float, int]:
     """Plan all moves; fill ``phases`` and return ``(total time s, bad move or -1)``.
 
     Parameters
@@ -236,6 +236,11 @@ def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
         Queued moves assumed by the ``SLOWDOWN`` rule (0 = off).
     phases
         Output rows (:data:`~flowtwin.planner.timeline.PHASE_DTYPE`), ``(n,)``.
+    axis_d
+        Motor distances of the three motion axes per move, ``(n, 3)``, for machines
+        whose motors are not X, Y, Z (a delta's towers: Marlin applies M203, M201 and
+        classic jerk to the towers); ``(0, 3)``: the motors are X, Y, Z. The move's
+        length and its junction-deviation direction stay cartesian.
 
     Returns
     -------
@@ -262,6 +267,8 @@ def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
     unit = np.zeros(4)
     prev_unit = np.zeros(4)
     scratch = np.zeros(4)
+    cart = np.zeros(4)
+    motors = axis_d.shape[0] == n and n > 0
     prev_nominal = 0.0
     prev_safe = 0.0
     have_prev = False
@@ -282,9 +289,18 @@ def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
         pz = mz[i]
         de_raw = mde[i]
         ex = de_raw * mflow[i]
-        d[0] = dx
-        d[1] = dy
-        d[2] = dz
+        cart[0] = dx
+        cart[1] = dy
+        cart[2] = dz
+        cart[3] = ex
+        if motors:
+            d[0] = axis_d[i, 0]
+            d[1] = axis_d[i, 1]
+            d[2] = axis_d[i, 2]
+        else:
+            d[0] = dx
+            d[1] = dy
+            d[2] = dz
         d[3] = ex
         lxyz = math.sqrt(dx * dx + dy * dy + dz * dz)
         has_e = abs(ex) > _EPS_MM
@@ -349,7 +365,7 @@ def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
             # Unit vector over XYZ, or over XYZE for blocks that move E (Marlin ≥ 2.0.9).
             norm = math.sqrt(lxyz * lxyz + ex * ex) if has_e else lxyz
             for ax in range(4):
-                unit[ax] = d[ax] / norm if (ax < 3 or has_e) else 0.0
+                unit[ax] = cart[ax] / norm if (ax < 3 or has_e) else 0.0
             if first:
                 v2 = v2_min
             else:

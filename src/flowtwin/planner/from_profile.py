@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import math
 
+from flowtwin.firmware import Firmware
 from flowtwin.gcode.reader import FirmwareRetraction, ReadOptions
 from flowtwin.planner.klipper_config import KlipperExtruder, KlipperSettings
 from flowtwin.planner.marlin import MarlinSettings
+from flowtwin.planner.marlin_delta import MarlinDelta
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["klipper_settings", "marlin_settings", "read_options"]
@@ -61,7 +63,21 @@ def marlin_settings(profile: PrinterProfile) -> MarlinSettings:
         min_feedrate_mm_s=m.min_feedrate_mm_s, min_travel_feedrate_mm_s=m.min_travel_feedrate_mm_s,
         min_segment_time_s=m.minimum_segment_time_s,
         lin_advance=profile.pressure_advance.k_s > 0,
-        linear_advance_k=profile.pressure_advance.k_s)
+        linear_advance_k=profile.pressure_advance.k_s,
+        delta=_delta(profile))
+
+
+def _delta(profile: PrinterProfile) -> MarlinDelta | None:
+    g = profile.marlin.delta if profile.marlin is not None else None
+    if g is None:
+        return None
+    a, r, d = g.tower_angle_trim_deg, g.radius_trim_mm, g.diagonal_rod_trim_mm
+    return MarlinDelta(radius_mm=g.radius_mm, diagonal_rod_mm=g.diagonal_rod_mm,
+                       segments_per_second=g.segments_per_second,
+                       printable_radius_mm=g.printable_radius_mm, height_mm=g.height_mm,
+                       tower_angle_trim_deg=(a[0], a[1], a[2]),
+                       radius_trim_mm=(r[0], r[1], r[2]),
+                       diagonal_rod_trim_mm=(d[0], d[1], d[2]))
 
 
 def _retraction(profile: PrinterProfile) -> FirmwareRetraction | None:
@@ -76,7 +92,7 @@ def _retraction(profile: PrinterProfile) -> FirmwareRetraction | None:
 def read_options(profile: PrinterProfile, **overrides: object) -> ReadOptions:
     """Reader options matching the firmware of ``profile`` (arcs, homing, retraction)."""
     home = profile.home_position_mm
-    if profile.firmware == "klipper":
+    if profile.firmware is Firmware.KLIPPER:
         arc_segment: float | None = profile.arcs.segment_mm
     else:
         arc_segment = profile.arcs.segment_mm if profile.arcs.enabled else None

@@ -46,6 +46,7 @@ import numpy.typing as npt
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.planner import _klipper_kernel as K
+from flowtwin.planner.kinematics.base import Kinematics, MoveGeometry, MoveLimits
 from flowtwin.planner.klipper_config import (
     SDS_CHECK_TIME_S,
     KlipperSettings,
@@ -132,6 +133,7 @@ def _walk_events(table: MoveTable, settings: KlipperSettings) -> _Walk:
     """Interpret the events in file order as Klipper's toolhead and gcode_move would."""
     n = len(table)
     src = table.source
+    kin = settings.kinematics_model
     vel, acc = settings.max_velocity, settings.max_accel
     scv, mcr = settings.square_corner_velocity, settings.minimum_cruise_ratio
     active = 0
@@ -188,9 +190,12 @@ def _walk_events(table: MoveTable, settings: KlipperSettings) -> _Walk:
             continue
         elif code == "G28":
             ops.add(pos, key, K.OP_HOME, reason=f"G28 line {ev.line}")
-            named = [a for a in range(3) if "XYZ"[a] in ev.params] or [0, 1, 2]
-            for a in named:
-                w.home_mask[pos] |= 1 << a
+            named = sum(1 << a for a in range(3) if "XYZ"[a] in ev.params)
+            homed = kin.homed_axes(named)
+            if named and homed != named:
+                note(f"G28 naming some axes homes more on a {kin.name} printer (the reader "
+                     "moved only the named ones)", ev.line)
+            w.home_mask[pos] |= homed
             continue
         elif code in ("M84", "M18"):
             if set(ev.params) & {"X", "Y", "Z", "E"} == {"E"}:
@@ -282,6 +287,40 @@ def _limit_error(err: npt.NDArray[np.float64], lines: npt.NDArray[np.int32],
                       field="E", value=value, allowed="E moves only with an [extruder]")
 
 
+_NO_CAPS = np.zeros(0)
+
+
+def _cap_arrays(caps: MoveLimits, n: int) -> tuple[npt.NDArray[np.float64],
+                                                   npt.NDArray[np.float64]]:
+    """Speed and acceleration caps for the kernel: both length ``n``, or both empty."""
+    if caps.speed is None and caps.accel is None:
+        return _NO_CAPS, _NO_CAPS
+    inf = np.full(n, np.inf)
+    return (np.ascontiguousarray(caps.speed if caps.speed is not None else inf,
+                                 dtype=np.float64),
+            np.ascontiguousarray(caps.accel if caps.accel is not None else inf,
+                                 dtype=np.float64))
+
+
+def _kinematics_limits(kin: Kinematics, x: npt.NDArray[np.float64], y: npt.NDArray[np.float64],
+                       z: npt.NDArray[np.float64], start_xyz: npt.NDArray[np.float64],
+                       home_mask: npt.NDArray[np.uint8], home: npt.NDArray[np.float64],
+                       feed: npt.NDArray[np.float64], seg_tab: npt.NDArray[np.float64],
+                       seg: npt.NDArray[np.int64]) -> MoveLimits:
+    """The kinematics' own range checks and per-move caps (none for box kinematics)."""
+    n = x.shape[0]
+    if type(kin).limit_moves is Kinematics.limit_moves or not n:
+        return MoveLimits()
+    sx, sy, sz, length = (np.empty(n) for _ in range(4))
+    K.move_starts(x, y, z, start_xyz, home_mask, home, sx, sy, sz, length)
+    start = np.column_stack((sx, sy, sz))
+    kinematic = length >= K.MIN_KINEMATIC_D
+    end = np.where(kinematic[:, None], np.column_stack((x, y, z)), start)
+    geom = MoveGeometry(start=start, end=end, kinematic=kinematic, length=length,
+                        speed=np.minimum(feed, seg_tab[seg, K.SEG_VEL]))
+    return kin.limit_moves(geom)
+
+
 def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
                  stop_after_lines: Sequence[int] = (), lazy_flush: bool = False) -> Timeline:
     """Plan a move table exactly as Klipper's toolhead would execute it.
@@ -326,6 +365,7 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
     if stops and stops[0] < 0:
         raise GcodeError("stop line must not be negative", source=src,
                          field="stop_after_lines", value=stops[0], allowed=">= 0")
+    kin = settings.kinematics_model
     w = _walk_events(table, settings)
     ops = w.ops
     stop_op: dict[int, int] = {}
@@ -360,20 +400,33 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
     is_kin = np.empty(n, dtype=np.bool_)
     valid = np.empty(n, dtype=np.bool_)
     err = np.zeros(4)
+    x = np.ascontiguousarray(moves["x"], dtype=np.float64)
+    y = np.ascontiguousarray(moves["y"], dtype=np.float64)
+    z = np.ascontiguousarray(moves["z"], dtype=np.float64)
+    feed = np.ascontiguousarray(moves["feed_mm_s"], dtype=np.float64)
+    start = np.asarray(table.start_xyze[:3], dtype=np.float64)
+    home = np.asarray(kin.home_position, dtype=np.float64)
+    caps = _kinematics_limits(kin, x, y, z, start, w.home_mask, home, feed, seg_tab, seg)
     K.move_limits(
-        np.ascontiguousarray(moves["x"], dtype=np.float64),
-        np.ascontiguousarray(moves["y"], dtype=np.float64),
-        np.ascontiguousarray(moves["z"], dtype=np.float64), de,
-        np.ascontiguousarray(moves["feed_mm_s"], dtype=np.float64),
-        np.asarray(table.start_xyze[:3], dtype=np.float64), w.home_mask,
-        np.asarray(settings.position_endstop, dtype=np.float64), seg, seg_tab, ex_tab,
-        settings.max_z_velocity, settings.max_z_accel,
-        np.asarray(settings.position_min, dtype=np.float64),
-        np.asarray(settings.position_max, dtype=np.float64),
+        x, y, z, de, feed, start, w.home_mask, home, seg, seg_tab, ex_tab,
+        kin.max_z_velocity, kin.max_z_accel, np.asarray(kin.box_min, dtype=np.float64),
+        np.asarray(kin.box_max, dtype=np.float64),
+        *_cap_arrays(caps, n),
         move_d, ux, uy, uz, er, is_kin, valid, max_cruise_v2, accel, smooth_delta_v2, jdev,
         icv, min_move_t, err)
+    refused = caps.refused
+    if refused is not None and (err[0] == K.ERR_NONE or refused.index < int(err[1])):
+        raise GcodeError(refused.message, source=src, line=int(lines[refused.index]),
+                         field="XYZ", value=refused.value, allowed=refused.allowed)
     if err[0] != K.ERR_NONE:
         raise _limit_error(err, lines, src)
+    stalled = np.flatnonzero(valid & ~((max_cruise_v2 > 0.0) & (accel > 0.0)))
+    if stalled.size:   # a limit so small that its square underflows: Klipper divides by 0
+        k = int(stalled[0])
+        raise GcodeError("speed or acceleration limit too small to move (its square is 0)",
+                         source=src, line=int(lines[k]), field="F",
+                         value=(float(np.sqrt(max_cruise_v2[k])), float(accel[k])),
+                         allowed="limits above 1e-150 mm/s and mm/s²")
     if settings.arc_resolution is None and n:
         arcs = (moves["kind"] & int(MoveKind.ARC)) != 0
         if np.any(arcs):

@@ -1,27 +1,29 @@
 """Klipper printer settings and the ``printer.cfg`` reader.
 
 :class:`KlipperSettings` holds what Klipper's motion planner reads from a printer's
-``printer.cfg`` (``[printer]``, ``[stepper_x/y/z]``, ``[extruder]`` .. ``[extruderN]``,
+``printer.cfg`` (``[printer]``, the kinematics' sections — ``[stepper_x/y/z]``,
+``[stepper_a/b/c]``, ``[carriage *]`` ... —, ``[extruder]`` .. ``[extruderN]``,
 ``[extruder_stepper]``, ``[firmware_retraction]``, ``[gcode_arcs]``), with Klipper's own
 defaults and bounds (Klipper ``docs/Config_Reference.md``). :func:`load_printer_cfg`
-parses a real ``printer.cfg``: sections and ``option: value`` / ``option = value`` lines,
-indented continuation lines (macro bodies), ``#`` / ``;`` comments, ``[include ...]``
-files (relative paths and globs, as Klipper resolves them) and the ``#*#`` SAVE_CONFIG
-block. Unknown sections and options are ignored; a value outside Klipper's range raises
+parses a real ``printer.cfg`` (:mod:`flowtwin.planner.klipper_cfg`: includes, macros,
+SAVE_CONFIG) and builds its kinematics (:mod:`flowtwin.planner.kinematics`). Unknown
+sections and options are ignored; a value outside Klipper's range raises
 :class:`~flowtwin.errors.ProfileError` naming the file, line, option, value and the
 allowed range.
 """
 
 from __future__ import annotations
 
-import glob
 import math
 import os
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, replace
 
 from flowtwin.errors import ProfileError
 from flowtwin.gcode.reader import FirmwareRetraction, ReadOptions
+from flowtwin.planner.kinematics import box_kinematics, load_kinematics, names
+from flowtwin.planner.kinematics.base import Kinematics, PrinterLimits
+from flowtwin.planner.klipper_cfg import check_value as _check
+from flowtwin.planner.klipper_cfg import read_cfg
 
 __all__ = [
     "KINEMATICS",
@@ -31,8 +33,12 @@ __all__ = [
     "load_printer_cfg",
 ]
 
-#: Kinematics whose speed limits are Klipper's cartesian ones (XY free, Z by z_ratio).
-KINEMATICS = ("cartesian", "corexy", "corexz")
+#: Largest nozzle or filament diameter the twin accepts from a printer.cfg, mm.
+MAX_DIAMETER_MM = 10.0
+
+#: Every kinematics the planner models (Klipper's names; one module each in
+#: :mod:`flowtwin.planner.kinematics`).
+KINEMATICS = names()
 
 #: Klipper's ``SDS_CHECK_TIME``: minimum step-generation scan window, s.
 SDS_CHECK_TIME_S = 0.001
@@ -91,7 +97,9 @@ class KlipperSettings:
     kinematics
         One of :data:`KINEMATICS`.
     position_endstop, position_min, position_max
-        Per axis X, Y, Z, mm. ``G28`` leaves an axis at ``position_endstop``.
+        Per axis X, Y, Z, mm. ``G28`` leaves an axis at ``position_endstop``. Without
+        ``kin`` they are the range box of a cartesian-like kinematics; with ``kin`` they
+        are set from it (its home position and reported axis range).
     extruders
         ``[extruder]``, ``[extruder1]`` ... in tool order (``T<n>`` is ``extruders[n]``).
     extra_smooth_times
@@ -102,6 +110,11 @@ class KlipperSettings:
         ``[gcode_arcs] resolution``, mm, or ``None`` (no ``[gcode_arcs]``: G2/G3 unknown).
     source
         Where the settings came from (for messages).
+    kin
+        The kinematics (range, per-move limits, homing). ``None``: built from
+        ``kinematics``, the position box and the Z limits, which works for the
+        cartesian-like kinematics (cartesian, corexy, corexz, hybrids, generic
+        cartesian); a delta, polar ... needs its geometry (:func:`load_printer_cfg`).
     """
 
     max_velocity: float
@@ -119,6 +132,7 @@ class KlipperSettings:
     firmware_retraction: FirmwareRetraction | None = None
     arc_resolution: float | None = 1.0
     source: str = "<settings>"
+    kin: Kinematics | None = None
 
     def __post_init__(self) -> None:
         src = self.source
@@ -130,20 +144,34 @@ class KlipperSettings:
             raise ProfileError("kinematics not supported by the Klipper planner", source=src,
                                field="kinematics", value=self.kinematics,
                                allowed=", ".join(KINEMATICS))
+        if self.kin is not None and self.kin.name != self.kinematics:
+            raise ProfileError("kinematics name and kinematics object disagree", source=src,
+                               field="kinematics", value=(self.kinematics, self.kin.name),
+                               allowed="the same kinematics")
         zv = self.max_velocity if _derived(self.max_z_velocity) else self.max_z_velocity
         za = self.max_accel if _derived(self.max_z_accel) else self.max_z_accel
         _check(src, "max_z_velocity", zv, above=0.0, maxval=self.max_velocity)
         _check(src, "max_z_accel", za, above=0.0, maxval=self.max_accel)
         object.__setattr__(self, "max_z_velocity", float(zv))
         object.__setattr__(self, "max_z_accel", float(za))
-        for axis in range(3):
-            lo, hi = self.position_min[axis], self.position_max[axis]
-            if not lo < hi or not lo <= self.position_endstop[axis] <= hi:
-                raise ProfileError("position_endstop must lie between position_min and "
-                                   "position_max", source=src,
-                                   field=f"stepper_{'xyz'[axis]}",
-                                   value=(lo, self.position_endstop[axis], hi),
-                                   allowed="position_min <= position_endstop <= position_max")
+        if self.kin is None:
+            for axis in range(3):
+                lo, hi = self.position_min[axis], self.position_max[axis]
+                if not lo < hi or not lo <= self.position_endstop[axis] <= hi:
+                    raise ProfileError("position_endstop must lie between position_min and "
+                                       "position_max", source=src,
+                                       field=f"stepper_{'xyz'[axis]}",
+                                       value=(lo, self.position_endstop[axis], hi),
+                                       allowed="position_min <= position_endstop <= "
+                                       "position_max")
+            object.__setattr__(self, "kin", box_kinematics(
+                self.kinematics, home=self.position_endstop, lo=self.position_min,
+                hi=self.position_max, max_z_velocity=float(zv), max_z_accel=float(za),
+                source=src))
+        else:
+            object.__setattr__(self, "position_endstop", self.kin.home_position)
+            object.__setattr__(self, "position_min", self.kin.axes_min)
+            object.__setattr__(self, "position_max", self.kin.axes_max)
         object.__setattr__(self, "extruders",
                            tuple(self._resolve(ex) for ex in self.extruders))
         for t in self.extra_smooth_times:
@@ -176,6 +204,12 @@ class KlipperSettings:
         _check(src, "pressure_advance_smooth_time", ex.pressure_advance_smooth_time,
                above=0.0, maxval=0.2)
         return ex
+
+    @property
+    def kinematics_model(self) -> Kinematics:
+        """The kinematics (always set after construction)."""
+        assert self.kin is not None
+        return self.kin
 
     # -- convenience views (first extruder) ----------------------------------------------
     @property
@@ -248,204 +282,6 @@ class KlipperSettings:
         return max([SDS_CHECK_TIME_S, *times])
 
 
-def _check(source: str, option: str, value: float, *, minval: float | None = None,
-           maxval: float | None = None, above: float | None = None,
-           below: float | None = None, line: int | None = None,
-           section: str | None = None) -> float:
-    """Klipper's ``getfloat`` bounds; raise :class:`ProfileError` naming the option."""
-    where = f"[{section}] {option}" if section else option
-    ok = isinstance(value, int | float) and math.isfinite(value)
-    parts = []
-    if minval is not None:
-        parts.append(f">= {minval:g}")
-        ok = ok and value >= minval
-    if above is not None:
-        parts.append(f"> {above:g}")
-        ok = ok and value > above
-    if maxval is not None:
-        parts.append(f"<= {maxval:g}")
-        ok = ok and value <= maxval
-    if below is not None:
-        parts.append(f"< {below:g}")
-        ok = ok and value < below
-    if not ok:
-        raise ProfileError(f"option '{option}' out of range", source=source, line=line,
-                           field=where, value=value,
-                           allowed=" and ".join(parts) or "a finite number")
-    return float(value)
-
-
-# ------------------------------------------------------------------ printer.cfg text ---
-
-@dataclass(slots=True)
-class _Opt:
-    value: str
-    source: str
-    line: int
-
-
-@dataclass(slots=True)
-class _Cfg:
-    sections: dict[str, dict[str, _Opt]] = field(default_factory=dict)
-    headers: dict[str, tuple[str, int]] = field(default_factory=dict)
-
-
-AUTOSAVE_MARK = "#*#"
-MAX_INCLUDE_DEPTH = 20
-
-
-def _strip_comment(text: str) -> str:
-    """Drop a ``#``/``;`` comment (full line, or inline after whitespace) like configparser."""
-    stripped = text.strip()
-    if not stripped or stripped[0] in "#;":
-        return ""
-    for i, ch in enumerate(text):
-        if ch in "#;" and i > 0 and text[i - 1].isspace():
-            return text[:i].rstrip()
-    return text.rstrip()
-
-
-def _parse_text(text: str, source: str, cfg: _Cfg, depth: int) -> None:
-    """Add the sections of one file (and its includes) to ``cfg``; later values win."""
-    section: str | None = None
-    last: _Opt | None = None
-    lines = text.split("\n")
-    autosave: list[tuple[int, str]] = []
-    for number, raw in enumerate(lines, start=1):
-        raw = raw.rstrip("\r")
-        if raw.startswith(AUTOSAVE_MARK):
-            autosave.append((number, raw[len(AUTOSAVE_MARK):].lstrip(" ")
-                             if raw[len(AUTOSAVE_MARK):].startswith(" ")
-                             else raw[len(AUTOSAVE_MARK):]))
-            continue
-        body = _strip_comment(raw)
-        if not body:
-            continue
-        if raw[0].isspace():
-            if last is None:
-                raise ProfileError("indented line outside an option", source=source,
-                                   line=number, value=raw.strip(),
-                                   allowed="'option: value' inside a [section]")
-            continue  # continuation of a multi-line value (macro body): not needed here
-        if body.startswith("["):
-            if not body.endswith("]"):
-                raise ProfileError("malformed section header", source=source, line=number,
-                                   value=body, allowed="[section name]")
-            name = body[1:-1].strip()
-            if name.startswith("include ") or name == "include":
-                _include(name[len("include"):].strip(), source, number, cfg, depth)
-                section, last = None, None
-                continue
-            section = name
-            cfg.sections.setdefault(name, {})
-            cfg.headers.setdefault(name, (source, number))
-            last = None
-            continue
-        cut = min((i for i in (body.find(":"), body.find("=")) if i >= 0), default=-1)
-        if cut <= 0:
-            raise ProfileError("cannot parse line", source=source, line=number, value=body,
-                               allowed="'[section]', 'option: value' or 'option = value'")
-        if section is None:
-            raise ProfileError("option before the first [section]", source=source,
-                               line=number, value=body, allowed="options inside a [section]")
-        key = body[:cut].strip().lower()
-        last = _Opt(body[cut + 1:].strip(), source, number)
-        cfg.sections[section][key] = last
-    if autosave:
-        _parse_autosave(autosave, source, cfg)
-
-
-def _parse_autosave(lines: list[tuple[int, str]], source: str, cfg: _Cfg) -> None:
-    """The SAVE_CONFIG block at the end of printer.cfg (``#*# [section]`` ...) overrides."""
-    section: str | None = None
-    for number, text in lines:
-        body = _strip_comment(text)
-        if not body or text[:1].isspace():
-            continue
-        if section is None and not body.startswith("["):
-            continue  # the block's header lines ("<--- SAVE_CONFIG --->", "DO NOT EDIT ...")
-        if body.startswith("[") and body.endswith("]"):
-            section = body[1:-1].strip()
-            cfg.sections.setdefault(section, {})
-            cfg.headers.setdefault(section, (source, number))
-            continue
-        cut = min((i for i in (body.find(":"), body.find("=")) if i >= 0), default=-1)
-        if cut <= 0 or section is None:
-            raise ProfileError("cannot parse SAVE_CONFIG line", source=source, line=number,
-                               value=body, allowed="'#*# option = value' after '#*# [section]'")
-        cfg.sections[section][body[:cut].strip().lower()] = _Opt(body[cut + 1:].strip(),
-                                                                 source, number)
-
-
-def _include(pattern: str, source: str, line: int, cfg: _Cfg, depth: int) -> None:
-    """Klipper ``[include file]``: relative to the including file, globs allowed."""
-    if not pattern:
-        raise ProfileError("include without a file name", source=source, line=line,
-                           allowed="[include other.cfg]")
-    if depth >= MAX_INCLUDE_DEPTH:
-        raise ProfileError("includes nested too deeply (recursive include?)", source=source,
-                           line=line, value=pattern, allowed=f"<= {MAX_INCLUDE_DEPTH} levels")
-    base = Path(source).parent
-    full = os.path.join(base, pattern)
-    names = sorted(glob.glob(full))
-    if not names and not glob.has_magic(full):
-        raise ProfileError("included file does not exist", source=source, line=line,
-                           value=pattern, allowed="an existing file (path relative to "
-                           "the including file)")
-    for name in names:
-        _parse_text(_read_text(name), name, cfg, depth + 1)
-
-
-def _read_text(path: str | os.PathLike[str]) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ProfileError(f"cannot read printer.cfg: {exc.strerror}", source=str(path)) from exc
-    except UnicodeDecodeError as exc:
-        raise ProfileError("printer.cfg is not UTF-8 text", source=str(path)) from exc
-
-
-class _Section:
-    """Typed access to one section's options with Klipper's bounds."""
-
-    def __init__(self, cfg: _Cfg, name: str, source: str) -> None:
-        self.name = name
-        self.opts = cfg.sections.get(name, {})
-        self.source, self.line = cfg.headers.get(name, (source, 0))
-
-    def has(self, option: str) -> bool:
-        return option in self.opts
-
-    def get(self, option: str, default: str | None = None) -> str:
-        opt = self.opts.get(option)
-        if opt is None:
-            if default is None:
-                raise ProfileError(f"option '{option}' is required in section [{self.name}]",
-                                   source=self.source, line=self.line or None,
-                                   field=f"[{self.name}] {option}")
-            return default
-        return opt.value
-
-    def getfloat(self, option: str, default: float | None = None, *,
-                 minval: float | None = None, maxval: float | None = None,
-                 above: float | None = None, below: float | None = None) -> float:
-        opt = self.opts.get(option)
-        if opt is None:
-            if default is None:
-                raise ProfileError(f"option '{option}' is required in section [{self.name}]",
-                                   source=self.source, line=self.line or None,
-                                   field=f"[{self.name}] {option}", allowed="a number")
-            return default
-        try:
-            value = float(opt.value)
-        except ValueError:
-            raise ProfileError(f"unable to parse option '{option}'", source=opt.source,
-                               line=opt.line, field=f"[{self.name}] {option}",
-                               value=opt.value, allowed="a decimal number") from None
-        return _check(opt.source, option, value, minval=minval, maxval=maxval, above=above,
-                      below=below, line=opt.line, section=self.name)
-
-
 def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
     """Read the motion settings of a Klipper ``printer.cfg``.
 
@@ -467,18 +303,9 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
         the allowed range).
     """
     source = str(path)
-    cfg = _Cfg()
-    _parse_text(_read_text(path), source, cfg, 0)
-    if "printer" not in cfg.sections:
-        raise ProfileError("no [printer] section", source=source, field="printer",
-                           allowed="a Klipper printer.cfg with [printer]")
-    pr = _Section(cfg, "printer", source)
-    kin = pr.get("kinematics").strip()
-    if kin not in KINEMATICS:
-        ko = pr.opts["kinematics"]
-        raise ProfileError("kinematics not supported by the Klipper planner",
-                           source=ko.source, line=ko.line, field="[printer] kinematics",
-                           value=kin, allowed=", ".join(KINEMATICS))
+    cfg = read_cfg(path)
+    pr = cfg.require("printer", "a Klipper printer.cfg with [printer]")
+    kin_name = pr.get("kinematics").strip()
     max_v = pr.getfloat("max_velocity", above=0.0)
     max_a = pr.getfloat("max_accel", above=0.0)
     mcr_default = 0.5
@@ -487,39 +314,17 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
         mcr_default = 1.0 - min(1.0, atd / max_a)
     mcr = pr.getfloat("minimum_cruise_ratio", mcr_default, minval=0.0, below=1.0)
     scv = pr.getfloat("square_corner_velocity", 5.0, minval=0.0)
-    max_zv = pr.getfloat("max_z_velocity", max_v, above=0.0, maxval=max_v)
-    max_za = pr.getfloat("max_z_accel", max_a, above=0.0, maxval=max_a)
-
-    endstop, pmin, pmax = [], [], []
-    for axis in "xyz":
-        name = f"stepper_{axis}"
-        if name not in cfg.sections:
-            raise ProfileError(f"no [{name}] section", source=source, field=name,
-                               allowed=f"[{name}] with position_endstop and position_max")
-        st = _Section(cfg, name, source)
-        lo = st.getfloat("position_min", 0.0)
-        virtual = "virtual_endstop" in st.get("endstop_pin", "")
-        pos_end = st.getfloat("position_endstop", 0.0 if virtual else None)
-        hi = st.getfloat("position_max", above=lo)
-        if not lo <= pos_end <= hi:
-            pe = st.opts.get("position_endstop")
-            raise ProfileError("position_endstop must be between position_min and "
-                               "position_max", source=pe.source if pe else st.source,
-                               line=pe.line if pe else st.line,
-                               field=f"[{name}] position_endstop", value=pos_end,
-                               allowed=f"{lo:g} .. {hi:g}")
-        endstop.append(pos_end)
-        pmin.append(lo)
-        pmax.append(hi)
+    kin = load_kinematics(kin_name, cfg, PrinterLimits(max_v, max_a, pr))
 
     extruders = []
     for i in range(100):
         name = "extruder" + (str(i) if i else "")
-        if name not in cfg.sections:
+        if not cfg.has_section(name):
             break
-        ex = _Section(cfg, name, source)
-        nozzle = ex.getfloat("nozzle_diameter", above=0.0)
-        filament = ex.getfloat("filament_diameter", minval=nozzle)
+        ex = cfg.section(name)
+        # no firmware bound; the twin needs diameters a hot end can have (mm)
+        nozzle = ex.getfloat("nozzle_diameter", above=0.0, maxval=MAX_DIAMETER_MM)
+        filament = ex.getfloat("filament_diameter", minval=nozzle, maxval=MAX_DIAMETER_MM)
         def_cross = 4.0 * nozzle ** 2
         def_ratio = def_cross / (math.pi * (filament * 0.5) ** 2)
         extruders.append(KlipperExtruder(
@@ -538,17 +343,15 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
             pressure_advance_smooth_time=ex.getfloat("pressure_advance_smooth_time", 0.040,
                                                      above=0.0, maxval=0.2)))
     extra = []
-    for name in cfg.sections:
-        if name.startswith("extruder_stepper "):
-            es = _Section(cfg, name, source)
-            pa = es.getfloat("pressure_advance", 0.0, minval=0.0)
-            st_ = es.getfloat("pressure_advance_smooth_time", 0.040, above=0.0, maxval=0.2)
-            if pa:
-                extra.append(st_)
+    for es in cfg.prefix_sections("extruder_stepper "):
+        pa = es.getfloat("pressure_advance", 0.0, minval=0.0)
+        st_ = es.getfloat("pressure_advance_smooth_time", 0.040, above=0.0, maxval=0.2)
+        if pa:
+            extra.append(st_)
 
     retraction = None
-    if "firmware_retraction" in cfg.sections:
-        fr = _Section(cfg, "firmware_retraction", source)
+    if cfg.has_section("firmware_retraction"):
+        fr = cfg.section("firmware_retraction")
         # Klipper sends "G1 E-%.5f F%d": the length is rounded, the feed truncated to mm/min
         speed = fr.getfloat("retract_speed", 20.0, minval=1.0)
         unspeed = fr.getfloat("unretract_speed", 10.0, minval=1.0)
@@ -559,16 +362,16 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
             extra_unretract_mm=fr.getfloat("unretract_extra_length", 0.0, minval=0.0),
             unretract_speed_mm_s=math.floor(unspeed * 60.0) / 60.0)
     arc = None
-    if "gcode_arcs" in cfg.sections:
-        arc = _Section(cfg, "gcode_arcs", source).getfloat("resolution", 1.0, above=0.0)
+    if cfg.has_section("gcode_arcs"):
+        arc = cfg.section("gcode_arcs").getfloat("resolution", 1.0, above=0.0)
 
     return KlipperSettings(
         max_velocity=max_v, max_accel=max_a, square_corner_velocity=scv,
-        minimum_cruise_ratio=mcr, max_z_velocity=max_zv, max_z_accel=max_za,
-        kinematics=kin, position_endstop=(endstop[0], endstop[1], endstop[2]),
-        position_min=(pmin[0], pmin[1], pmin[2]), position_max=(pmax[0], pmax[1], pmax[2]),
-        extruders=tuple(extruders), extra_smooth_times=tuple(extra),
-        firmware_retraction=retraction, arc_resolution=arc, source=source)
+        minimum_cruise_ratio=mcr,
+        max_z_velocity=kin.max_z_velocity if math.isfinite(kin.max_z_velocity) else math.nan,
+        max_z_accel=kin.max_z_accel if math.isfinite(kin.max_z_accel) else math.nan,
+        kinematics=kin.name, extruders=tuple(extruders), extra_smooth_times=tuple(extra),
+        firmware_retraction=retraction, arc_resolution=arc, source=source, kin=kin)
 
 
 def klipper_read_options(settings: KlipperSettings, **overrides: object) -> ReadOptions:

@@ -39,6 +39,7 @@ import numpy as np
 from flowtwin.errors import GcodeError, ProfileError
 from flowtwin.gcode.moves import Event, MoveTable
 from flowtwin.planner import _marlin_kernel as K
+from flowtwin.planner.marlin_delta import SEGMENTED_KEY, MarlinDelta, tower_distances
 from flowtwin.planner.timeline import PHASE_DTYPE, Timeline
 
 __all__ = [
@@ -120,6 +121,12 @@ class MarlinSettings:
         planner, and the acceleration cap ``E-jerk / (K · e/D)`` applies.
     linear_advance_k
         M900 K, s (mm of filament per mm/s of filament speed).
+    delta
+        A linear delta build (:class:`~flowtwin.planner.marlin_delta.MarlinDelta`): the
+        move table must be cut into its segments first
+        (:func:`~flowtwin.planner.marlin_delta.segment_moves`); M203, M201 and classic
+        jerk then apply to the towers (``max_feedrate_mm_s`` etc. X, Y, Z = towers A, B,
+        C). ``None``: X, Y, Z motors.
     """
 
     max_feedrate_mm_s: Vec4 = (300.0, 300.0, 5.0, 25.0)
@@ -139,6 +146,7 @@ class MarlinSettings:
     block_buffer_size: int | None = 16
     lin_advance: bool = False
     linear_advance_k: float = 0.0
+    delta: MarlinDelta | None = None
 
     def __post_init__(self) -> None:
         for name in ("max_feedrate_mm_s", "max_acceleration_mm_s2", "jerk_mm_s"):
@@ -441,6 +449,20 @@ def _dwell_s(ev: Event, source: str | None) -> float:
     return 0.0 if p is None else p * 1e-3
 
 
+def _motor_distances(table: MoveTable, settings: MarlinSettings) -> np.ndarray:
+    """Tower distances of a delta's segments, or an empty ``(0, 3)`` for X, Y, Z motors."""
+    if settings.delta is None:
+        return np.zeros((0, 3))
+    if table.metadata.get(SEGMENTED_KEY) != settings.delta.segments_per_second:
+        raise GcodeError("a Marlin delta plans the segments it cuts every move into: pass "
+                         "the table through flowtwin.planner.marlin_delta.segment_moves "
+                         "first", source=table.source, field="delta",
+                         value=table.metadata.get(SEGMENTED_KEY),
+                         allowed=f"a table segmented at {settings.delta.segments_per_second:g}"
+                         " segments/s")
+    return tower_distances(table, settings.delta)
+
+
 def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
                 stop_after_lines: Sequence[int] = ()) -> Timeline:
     """Plan a move table as Marlin 2.x would execute it.
@@ -527,7 +549,8 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
         stop_before, dwell_before, not settings.classic_jerk,
         settings.jerk_variant is JerkVariant.LEGACY, settings.jd_small_segments,
         settings.lin_advance, settings.minimum_planner_speed_mm_s,
-        settings.block_buffer_size or 0, settings.slowdown_moves_queued, phases)
+        settings.block_buffer_size or 0, settings.slowdown_moves_queued, phases,
+        _motor_distances(table, settings))
     if bad >= 0:
         raise GcodeError("move without a positive feed rate", source=source,
                          line=int(moves["line"][bad]), field="F",

@@ -50,6 +50,9 @@ class HotendProfile(NamedProfile):
     back-pressure ``R_bp(h) = 8μ·λ_bp/(π·r⁴)·(2r/h)^n`` of
     :func:`flowtwin.physics.nozzle.back_pressure_resistance_mpa_s_per_mm3` (beyond the
     seeds; Tronvoll finds K about twice as high at 0.1 mm as at 0.3 mm layers [001 Table II]).
+    ``heated_length_mm`` switches on the melt model of :mod:`flowtwin.physics.melt` (the
+    filament heated over the melt zone: melt temperature against flow); without it the
+    melt is at the set temperature at any flow, as in the seeds.
     """
 
     nozzle_diameter_mm: float = Field(gt=0.0, le=3.0,
@@ -79,6 +82,18 @@ class HotendProfile(NamedProfile):
                                                              "the heater, s (optional).")
     bowden: BowdenTube | None = Field(None, description="Bowden tube (absent = direct "
                                                         "drive).")
+    heated_length_mm: float | None = Field(None, gt=0.0, le=200.0,
+                                           description="Heated length of the filament path "
+                                                       "(melt zone), mm; absent = no melt "
+                                                       "model: the melt is at the set "
+                                                       "temperature at any flow.")
+    melt_length_factor: float | None = Field(None, gt=0.0, le=20.0,
+                                             description="Effective / physical heated length "
+                                                         "of the melt model (default: the "
+                                                         "fitted MELT_LENGTH_FACTOR).")
+    melt_inlet_temperature_c: float = Field(25.0, ge=-50.0, le=300.0,
+                                            description="Temperature of the filament entering "
+                                                        "the melt zone, °C.")
 
     @model_validator(mode="after")
     def _geometry(self) -> HotendProfile:
@@ -94,6 +109,14 @@ class HotendProfile(NamedProfile):
             return 0.0
         radial = (self.bore_diameter_mm - self.nozzle_diameter_mm) / 2.0
         return radial / math.tan(math.radians(self.cone_half_angle_deg))
+
+    def effective_heated_length_mm(self, default_factor: float) -> float | None:
+        """Heated length the melt model uses, mm: ``heated_length_mm`` × the profile's
+        ``melt_length_factor`` (or ``default_factor``); ``None`` without a melt zone."""
+        if self.heated_length_mm is None:
+            return None
+        factor = default_factor if self.melt_length_factor is None else self.melt_length_factor
+        return self.heated_length_mm * factor
 
     @property
     def nozzle_radius_mm(self) -> float:

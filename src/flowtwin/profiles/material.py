@@ -137,6 +137,13 @@ class MaterialProfile(NamedProfile):
                                     description="Lowest recommended print temperature, °C.")
     print_temp_max_c: float = Field(gt=0.0, le=600.0,
                                     description="Highest recommended print temperature, °C.")
+    thermal_conductivity_w_mk: float | None = Field(None, gt=0.0, le=10.0,
+                                                    description="Thermal conductivity, "
+                                                                "W/(m·K) (melt model; "
+                                                                "optional).")
+    heat_capacity_j_kgk: float | None = Field(None, gt=0.0, le=10000.0,
+                                              description="Specific heat capacity, J/(kg·K) "
+                                                          "(melt model; optional).")
 
     @model_validator(mode="after")
     def _consistent(self) -> MaterialProfile:
@@ -147,6 +154,14 @@ class MaterialProfile(NamedProfile):
             raise ValueError(f"e_hot_mpa ({self.e_hot_mpa}) must not exceed e_rt_mpa "
                              f"({self.e_rt_mpa}): the hot filament is the softer one")
         return self
+
+    @property
+    def diffusivity_mm2_s(self) -> float | None:
+        """Thermal diffusivity ``k/(ρ·c_p)``, mm²/s; ``None`` without thermal data."""
+        if self.thermal_conductivity_w_mk is None or self.heat_capacity_j_kgk is None:
+            return None
+        return self.thermal_conductivity_w_mk / (self.density_g_cm3 * 1000.0
+                                                 * self.heat_capacity_j_kgk) * 1.0e6
 
     @property
     def density_g_mm3(self) -> float:

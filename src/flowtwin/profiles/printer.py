@@ -9,7 +9,9 @@ Two styles of limits, chosen by the firmware:
   see :meth:`PrinterProfile.resolved_klipper_limits`);
 * ``marlin``, ``prusa``, ``reprapfirmware`` and ``repetier`` need a ``[marlin]`` table of
   per-axis limits (M203 max feedrate, M201 max acceleration, M204 P/R/T, classic jerk
-  M205 X/Y/Z/E *or* junction deviation M205 J, M205 B/S/T).
+  M205 X/Y/Z/E *or* junction deviation M205 J, M205 B/S/T); a Marlin delta adds
+  ``[marlin.delta]`` (its geometry and ``DEFAULT_SEGMENTS_PER_SECOND``; the per-axis
+  limits X, Y, Z then apply to the towers A, B, C).
 
 Common to all: ``[extruder]`` (nozzle and filament diameters as the firmware knows them),
 ``[pressure_advance]``, ``[retraction]`` (firmware retraction, G10/G11 as M207/M208 set it),
@@ -19,11 +21,11 @@ Common to all: ``[extruder]`` (nozzle and filament diameters as the firmware kno
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 from pydantic import Field, model_validator
 
 from flowtwin.errors import ProfileError
+from flowtwin.firmware import DEFAULT_SMOOTH_TIME_S, Firmware, PlannerFamily
 from flowtwin.profiles.base import NamedProfile, ProfileModel
 
 __all__ = [
@@ -33,21 +35,17 @@ __all__ = [
     "AxisFeedrates",
     "AxisJerks",
     "FirmwareExtruder",
-    "FirmwareKind",
     "FirmwareRetraction",
     "KlipperLimits",
+    "MarlinDeltaGeometry",
     "MarlinLimits",
     "Position",
     "PressureAdvance",
     "PrinterProfile",
 ]
 
-#: Firmware families flowtwin knows. ``prusa`` is Prusa-Firmware (a Marlin 1.x fork);
-#: ``repetier`` is Repetier-Firmware (the RF1000 of [003] runs Conrad's fork of it).
-FirmwareKind = Literal["klipper", "marlin", "reprapfirmware", "prusa", "repetier"]
-
 #: Klipper's default ``pressure_advance_smooth_time`` (klippy/kinematics/extruder.py).
-KLIPPER_DEFAULT_SMOOTH_TIME_S = 0.040
+KLIPPER_DEFAULT_SMOOTH_TIME_S = DEFAULT_SMOOTH_TIME_S
 
 _MAX_SPEED = 10000.0   # mm/s, far above any FFF printer
 _MAX_ACCEL = 1e6       # mm/s²
@@ -135,6 +133,42 @@ class KlipperLimits(ProfileModel):
         return self
 
 
+def _trim() -> list[float]:
+    return [0.0, 0.0, 0.0]
+
+
+class MarlinDeltaGeometry(ProfileModel):
+    """A Marlin linear delta (``Configuration.h`` ``DELTA_*``, ``M665``), mm."""
+
+    radius_mm: float = Field(gt=0.0, le=1000.0, description="DELTA_RADIUS (M665 R), mm.")
+    diagonal_rod_mm: float = Field(gt=0.0, le=2000.0,
+                                   description="DELTA_DIAGONAL_ROD (M665 L), mm.")
+    segments_per_second: float = Field(gt=0.0, le=10000.0,
+                                       description="DEFAULT_SEGMENTS_PER_SECOND (M665 S).")
+    printable_radius_mm: float = Field(gt=0.0, le=1000.0,
+                                       description="PRINTABLE_RADIUS "
+                                                   "(DELTA_PRINTABLE_RADIUS), mm.")
+    height_mm: float = Field(gt=0.0, le=5000.0, description="DELTA_HEIGHT (M665 H), mm.")
+    tower_angle_trim_deg: list[float] = Field(default_factory=_trim, min_length=3,
+                                              max_length=3,
+                                              description="DELTA_TOWER_ANGLE_TRIM, deg.")
+    radius_trim_mm: list[float] = Field(default_factory=_trim, min_length=3, max_length=3,
+                                        description="DELTA_RADIUS_TRIM_TOWER, mm.")
+    diagonal_rod_trim_mm: list[float] = Field(default_factory=_trim, min_length=3,
+                                              max_length=3,
+                                              description="DELTA_DIAGONAL_ROD_TRIM_TOWER, "
+                                                          "mm.")
+
+    @model_validator(mode="after")
+    def _rods_reach(self) -> MarlinDeltaGeometry:
+        rod = self.diagonal_rod_mm + min(self.diagonal_rod_trim_mm)
+        span = self.radius_mm + max(self.radius_trim_mm) + self.printable_radius_mm
+        if rod <= span:
+            raise ValueError(f"diagonal_rod_mm ({rod:g} with trim) must exceed radius_mm + "
+                             f"printable_radius_mm ({span:g}): the rods cannot reach the edge")
+        return self
+
+
 class MarlinLimits(ProfileModel):
     """Per-axis limits of Marlin-style planners (Marlin, Prusa-Firmware, RRF, Repetier)."""
 
@@ -160,6 +194,10 @@ class MarlinLimits(ProfileModel):
     min_travel_feedrate_mm_s: float = Field(0.0, ge=0.0, le=_MAX_SPEED,
                                             description="M205 T: minimum travel feedrate, "
                                                         "mm/s.")
+    delta: MarlinDeltaGeometry | None = Field(None, description="A linear delta: moves are "
+                                                                "cut into segments; the "
+                                                                "X/Y/Z limits apply to "
+                                                                "the towers.")
 
     @model_validator(mode="after")
     def _jerk_or_jd(self) -> MarlinLimits:
@@ -252,7 +290,8 @@ class ArcSettings(ProfileModel):
 class PrinterProfile(NamedProfile):
     """A printer as its firmware sees it: limits, advance, retraction, arcs, homing."""
 
-    firmware: FirmwareKind = Field(description="Firmware family.")
+    firmware: Firmware = Field(strict=False, description="Firmware family "
+                                                         "(flowtwin.firmware).")
     limits: KlipperLimits | None = Field(None, description="Klipper limits (firmware = "
                                                            "'klipper').")
     marlin: MarlinLimits | None = Field(None, description="Per-axis limits (every other "
@@ -269,7 +308,7 @@ class PrinterProfile(NamedProfile):
 
     @model_validator(mode="after")
     def _limits_match_firmware(self) -> PrinterProfile:
-        if self.firmware == "klipper":
+        if self.firmware.planner is PlannerFamily.KLIPPER:
             if self.limits is None:
                 raise ValueError("firmware 'klipper' needs a [limits] table")
             if self.marlin is not None:
@@ -289,7 +328,7 @@ class PrinterProfile(NamedProfile):
     @property
     def pa_smooth_time_s(self) -> float:
         """Pressure-advance smoothing window in force, s (0 where the firmware has none)."""
-        if self.firmware != "klipper":
+        if self.firmware is not Firmware.KLIPPER:
             return 0.0
         value = self.pressure_advance.smooth_time_s
         return KLIPPER_DEFAULT_SMOOTH_TIME_S if value is None else value
@@ -309,7 +348,7 @@ class PrinterProfile(NamedProfile):
         """
         if self.limits is None:
             raise ProfileError(f"printer {self.name!r} has no Klipper limits", field="firmware",
-                               value=self.firmware, allowed="'klipper'")
+                               value=self.firmware.value, allowed="'klipper'")
         lim = self.limits
         def_cross_mm2 = 4.0 * self.extruder.nozzle_diameter_mm ** 2
         def_ratio = def_cross_mm2 / self.extruder.filament_area_mm2

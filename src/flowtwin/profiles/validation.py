@@ -11,6 +11,7 @@ Unknown keys name the key, suggest the closest known one and list the allowed ke
 from __future__ import annotations
 
 import difflib
+import enum
 import types
 import typing
 from dataclasses import dataclass
@@ -201,6 +202,8 @@ def _allowed(where: _Where) -> str | None:
     for c in cands:
         if typing.get_origin(c) is Literal:
             kinds.append("one of " + ", ".join(repr(v) for v in typing.get_args(c)))
+        elif isinstance(c, type) and issubclass(c, enum.Enum):
+            kinds.append("one of " + ", ".join(repr(m.value) for m in c))
         elif c is bool:
             kinds.append("true or false")
         elif c is int:
@@ -272,6 +275,7 @@ def _problem(err: Any, model: type[BaseModel]) -> Problem:
         "string_too_long": lambda: f"must have at most {ctx.get('max_length')} characters",
         "string_pattern_mismatch": lambda: f"must match the pattern {ctx.get('pattern')}",
         "literal_error": lambda: "is not one of the allowed choices",
+        "enum": lambda: "is not one of the allowed choices",
         "model_type": lambda: "must be a table",
         "model_attributes_type": lambda: "must be a table",
         "dict_type": lambda: "must be a table",

@@ -19,7 +19,14 @@ from typing import Any
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.errors import DataError
-from flowtwin.reproduce import greeff2017, jin2009, nienhaus2021, theory, tronvoll2019
+from flowtwin.reproduce import (
+    greeff2017,
+    jin2009,
+    meltcapacity,
+    nienhaus2021,
+    theory,
+    tronvoll2019,
+)
 from flowtwin.reproduce.claims import Claim, Row, RowKind
 from flowtwin.reproduce.context import ReproContext
 from flowtwin.reproduce.figures import PaperSection
@@ -38,7 +45,7 @@ __all__ = [
 #: The papers in seed order, by command key.
 PAPERS: dict[str, PaperSection] = {s.key: s for s in (
     nienhaus2021.SECTION, tronvoll2019.SECTION, theory.SECTION, greeff2017.SECTION,
-    jin2009.SECTION)}
+    jin2009.SECTION, meltcapacity.SECTION)}
 
 
 def sections(which: str) -> tuple[PaperSection, ...]:

@@ -65,6 +65,7 @@ class Aggregates:
     last_grinding: bool = False
     ooze: float = 0.0
     narrow: int = 0
+    over_flow_limit: int = 0
     max_layer: int = -1
     net_filament: dict[int, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -88,7 +89,9 @@ class Aggregates:
     def add(self, moves: npt.NDArray[np.void], dyn: DynamicsResult,
             metrics: npt.NDArray[np.void], params: MoveParameters, *, first: bool) -> None:
         """Accumulate one simulated section."""
-        del params, first
+        del first
+        if params.over_flow_limit is not None:
+            self.over_flow_limit += int(np.count_nonzero(params.over_flow_limit))
         d = dyn.moves
         kind = moves["kind"]
         cmd = d["cmd_mm3"]
@@ -180,6 +183,7 @@ class Aggregates:
             min_force_margin_n=None if math.isinf(self.min_margin) else self.min_margin,
             grinding_events=self.grinding_events, grinding_moves=self.grinding_moves,
             ooze_volume_mm3=self.ooze, narrow_beads=self.narrow,
+            moves_over_flow_limit=self.over_flow_limit,
             net_filament_mm={str(k): v for k, v in sorted(self.net_filament.items())},
             warnings=tuple(self.warnings))
 

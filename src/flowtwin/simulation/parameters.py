@@ -21,6 +21,7 @@ from flowtwin.dynamics import ExtrusionParams, move_temperatures
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
 from flowtwin.physics.lag import lag_factor_s
+from flowtwin.physics.melt_history import MeltState
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
 from flowtwin.physics.viscosity import (
@@ -62,6 +63,24 @@ class MoveParameters:
         ``"eq6"`` or ``"eq8"``: which law of [000] gives the slip gradient.
     warnings
         Extrapolations and substitutions, each said once (never silent).
+    melt_temperature_c
+        Mean melt temperature at the nozzle during each move (melt model,
+        :mod:`flowtwin.physics.melt`), °C, shape ``(n,)``; ``None`` without melt model
+        (the melt is at ``temperature_c``).
+    flow_mm3_s
+        Mean flow of fresh filament of each move (``A·fresh·M221/duration``,
+        :func:`fresh_filament_mm`; 0 for travels, retractions and unretractions), mm³/s,
+        shape ``(n,)``.
+    melt_end_c
+        Melt temperature after the last move and its rest, °C.
+    melt_state
+        The melt zone's memory after the last move (carried to the next stretch of a
+        streamed file, :class:`~flowtwin.physics.melt_history.MeltState`).
+    flow_limit_mm3_s
+        The machine's maximum volumetric flow at each move's nozzle temperature
+        (:func:`flowtwin.simulation.limits.flow_flags`), mm³/s, shape ``(n,)``.
+    over_flow_limit
+        Extruding moves that ask for more than that, shape ``(n,)``.
     """
 
     params: ExtrusionParams
@@ -70,6 +89,12 @@ class MoveParameters:
     viscosity_pa_s: npt.NDArray[np.float64]
     slip_law: str
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    melt_temperature_c: npt.NDArray[np.float64] | None = None
+    flow_mm3_s: npt.NDArray[np.float64] | None = None
+    melt_end_c: float | None = None
+    melt_state: MeltState | None = None
+    flow_limit_mm3_s: npt.NDArray[np.float64] | None = None
+    over_flow_limit: npt.NDArray[np.bool_] | None = None
 
 
 def viscosity_pa_s(material: MaterialProfile, temp_c: npt.ArrayLike) -> npt.NDArray[np.float64]:
@@ -184,7 +209,8 @@ def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
 
 
 def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
-                    temperature_c: float | None = None) -> MoveParameters:
+                    temperature_c: float | None = None, melt_start: MeltState | None = None,
+                    flag_flow_limit: bool = True) -> MoveParameters:
     """Per-move parameters of the extrusion state equation for ``machine``.
 
     Parameters
@@ -195,6 +221,11 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
         The read and planned G-code.
     temperature_c
         Nozzle temperature before the G-code sets one, °C (default: the set-up's).
+    melt_start
+        The melt zone's memory before the first move (melt model; default: fully heated).
+    flag_flow_limit
+        Flag the moves above the machine's maximum volumetric flow
+        (:func:`flowtwin.simulation.limits.flow_flags`).
 
     Returns
     -------
@@ -211,6 +242,7 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
     lo, hi = mat.viscosity.t_min_c, mat.viscosity.t_max_c
     outside = (temps < lo) | (temps > hi)
     extruding = (table.moves["kind"] & MoveKind.EXTRUDE) != 0
+    flow, melt_c, melt_state = _melt_temperatures(machine, table, timeline, temps, melt_start)
     if np.any(outside & extruding):
         k = int(np.flatnonzero(outside & extruding)[0])
         warnings.append(
@@ -218,7 +250,16 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
             f"temperature outside the viscosity law's range {lo:g}–{hi:g} °C (first: line "
             f"{int(table.moves['line'][k])}, {temps[k]:.1f} °C); the law is evaluated at the "
             "nearest end of its range there (extrapolation refused)")
-    t_eval = np.clip(temps, lo, hi)
+    t_melt = temps if melt_c is None else melt_c
+    cold = (t_melt < lo) & ~outside & extruding
+    if np.any(cold):
+        k = int(np.flatnonzero(cold)[0])
+        warnings.append(
+            f"{int(np.count_nonzero(cold))} extruding moves ask for more than the hot end can "
+            f"melt: the melt reaches the nozzle below the viscosity law's range (first: line "
+            f"{int(table.moves['line'][k])}, {t_melt[k]:.1f} °C at {flow[k]:.1f} mm³/s); the "
+            f"law is evaluated at {lo:g} °C there, so their feed force is a lower bound")
+    t_eval = np.clip(t_melt, lo, hi)
     default_h = machine.setup.layer_height_mm or float(
         table.metadata.get("layer_height_mm", 0.2) or 0.2)  # type: ignore[arg-type]
     h, n_thin = _layer_heights(table, default_mm=default_h, max_mm=hot.nozzle_diameter_mm)
@@ -273,9 +314,98 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
         slip_offset=machine.drive.k_p, slip_gradient_per_n=grad,
         slip_velocity_gain_per_n=gain, slip_velocity_decay_s_per_mm=decay,
         max_feed_force_n=max_force)
+    limit = over = None
+    if flag_flow_limit:
+        from flowtwin.simulation.limits import flow_flags
+
+        flags = flow_flags(machine, flow, temps,
+                           extruding & ((table.moves["kind"] & MoveKind.XY) != 0), h)
+        limit, over = flags.limit_mm3_s, flags.over
+        if flags.count:
+            k = int(np.flatnonzero(over)[0])
+            warnings.append(
+                f"{flags.count} extruding moves ask for more than the machine's maximum "
+                f"volumetric flow (first: line {int(table.moves['line'][k])}, "
+                f"{flow[k]:.1f} > {limit[k]:.1f} mm³/s at {temps[k]:.0f} °C and "
+                f"{h[k]:.2f} mm layers; flowtwin limits tells why)")
     return MoveParameters(params=params, temperature_c=temps, layer_height_mm=h,
                           viscosity_pa_s=visc_pa_s, slip_law="eq8" if use_eq8 else "eq6",
-                          warnings=tuple(warnings))
+                          warnings=tuple(warnings), melt_temperature_c=melt_c,
+                          flow_mm3_s=flow, melt_state=melt_state,
+                          melt_end_c=None if melt_state is None else melt_state.end_c,
+                          flow_limit_mm3_s=limit,
+                          over_flow_limit=over)
+
+
+def fresh_filament_mm(de_mm: npt.NDArray[np.float64], tool: npt.NDArray[np.integer], *,
+                      retracted_mm: tuple[tuple[int, float], ...] = ()
+                      ) -> tuple[npt.NDArray[np.float64], tuple[tuple[int, float], ...]]:
+    """Filament each move feeds into its hot end for the first time, mm, shape ``(n,)``.
+
+    A retraction draws filament back out of the melt zone and the unretraction after it
+    pushes the same, already heated filament in again: only filament beyond the furthest
+    point fed so far (per tool) is cold material that the melt zone must heat. So a move
+    feeds ``max(0, C_k − max(0, H_{k−1}))`` where ``C`` is the tool's cumulative feed and
+    ``H`` its running maximum.
+
+    Parameters
+    ----------
+    de_mm
+        Filament fed by every move (after the flow factor; negative: retraction), mm.
+    tool
+        Tool of every move (each tool has its own hot end and filament).
+    retracted_mm
+        ``(tool, mm)`` below the furthest feed before the first move (a stream's carry).
+
+    Returns
+    -------
+    (fresh, retracted)
+        Fresh filament per move, mm, and the ``(tool, mm)`` below the furthest feed after
+        the last move.
+    """
+    out = np.zeros(de_mm.shape[0])
+    below = dict(retracted_mm)
+    for t in np.unique(tool):
+        rows = np.flatnonzero(tool == t)
+        c = np.cumsum(de_mm[rows]) - below.get(int(t), 0.0)
+        high = np.maximum(np.maximum.accumulate(c), 0.0)
+        before = np.concatenate(([0.0], high[:-1]))
+        out[rows] = np.maximum(c - before, 0.0)
+        below[int(t)] = float(high[-1] - c[-1])
+    return out, tuple(sorted(below.items()))
+
+
+def _melt_temperatures(machine: Machine, table: MoveTable, timeline: Timeline,
+                       temps: npt.NDArray[np.float64], start: MeltState | None
+                       ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64] | None,
+                                  MeltState | None]:
+    """Mean flow of fresh filament into the melt zone of every move and, with a melt model,
+    the melt temperature from the plug's residence history
+    (:func:`flowtwin.physics.melt_history.melt_temperature_history`)."""
+    from flowtwin.physics.melt_history import melt_temperature_history
+    from flowtwin.simulation.limits import melt_model
+
+    ph = timeline.phases
+    start_s = np.asarray(ph["t_start"], dtype=np.float64)
+    dur = np.asarray(ph["accel_t"] + ph["cruise_t"] + ph["decel_t"], dtype=np.float64)
+    m = table.moves
+    area = machine.filament.area_mm2
+    carried = start.retracted_mm if start is not None else ()
+    fresh, below = fresh_filament_mm(m["de"] * m["flow"].astype(np.float64), m["tool"],
+                                     retracted_mm=carried)
+    feeding = (fresh > 0.0) & (dur > 0.0)
+    flow = np.zeros(len(m))
+    np.divide(area * fresh, dur, out=flow, where=feeding)
+    model = melt_model(machine)
+    if model is None or len(m) == 0:
+        return flow, None, None
+    end_s = max(float(timeline.total_time_s), float(start_s[-1] + dur[-1]))
+    mean, state = melt_temperature_history(
+        flow, start_s, dur, temps, inlet_c=model.inlet_c,
+        diffusivity_mm2_s=model.diffusivity_mm2_s, heated_length_mm=model.heated_length_mm,
+        filament_radius_mm=machine.filament.diameter_mm / 2.0, state=start, end_s=end_s,
+        retracted_mm=below)
+    return flow, mean, state
 
 
 @dataclass(frozen=True, slots=True)

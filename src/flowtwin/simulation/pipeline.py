@@ -6,8 +6,9 @@ import os
 from collections.abc import Callable
 from typing import BinaryIO
 
-from flowtwin.dynamics import DEFAULT_SMOOTH_TIME_S, AdvanceSettings, Firmware, predict
+from flowtwin.dynamics import AdvanceSettings, predict, printer_advance
 from flowtwin.errors import GcodeError
+from flowtwin.firmware import Firmware
 from flowtwin.planning import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
@@ -19,10 +20,6 @@ __all__ = ["DEFAULT_MACHINE", "simulate", "simulate_plan"]
 #: The set-up used when none is given: SPEC §4's reference (roller #3 at 80 N, E3D V6 0.4,
 #: PLA 4043D 1.75 mm at 215 °C) on Tronvoll's Prusa i3 MK2.5 [001].
 DEFAULT_MACHINE = "tronvoll2019"
-
-_FIRMWARE = {"klipper": Firmware.KLIPPER, "marlin": Firmware.MARLIN,
-             "reprapfirmware": Firmware.RRF, "prusa": Firmware.PRUSA,
-             "repetier": Firmware.MARLIN}
 
 Progress = Callable[[str], None]
 
@@ -87,8 +84,7 @@ def simulate_plan(plan: PlanResult, *, machine: Machine,
     """Predict what a read and planned G-code extrudes on ``machine``.
 
     The part of :func:`simulate` after reading and planning: for a move table made in
-    memory (compensation's drafts) and planned with
-    :func:`flowtwin.planning.plan_table`.
+    memory (compensation's drafts) and planned with :func:`flowtwin.planning.plan_table`.
 
     Parameters
     ----------
@@ -118,12 +114,7 @@ def simulate_plan(plan: PlanResult, *, machine: Machine,
             advance = AdvanceSettings(Firmware.KLIPPER, k_s=ex.pressure_advance,
                                       smooth_time_s=ex.pressure_advance_smooth_time)
         else:
-            fw = _FIRMWARE[m.printer.firmware]
-            # Klipper's window (or Prusa's W); unused by Marlin's and RRF's algorithms
-            smooth = (m.printer.pa_smooth_time_s or m.printer.pressure_advance.smooth_time_s
-                      or DEFAULT_SMOOTH_TIME_S)
-            advance = AdvanceSettings(fw, k_s=m.printer.pressure_advance.k_s,
-                                      smooth_time_s=smooth)
+            advance = printer_advance(m.printer)
         label = f"{advance.firmware.value} K={advance.k_s:g} s (+ G-code commands)"
     step("integrate")
     dyn = predict(plan.table, plan.timeline, params.params, advance=advance,

@@ -113,6 +113,8 @@ class SimulationResult:
             grinding_events=int(t[sk.T_GRIND_EVENTS]),
             grinding_moves=int(t[sk.T_GRIND_MOVES]),
             ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
+            moves_over_flow_limit=(0 if self.parameters.over_flow_limit is None else
+                                   int(np.count_nonzero(self.parameters.over_flow_limit))),
             net_filament_mm=plan.net_filament_mm, warnings=tuple(self.warnings))
 
     def per_layer(self) -> list[dict[str, float | int]]:

@@ -41,18 +41,19 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.dynamics import (
-    DEFAULT_SMOOTH_TIME_S,
     AdvanceSettings,
     CommandedFeed,
-    Firmware,
     integrate,
     nominal_feed,
+    printer_advance,
     temperature_schedule,
 )
 from flowtwin.dynamics.advance import apply_advance_carry
 from flowtwin.errors import DataError, GcodeError
+from flowtwin.firmware import Firmware, PlannerFamily
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
 from flowtwin.gcode.reader import iter_move_chunks
+from flowtwin.physics.melt_history import MeltState
 from flowtwin.planner.from_profile import klipper_settings, marlin_settings, read_options
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
@@ -63,7 +64,7 @@ from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.aggregate import Aggregates
 from flowtwin.simulation.parameters import move_parameters
-from flowtwin.simulation.pipeline import _FIRMWARE, DEFAULT_MACHINE
+from flowtwin.simulation.pipeline import DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
 from flowtwin.simulation.summary import StreamSummary
 from flowtwin.simulation.windows import LEAD_MOVES, PlannedSpan, WindowPlanner, state_key
@@ -131,6 +132,7 @@ class _State:
     grinding: bool = False
     e_mm: float = 0.0
     temp_c: float = 0.0
+    melt: MeltState | None = None
     set_c: float = 0.0
     first: bool = True
     layer_z: list[float] = field(default_factory=list)
@@ -190,7 +192,7 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
         profile = m.printer
         options = read_options(profile)
         printer = profile.name
-        if profile.firmware == "klipper":
+        if profile.firmware.planner is PlannerFamily.KLIPPER:
             kps = klipper_settings(profile)
             settings = kps
             plan_fn = lambda t: plan_klipper(t, kps)  # noqa: E731
@@ -198,21 +200,18 @@ def simulate_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,
             mps = marlin_settings(profile)
             settings = mps
             plan_fn = lambda t: plan_marlin(t, mps)  # noqa: E731
-        smooth = (profile.pa_smooth_time_s or profile.pressure_advance.smooth_time_s
-                  or DEFAULT_SMOOTH_TIME_S)
-        adv = AdvanceSettings(_FIRMWARE[profile.firmware], k_s=profile.pressure_advance.k_s,
-                              smooth_time_s=smooth)
+        adv = printer_advance(profile)
     advance = adv if pressure_advance else None
     label = "off" if advance is None else (
         f"{advance.firmware.value} K={advance.k_s:g} s (+ G-code commands)")
-    smoothing = advance is not None and advance.firmware in (Firmware.KLIPPER, Firmware.PRUSA)
+    smoothing = advance is not None and advance.firmware.smooths_advance
     start = np.array([*options.start_xyz, 0.0])
     name = _source_name(source)
     wp = WindowPlanner(plan_fn, name, start, window_moves=section_moves,
                        lead_moves=min(LEAD_MOVES, section_moves // 4))
     agg = Aggregates(file=name, machine=m.name, printer=printer, advance=label,
-                     firmware="klipper" if klipper_config is not None
-                     or m.printer.firmware == "klipper" else "marlin")
+                     firmware=PlannerFamily.KLIPPER.value if klipper_config is not None
+                     else m.printer.firmware.planner.value)
     state = _State(temp_c=m.temperature_c if temperature_c is None else temperature_c)
     state.set_c = state.temp_c
     sim = _Simulator(m, advance, settings, printer, start, agg, state, smoothing,
@@ -377,7 +376,8 @@ class _Simulator:
                       dwell_s=[(d[0] - base, d[1], d[2]) for d in dwells
                                if base <= d[0] < hi or (last and d[0] >= hi)],
                       total_time_s=t_next, firmware=self.agg.firmware)
-        params = move_parameters(self.m, table, tl, temperature_c=st.temp_c)
+        params = move_parameters(self.m, table, tl, temperature_c=st.temp_c,
+                                 melt_start=st.melt)
         p_end = sec_phases[-1]
         t_last_end = float(p_end["t_start"]) + float(p_end["accel_t"] + p_end["cruise_t"]
                                                       + p_end["decel_t"])
@@ -400,6 +400,7 @@ class _Simulator:
         # ---- carry the state
         st.first = False
         st.x_mm = dyn.final_compression_mm
+        st.melt = params.melt_state
         st.grinding = dyn.final_grinding
         st.e_mm = feed.e_end_mm()
         sched = temperature_schedule(table, tl, initial_c=st.temp_c,

@@ -55,6 +55,8 @@ class SimulationSummary:
         Melt lost over travels and stops, mm³.
     narrow_beads
         Bead-laying moves whose predicted width is below the layer height.
+    moves_over_flow_limit
+        Moves whose flow exceeds what the hot end can melt.
     net_filament_mm
         Net filament written per tool (E words, before M221), mm, keyed by tool number.
     warnings
@@ -84,6 +86,7 @@ class SimulationSummary:
     grinding_moves: int
     ooze_volume_mm3: float
     narrow_beads: int
+    moves_over_flow_limit: int
     net_filament_mm: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
 
@@ -104,6 +107,7 @@ class SimulationSummary:
             "min_force_margin_n": self.min_force_margin_n,
             "grinding_events": self.grinding_events, "grinding_moves": self.grinding_moves,
             "ooze_volume_mm3": self.ooze_volume_mm3, "narrow_beads": self.narrow_beads,
+            "moves_over_flow_limit": self.moves_over_flow_limit,
             "net_filament_mm": dict(self.net_filament_mm),
             "warnings": list(self.warnings),
         }

@@ -13,12 +13,14 @@ is never silently ignored)::
     mm_per_px = 0.02            # known image scale
     # calib_width_mm = 1.75     # known filament width: k_cal = w_µ / w_detected [003 Eq. 4]
 
-    [gear]                      # optional: rotation mode (see docs/vision.md)
-    center_px = [190.25, 240.0]
+    [gear]                      # optional (see docs/vision.md)
+    mode = "auto"               # auto | rotation | tangential
+    center_px = [190.25, 240.0] # gear axis; default: estimated from the tracked motion
     radius_mm = 3.92            # effective drive radius; default: measured contact radius
 
     [filament]
     direction = "down"          # feed direction in the image: "down" or "up"
+    diameter_mm = 1.75          # nominal diameter: plausible widths (default 1.75 or 2.85)
 
     [tracking]                  # optional tuning, see TrackingParams
     max_tracks = 40
@@ -35,9 +37,12 @@ from typing import Any, Literal
 from flowtwin.errors import VisionError
 from flowtwin.vision.roi import ROI_NAMES, Roi, RoiSet, roi_from_sequence
 
-__all__ = ["Direction", "TrackingParams", "VisionConfig", "build_config", "load_config_file"]
+__all__ = ["Direction", "GearMode", "TrackingParams", "VisionConfig", "build_config",
+           "load_config_file"]
 
 Direction = Literal["down", "up"]
+GearMode = Literal["auto", "rotation", "tangential"]
+GEAR_MODES: tuple[GearMode, ...] = ("auto", "rotation", "tangential")
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,8 +90,15 @@ class TrackingParams:
         A time step longer than ``gap_factor`` × the median step means dropped frames.
     smooth_sigma_s
         Gaussian window of the smoothed columns [003 Eq. 5], s.
-    min_gear_speed_mm_s
-        Slip is undefined (flagged) while the gear turns slower than this, mm/s.
+    min_gear_speed_mm_s, min_filament_speed_mm_s
+        Speed floors, mm/s: a step slower than this is flagged GEAR_STOPPED /
+        FILAMENT_STOPPED, and slip is defined only where both speeds are above their
+        floors (per step, and for the whole run on the mean speeds).
+    axis_frames
+        Frames looked at to estimate the gear axis from the motion (when it is not given).
+    min_valid_fraction
+        A quantity valid in fewer than this fraction of the steps (frames, for the
+        width) raises a warning (and ``--strict`` fails).
     """
 
     max_tracks: int = 30
@@ -106,7 +118,10 @@ class TrackingParams:
     blank_std_dn: float = 4.0
     gap_factor: float = 1.5
     smooth_sigma_s: float = 0.2
-    min_gear_speed_mm_s: float = 0.02
+    min_gear_speed_mm_s: float = 0.05
+    min_filament_speed_mm_s: float = 0.05
+    axis_frames: int = 60
+    min_valid_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         for name, (lo, hi) in _TRACKING_BOUNDS.items():
@@ -134,6 +149,8 @@ _TRACKING_BOUNDS: dict[str, tuple[float, float]] = {
     "width_sigma_px": (0.3, 20.0),
     "min_edge_dn_px": (0.1, 255.0), "blank_std_dn": (0.0, 255.0), "gap_factor": (1.05, 100.0),
     "smooth_sigma_s": (1e-4, 600.0), "min_gear_speed_mm_s": (0.0, 1000.0),
+    "min_filament_speed_mm_s": (0.0, 1000.0), "axis_frames": (2, 10000),
+    "min_valid_fraction": (0.0, 1.0),
 }
 _DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(TrackingParams)}
 
@@ -152,13 +169,21 @@ class VisionConfig:
         Known filament width for ``k_cal = w_µ/w_detected`` [003 Eq. 4], mm.
     gear_center_px
         Gear axis in the image ``(x, y)``, px. Given: gear speed from the rotation
-        ``ω·R`` [003 Eq. 3]. ``None``: tangential mode, mean motion along the filament
-        axis in the gear ROI (the [003] method; biased, see docs/vision.md).
+        ``ω·R`` [003 Eq. 3]. ``None``: estimated from the tracked motion
+        (:mod:`flowtwin.vision.axis`) unless ``gear_method`` is ``"tangential"``.
     gear_radius_mm
         Effective drive radius ``R``, mm; ``None`` in rotation mode uses the distance from
         the gear axis to the nearer filament edge measured in the ``before`` ROI.
+    gear_method
+        ``"auto"``: rotation about the given axis, else about the axis estimated from
+        the motion when the motion is a rotation, else tangential (the [003] method: mean
+        motion along the filament in the gear ROI; biased, see docs/vision.md).
+        ``"rotation"``: as auto, but an error if no axis can be found. ``"tangential"``.
     direction
         Feed direction of the filament in the image.
+    diameter_mm
+        Nominal filament diameter, mm: widths outside ±5 % of it are not taken for the
+        filament. ``None``: within ±8 % of 1.75 or 2.85 mm.
     tracking
         Tuning parameters.
     source
@@ -173,6 +198,8 @@ class VisionConfig:
     direction: Direction = "down"
     tracking: TrackingParams = field(default_factory=TrackingParams)
     source: str | None = None
+    gear_method: GearMode = "auto"
+    diameter_mm: float | None = None
 
     def __post_init__(self) -> None:
         if self.mm_per_px is not None and self.calib_width_mm is not None:
@@ -183,25 +210,34 @@ class VisionConfig:
         _check_positive(self.mm_per_px, "scale.mm_per_px", self.source, 1e-5, 100.0)
         _check_positive(self.calib_width_mm, "scale.calib_width_mm", self.source, 0.01, 100.0)
         _check_positive(self.gear_radius_mm, "gear.radius_mm", self.source, 0.1, 500.0)
+        _check_positive(self.diameter_mm, "filament.diameter_mm", self.source, 0.1, 20.0)
+        if self.gear_method not in GEAR_MODES:
+            raise VisionError("unknown gear mode", source=self.source, field="gear.mode",
+                              value=self.gear_method, allowed=", ".join(GEAR_MODES))
+        if self.gear_method == "tangential" and self.gear_center_px is not None:
+            raise VisionError("tangential gear mode does not use the gear centre",
+                              source=self.source, field="gear.mode",
+                              value=self.gear_method,
+                              allowed="mode auto or rotation with a centre, or no centre")
         if self.gear_center_px is not None:
             cx, cy = self.gear_center_px
             if not (math.isfinite(cx) and math.isfinite(cy)):
                 raise VisionError("gear centre must be finite", source=self.source,
                                   field="gear.center_px", value=self.gear_center_px,
                                   allowed="finite x, y in px")
-        if self.gear_radius_mm is not None and self.gear_center_px is None:
-            raise VisionError("gear radius given without the gear centre", source=self.source,
+        if self.gear_radius_mm is not None and self.gear_method == "tangential":
+            raise VisionError("gear radius given in tangential mode", source=self.source,
                               field="gear.radius_mm", value=self.gear_radius_mm,
-                              allowed="also give gear.center_px (--gear-center x,y)")
+                              allowed="gear mode auto or rotation")
         if self.direction not in ("down", "up"):
             raise VisionError("unknown filament direction", source=self.source,
                               field="filament.direction", value=self.direction,
                               allowed="down, up")
 
     @property
-    def gear_mode(self) -> Literal["rotation", "tangential"]:
-        """``"rotation"`` when the gear centre is known, else ``"tangential"``."""
-        return "rotation" if self.gear_center_px is not None else "tangential"
+    def gear_mode(self) -> GearMode:
+        """``"rotation"`` when the gear centre is given, else ``gear_method``."""
+        return "rotation" if self.gear_center_px is not None else self.gear_method
 
 
 def _check_positive(value: float | None, name: str, source: str | None, lo: float,
@@ -217,8 +253,8 @@ def _check_positive(value: float | None, name: str, source: str | None, lo: floa
 _TABLES: dict[str, tuple[str, ...]] = {
     "roi": ROI_NAMES,
     "scale": ("mm_per_px", "calib_width_mm"),
-    "gear": ("center_px", "radius_mm"),
-    "filament": ("direction",),
+    "gear": ("mode", "center_px", "radius_mm"),
+    "filament": ("direction", "diameter_mm"),
     "tracking": tuple(_DEFAULTS),
 }
 
@@ -242,8 +278,8 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
     -------
     dict
         Keys ``rois`` (``{name: Roi}``), ``mm_per_px``, ``calib_width_mm``,
-        ``gear_center_px``, ``gear_radius_mm``, ``direction``, ``tracking`` (dict), only
-        those present in the file.
+        ``gear_center_px``, ``gear_radius_mm``, ``gear_method``, ``direction``,
+        ``diameter_mm``, ``tracking`` (dict), only those present in the file.
 
     Raises
     ------
@@ -292,8 +328,13 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
                                  _number(c[1], "gear.center_px", src))
     if "radius_mm" in gear:
         out["gear_radius_mm"] = _number(gear["radius_mm"], "gear.radius_mm", src)
+    if "mode" in gear:
+        out["gear_method"] = gear["mode"]
     if "direction" in data.get("filament", {}):
         out["direction"] = data["filament"]["direction"]
+    if "diameter_mm" in data.get("filament", {}):
+        out["diameter_mm"] = _number(data["filament"]["diameter_mm"], "filament.diameter_mm",
+                                     src)
     if "tracking" in data:
         out["tracking"] = dict(data["tracking"])
     out["source"] = src
@@ -307,7 +348,9 @@ def build_config(*, config_path: str | Path | None = None,
                  gear_center_px: tuple[float, float] | None = None,
                  gear_radius_mm: float | None = None,
                  direction: Direction | None = None,
-                 tracking: dict[str, Any] | None = None) -> VisionConfig:
+                 tracking: dict[str, Any] | None = None,
+                 gear_method: GearMode | None = None,
+                 diameter_mm: float | None = None) -> VisionConfig:
     """Merge a TOML file and explicit options (explicit options win) into a config.
 
     Parameters
@@ -324,6 +367,8 @@ def build_config(*, config_path: str | Path | None = None,
         Feed direction given explicitly.
     tracking
         Tracking parameters given explicitly, merged over the file's ``[tracking]``.
+    gear_method, diameter_mm
+        Gear mode and nominal filament diameter (mm) given explicitly.
 
     Returns
     -------
@@ -363,5 +408,8 @@ def build_config(*, config_path: str | Path | None = None,
         gear_radius_mm=gear_radius_mm if gear_radius_mm is not None
         else base.get("gear_radius_mm"),
         direction=direction if direction is not None else base.get("direction", "down"),
-        tracking=params, source=source)
+        tracking=params, source=source,
+        gear_method=gear_method if gear_method is not None
+        else base.get("gear_method", "auto"),
+        diameter_mm=diameter_mm if diameter_mm is not None else base.get("diameter_mm"))
 

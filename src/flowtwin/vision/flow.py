@@ -62,7 +62,8 @@ def surface_speed_mm_s(omega_rad_s: npt.ArrayLike, radius_mm: float) -> FloatArr
 
 
 def slip_fraction(gear_speed_mm_s: npt.ArrayLike, filament_speed_mm_s: npt.ArrayLike, *,
-                  min_gear_speed_mm_s: float = 0.0) -> FloatArray:
+                  min_gear_speed_mm_s: float = 0.0, min_filament_speed_mm_s: float = 0.0
+                  ) -> FloatArray:
     """Slip ``s = (ω·r − v_fil)/(ω·r)`` [000 Eq. 1], as a fraction.
 
     Parameters
@@ -71,17 +72,19 @@ def slip_fraction(gear_speed_mm_s: npt.ArrayLike, filament_speed_mm_s: npt.Array
         Gear surface speed ``ω·r``, mm/s.
     filament_speed_mm_s
         Filament transport speed, mm/s.
-    min_gear_speed_mm_s
-        Where ``|ω·r|`` is below this the slip is undefined and NaN is returned.
+    min_gear_speed_mm_s, min_filament_speed_mm_s
+        Where ``|ω·r|`` is not above its floor, or ``|v_fil|`` is below its floor, the
+        slip is undefined and NaN is returned (a ratio of noise readings is no slip).
 
     Returns
     -------
     numpy.ndarray
-        Slip (0 = no slip, 1 = filament stands still), NaN where undefined.
+        Slip (0 = no slip), NaN where undefined.
     """
     g = np.asarray(gear_speed_mm_s, dtype=np.float64)
     f = np.asarray(filament_speed_mm_s, dtype=np.float64)
-    ok = np.abs(g) > max(min_gear_speed_mm_s, 0.0)
+    ok = (np.abs(g) > max(min_gear_speed_mm_s, 0.0)) & ~(
+        np.abs(f) < min_filament_speed_mm_s)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(ok, (g - f) / np.where(ok, g, 1.0), np.nan)
 

@@ -21,7 +21,8 @@ import numpy.typing as npt
 
 from flowtwin.atomic import atomic_open, atomic_write_bytes
 
-__all__ = ["FILAMENT_INVALID", "GEAR_INVALID", "WIDTH_INVALIDATING", "Quality",
+__all__ = ["FILAMENT_INVALID", "GEAR_INVALID", "MIN_SLIP_STEPS", "WIDTH_INVALIDATING",
+           "Quality",
            "VisionResult", "VisionSeries", "VisionSummary", "write_csv", "write_parquet"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -37,6 +38,8 @@ class Quality(IntFlag):
     aligned windows match no better than noise would, or the tracks scatter by more than
     0.5 px rms (they follow noise, not the surface). ``*_TRACKING`` means the tracks
     were too few or disagreed for another reason. Either way the value is NaN.
+    ``*_STOPPED`` keeps the (tiny) measured speed but makes the slip undefined: slip
+    needs both speeds above their floors.
     """
 
     FIRST = 1                   #: first frame: nothing to compare with, no speeds
@@ -47,15 +50,20 @@ class Quality(IntFlag):
     GEAR_TRACKING = 32          #: gear tracks too few or disagreeing
     FILAMENT_LOW_TEXTURE = 64   #: no trackable texture in the after ROI (see below)
     FILAMENT_TRACKING = 128     #: filament tracks too few or disagreeing
-    WIDTH_INVALID = 256         #: filament edges not found in the before ROI
-    GEAR_STOPPED = 512          #: gear (nearly) still: slip undefined
+    WIDTH_INVALID = 256         #: no plausible filament width in the before ROI (refused)
+    GEAR_STOPPED = 512          #: gear slower than its floor: slip undefined
     GEAR_STALE = 1024           #: gear ROI repeats old pixels (damaged frame), or follows
     FILAMENT_STALE = 2048       #: after ROI repeats old pixels (damaged frame), or follows
+    WIDTH_AMBIGUOUS = 4096      #: refused because several edge pairs compete (with INVALID)
+    FILAMENT_STOPPED = 8192     #: filament slower than its floor: slip undefined
 
     def names(self) -> str:
         """``"GAP|WIDTH_INVALID"`` style text (empty when no flag is set)."""
         return "|".join(f.name for f in Quality if f in self and f.name)
 
+
+#: Fewest steps with both speeds valid and above their floors for a run's slip.
+MIN_SLIP_STEPS = 2
 
 #: Flags that make the gear speed invalid.
 GEAR_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK | Quality.GEAR_LOW_TEXTURE
@@ -65,7 +73,8 @@ FILAMENT_INVALID = (Quality.FIRST | Quality.DUPLICATE | Quality.BLANK
                     | Quality.FILAMENT_LOW_TEXTURE | Quality.FILAMENT_TRACKING
                     | Quality.FILAMENT_STALE)
 #: Flags that make the width invalid.
-WIDTH_INVALIDATING = Quality.DUPLICATE | Quality.BLANK | Quality.WIDTH_INVALID
+WIDTH_INVALIDATING = (Quality.DUPLICATE | Quality.BLANK | Quality.WIDTH_INVALID
+                      | Quality.WIDTH_AMBIGUOUS)
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,11 +156,22 @@ class VisionSummary:
     gear_speed_mm_s, filament_speed_mm_s
         Mean speeds over their valid steps: travelled distance / time, mm/s.
     slip
-        ``1 − L_filament/L_gear`` over the steps where both speeds are valid and the gear
-        turns, distances counted along the gear's direction (retractions add up, they do
-        not cancel) [000 Eq. 1], fraction.
+        ``1 − L_filament/L_gear`` over the steps where both speeds are valid and above
+        their floors, distances counted along the gear's direction (retractions add up,
+        they do not cancel) [000 Eq. 1], fraction. NaN (``null`` in JSON) when undefined:
+        fewer than :data:`MIN_SLIP_STEPS` such steps, or a mean speed below its floor;
+        ``slip_note`` says why.
     slip_pct
         The same in %.
+    slip_steps
+        Steps the slip was computed from.
+    slip_note
+        Why the slip is undefined (None when it is defined).
+    gear_state, filament_state
+        ``"moving"`` (mean speed above its floor), ``"still"`` or ``"unknown"`` (no valid
+        step).
+    gear_speed_floor_mm_s, filament_speed_floor_mm_s
+        The floors, mm/s.
     width_mm, width_std_mm
         Mean and standard deviation of the valid widths, mm.
     volume_flow_mm3_s
@@ -168,6 +188,8 @@ class VisionSummary:
         Rows flagged GAP, DUPLICATE, BLANK.
     gear_low_texture_frames, filament_low_texture_frames
         Rows flagged for missing texture.
+    width_ambiguous_frames
+        Rows whose width was refused because several edge pairs competed.
     frames_expected
         Frames the container declares (None if unknown).
     truncated
@@ -186,6 +208,15 @@ class VisionSummary:
         Drive radius used in rotation mode, mm (None in tangential mode).
     gear_radius_source
         ``"config"`` or ``"measured contact radius"``.
+    gear_axis_px
+        Gear axis used, ``[x, y]`` px (None in tangential mode).
+    gear_axis_source
+        ``"config"`` or ``"estimated from the motion"`` (None in tangential mode).
+    gear_axis_note
+        What the axis estimate found (None when the axis was given or not looked for).
+    warnings
+        Problems a user must see: few valid steps of a quantity, tangential mode on a
+        turning gear, an unplausible set-up (empty when all is well).
     source, source_kind, timestamp_source
         What was read and where its times came from.
     opencv_version
@@ -212,6 +243,7 @@ class VisionSummary:
     blank_frames: int
     gear_low_texture_frames: int
     filament_low_texture_frames: int
+    width_ambiguous_frames: int
     frames_expected: int | None
     truncated: bool
     duration_s: float
@@ -221,6 +253,16 @@ class VisionSummary:
     gear_mode: str
     gear_radius_mm: float | None
     gear_radius_source: str | None
+    gear_axis_px: tuple[float, float] | None
+    gear_axis_source: str | None
+    gear_axis_note: str | None
+    slip_steps: int
+    slip_note: str | None
+    gear_state: str
+    filament_state: str
+    gear_speed_floor_mm_s: float
+    filament_speed_floor_mm_s: float
+    warnings: tuple[str, ...]
     source: str
     source_kind: str
     timestamp_source: str
@@ -233,6 +275,8 @@ class VisionSummary:
         for key, value in asdict(self).items():
             if isinstance(value, float) and not math.isfinite(value):
                 value = None
+            elif isinstance(value, tuple):
+                value = list(value)
             out[key] = value
         return out
 

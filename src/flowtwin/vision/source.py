@@ -26,18 +26,25 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import VisionError
+from flowtwin.vision.loader import IMAGE_SUFFIXES, open_video, read_grey_image, to_grey_u8
 
-__all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_source", "read_timestamps_file"]
+__all__ = ["IMAGE_SUFFIXES", "INTER_FRAME_CODECS", "Frame", "FrameSource", "open_source",
+           "read_timestamps_file"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 TIMESTAMPS_NAME = "timestamps.txt"
+#: FOURCCs of codecs that predict frames from earlier ones (MPEG-4 part 2, H.264/5, VP8/9,
+#: AV1, MPEG-1/2): they copy unchanged blocks, so a still region repeats its pixels
+#: exactly and repeated rows are no sign of a damaged frame.
+INTER_FRAME_CODECS = frozenset({
+    "FMP4", "XVID", "DIVX", "DX50", "MP4V", "MP42", "MP43", "H264", "AVC1", "X264", "DAVC",
+    "HEVC", "H265", "HVC1", "HEV1", "VP80", "VP90", "AV01", "MPG1", "MPG2", "PIM1", "WMV3",
+    "WVC1", "THEO"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,25 +113,6 @@ def read_timestamps_file(path: str | Path) -> npt.NDArray[np.float64]:
     return np.asarray(out, dtype=np.float64)
 
 
-def _to_gray(image: Any, *, source: str) -> npt.NDArray[np.uint8]:
-    if image.dtype != np.uint8:
-        if image.dtype == np.uint16:
-            image = (np.asarray(image, dtype=np.uint16) >> 8).astype(np.uint8)
-        else:
-            raise VisionError("unsupported pixel type", source=source, value=str(image.dtype),
-                              allowed="8-bit or 16-bit images")
-    if image.ndim == 2:
-        return np.asarray(image, dtype=np.uint8)
-    if image.ndim == 3 and image.shape[2] == 3:
-        return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
-    if image.ndim == 3 and image.shape[2] == 4:
-        return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY), dtype=np.uint8)
-    if image.ndim == 3 and image.shape[2] == 1:
-        return np.ascontiguousarray(image[:, :, 0])
-    raise VisionError("unsupported image layout", source=source, value=image.shape,
-                      allowed="grey, BGR or BGRA images")
-
-
 def _natural_key(path: Path) -> list[object]:
     return [int(tok) if tok.isdigit() else tok.lower() for tok in re.split(r"(\d+)", path.name)]
 
@@ -146,6 +134,8 @@ class FrameSource:
         Frame count the container declares, or ``None``.
     timestamp_source
         Where the capture times come from.
+    codec
+        FOURCC of a video's codec, upper case (``None`` for images and cameras).
     frames_read
         Frames delivered so far.
     """
@@ -161,6 +151,7 @@ class FrameSource:
         self.timestamp_source = timestamp_source
         self.max_frames = max_frames
         self.frames_read = 0
+        self.codec: str | None = None
         self._first: npt.NDArray[np.uint8] | None = first
 
     def _check_size(self, image: npt.NDArray[np.uint8], where: str) -> None:
@@ -193,7 +184,7 @@ class _VideoSource(FrameSource):
             raise VisionError("no frame could be decoded (corrupt, empty or not a video)",
                               source=description,
                               allowed="a video OpenCV/FFmpeg can decode (AVI, MKV, MP4, ...)")
-        gray = _to_gray(image, source=description)
+        gray = to_grey_u8(image, source=description)
         fps = float(cap.get(cv2.CAP_PROP_FPS))
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if kind == "video" else 0
         self._timestamps = timestamps
@@ -215,6 +206,9 @@ class _VideoSource(FrameSource):
                          nominal_fps=fps if math.isfinite(fps) and fps > 0 else None,
                          frames_expected=count if count > 0 else None,
                          timestamp_source=ts_source, max_frames=max_frames)
+        code = int(cap.get(cv2.CAP_PROP_FOURCC)) if kind == "video" else 0
+        if code > 0:
+            self.codec = "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)).upper()
 
     def _time(self, index: int, pos_ms: float) -> float:
         if self._timestamps is not None:
@@ -239,7 +233,7 @@ class _VideoSource(FrameSource):
             if not ok or image is None:
                 break
             pos_ms = float(self._cap.get(cv2.CAP_PROP_POS_MSEC))
-            gray = _to_gray(image, source=self.description)
+            gray = to_grey_u8(image, source=f"{self.description} frame {index}")
             self._check_size(gray, f"{self.description} frame {index}")
             self.frames_read = index + 1
             yield Frame(index, self._time(index, pos_ms), gray)
@@ -286,11 +280,7 @@ class _ImageFolderSource(FrameSource):
 
     @staticmethod
     def _read(path: Path) -> npt.NDArray[np.uint8]:
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is None:
-            raise VisionError("not a readable image", source=str(path),
-                              allowed="PNG, JPEG, BMP, TIFF or PNM images")
-        return _to_gray(image, source=str(path))
+        return read_grey_image(path)
 
     def __iter__(self) -> Iterator[Frame]:
         if self._first is None:
@@ -357,16 +347,10 @@ def open_source(source: str | Path | int, *, timestamps: str | Path | None = Non
                           allowed="a video file, an image folder or a camera index")
     if path.is_dir():
         return _ImageFolderSource(path, timestamps=ts_path, max_frames=max_frames)
-    if path.stat().st_size == 0:
-        raise VisionError("the video file is empty", source=str(path))
     sidecar = path.with_name(path.name + ".timestamps.txt")
     if ts_path is None and sidecar.is_file():
         ts_path = sidecar
-    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
-    if not cap.isOpened():
-        raise VisionError("cannot open the video (not a video file, or a codec FFmpeg "
-                          "does not know)", source=str(path),
-                          allowed="a video OpenCV/FFmpeg can decode (AVI, MKV, MP4, ...)")
+    cap = open_video(path)
     times = None if ts_path is None else read_timestamps_file(ts_path)
     return _VideoSource(cap, description=str(path), kind="video", timestamps=times,
                         ts_name=None if ts_path is None else str(ts_path),

@@ -65,6 +65,11 @@ _MATCH_RATIO = 0.6
 #: Spread of agreeing-looking tracks (rms, px) above which a failed step is put down to
 #: missing texture rather than to a tracking problem (textured steps scatter ~0.05 px).
 _NOISE_SPREAD_PX = 0.5
+#: A ROI whose last valid step moved less than this is still, px: repeated pixels then
+#: mean "nothing changed" (a compressing codec copies still blocks), not a damaged frame.
+_STILL_PX = 0.1
+#: This many stale frames in a row mean a still region, not damaged frames.
+_STALE_RUN_STILL = 3
 #: Seed of the sub-pixel jitter of new features (results are reproducible).
 _JITTER_SEED = 20170101
 
@@ -132,16 +137,22 @@ class RoiTracker:
     inset_px
         Features are detected at least this far inside the ROI's left and right sides
         (keeps LK windows off the filament edges), px.
+    check_stale
+        Treat rows that repeat the previous frame's pixels as a damaged frame
+        (:func:`~.features.is_stale`). Off for inter-frame codecs, which copy still
+        blocks.
     """
 
     def __init__(self, roi: Roi, frame_size: tuple[int, int], params: TrackingParams, *,
                  mode: TrackMode = "translation", axis: tuple[float, float] = (0.0, 1.0),
-                 center_px: tuple[float, float] | None = None, inset_px: int = 0) -> None:
+                 center_px: tuple[float, float] | None = None, inset_px: int = 0,
+                 check_stale: bool = True) -> None:
         if mode == "rotation" and center_px is None:
             raise ValueError("rotation mode needs center_px")
         self.roi = roi
         self.params = params
         self.mode = mode
+        self.check_stale = check_stale
         self.axis = np.asarray(axis, dtype=np.float64) / math.hypot(*axis)
         w, h = frame_size
         x0, y0, x1, y1 = roi.padded(params.pad_px, w, h)
@@ -153,6 +164,11 @@ class RoiTracker:
             elif abs(self.axis[1]) < 1e-9:
                 y0, y1 = roi.y, roi.y1
         self.x0, self.y0, self.x1, self.y1 = x0, y0, x1, y1
+        self._origin = np.array([x0, y0], dtype=np.float64)
+        #: Positions (frame px, shape ``(N, 2)``) of the tracks of the last step and which
+        #: of them were kept (passed every check and agreed); for drawing.
+        self.last_points = np.zeros((0, 2))
+        self.last_kept = np.zeros(0, dtype=bool)
         self.center = None if center_px is None else np.array(
             [center_px[0] - self.x0, center_px[1] - self.y0], dtype=np.float64)
         # ROI inside the crop
@@ -190,6 +206,8 @@ class RoiTracker:
         self._low_texture = False
         self._last_value = 0.0
         self._last_valid = False
+        self._last_step_px = math.inf
+        self._stale_run = 0
         self._last_dt: float | None = None
         self._prev_small: F32 | None = None
         self._prev_crop: U8 | None = None
@@ -259,9 +277,17 @@ class RoiTracker:
             ``None`` for the first frame (nothing to compare with).
         """
         crop = self._crop(gray)
-        if self._prev_crop is not None and is_stale(crop, self._prev_crop):
-            # a repeated image region (decoder concealment, driver repeat) holds no
-            # information about this instant: skip it and let the next step span it
+        still = ((self._last_valid and self._last_step_px <= _STILL_PX)
+                 or self._stale_run >= _STALE_RUN_STILL)
+        stale = (self.check_stale and self._prev_crop is not None
+                 and is_stale(crop, self._prev_crop))
+        self._stale_run = self._stale_run + 1 if stale else 0
+        if stale and not still:
+            # a repeated image region (decoder concealment, driver repeat) of a moving
+            # surface holds no information about this instant: skip it and let the next
+            # step span it. On a still surface (last step below _STILL_PX, or repeats in
+            # _STALE_RUN_STILL frames running: concealment is sporadic) it is what a
+            # compressing codec does with still blocks, and it is tracked as usual.
             if dt_s is not None:
                 self._pending_s += dt_s
             self._damaged = True
@@ -394,6 +420,9 @@ class RoiTracker:
                   & (b[:, 1] < self._ry1))
         self._cur_pts[idx] = b
         self._alive[idx] = good & in_roi
+        # for drawing (inspect): where the tracks went, and which passed the checks
+        self.last_points = b + self._origin
+        self.last_kept = good.copy()
         n_cand = int(values.size)
         self._last_valid = False
         if n_cand < p.min_tracks:
@@ -408,6 +437,7 @@ class RoiTracker:
         if valid:
             self._last_value = mean
             self._last_valid = True
+            self._last_step_px = abs(mean) * float(np.median(lever[inl]))
             self._total += mean
         if not valid and spread > _NOISE_SPREAD_PX:
             # tracks that passed every check yet scatter by this much follow noise
@@ -417,5 +447,6 @@ class RoiTracker:
         # outliers of this step do not continue
         keep = np.zeros(len(idx), dtype=bool)
         keep[np.flatnonzero(good)[inl]] = True
+        self.last_kept = keep.copy()
         self._alive[idx] &= keep
         return StepEstimate(mean if valid else math.nan, n_in, n_cand, spread, se, False, valid)

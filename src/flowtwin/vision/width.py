@@ -1,19 +1,49 @@
-"""Filament width from the extrema of the first derivative across it [003 §2.2].
+"""Filament width from its two outer edges, with a plausibility model [003 §2.2].
 
-Each row of the ``before`` ROI is smoothed across the filament with a Gaussian and
-differentiated; the filament's two edges are the largest rising and falling slopes (which
-is which depends on whether the filament is brighter or darker than the background),
-located to sub-pixel precision by a parabola through the extremum and its neighbours.
-Rows whose edge slope is weak or whose width disagrees with the others are dropped; a
-straight line through the centre points gives the tilt of the filament, and the width
-is corrected to the perpendicular width ``w·cos(tilt)``. The image scale follows from a
-known width, ``k_cal = w_µ / w_detected`` [003 Eq. 4].
+[003 §2.2] finds the width from "the maximum and minimum of the first derivative across
+the filament ROI, in the expected filament edge area". A real ROI also holds other edges
+(the idler bearing's dark rim, the gear, teeth marks and specular highlights on the
+filament), and the strongest rise and fall of the derivative need not be the filament's.
+Here the two edges must form a *plausible filament*:
+
+1. **Candidates.** Each row is smoothed across the filament (Gaussian, ``sigma_px``) and
+   differentiated. The rows are grouped in horizontal bands (at most
+   :data:`_MAX_BANDS`, at least :data:`_BAND_ROWS` rows each); in each band's mean
+   derivative every local extremum stronger than ``min_edge_dn_px`` is a candidate edge.
+2. **Pairs.** A rising edge followed by a falling one is a bright filament on a darker
+   background, a falling then rising edge a dark one. A pair is plausible when
+   (a) its separation lies in one of the ``expected_px`` ranges (the nominal diameter
+   over the scale, when known), (b) the background outside each edge is resolved
+   (:data:`_EDGE_CLEAR` · ``sigma`` px inside the ROI), and (c) nothing between the two
+   edges comes back to the background level: the darkest interior point (bright
+   filament) stays at least half the weaker edge's step above the brighter outside
+   level. (c) separates one object from two (filament and bearing, gear and filament).
+3. **Outer edges.** Highlights and teeth marks give pairs *inside* the filament; a pair
+   nested in another plausible pair is dropped. One outer pair left: that band's
+   filament. Several (not nested in each other): the band is **ambiguous** — unless no
+   nominal width is known (the scale is being calibrated) and one pair is at least
+   :data:`_DOMINANCE` times wider than all others.
+4. **Consistency along the rows.** Bands must agree on polarity, width (within
+   :data:`_BAND_TOL_PX` px or 3 %) and on a straight centre line; every row is then
+   refined near its band's edges (parabola through the derivative extremum for sub-pixel
+   position), a straight line is fitted to each edge along the rows, and rows off those
+   lines (a tooth mark, a speck) are dropped.
+5. **Refusal.** The measurement is refused — ``ok`` false, NaN width and a ``status`` —
+   when no band has a plausible pair (``no_edges``), when ambiguous or disagreeing bands
+   outnumber a quarter of the bands with edges or leave fewer agreeing bands than
+   half of all bands (``ambiguous``), or when fewer than ``min_rows_frac`` of the rows keep
+   both edges (``few_rows``). A refused frame is flagged, never given a number.
+
+The width is the mean of the row widths times ``cos(tilt)`` (tilt of the centre line):
+the perpendicular width. The image scale follows from a known width,
+``k_cal = w_µ / w_detected`` [003 Eq. 4].
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -21,14 +51,52 @@ import numpy.typing as npt
 
 from flowtwin.errors import VisionError
 
-__all__ = ["EdgeMeasurement", "calibration_factor", "measure_width_px"]
+__all__ = ["STANDARD_DIAMETERS_MM", "EdgeMeasurement", "calibration_factor",
+           "expected_width_px", "measure_width_px"]
 
-#: A row's width is an outlier (a texture blotch taken for an edge) only if it is this
-#: far from the median row, px; real width changes within a ROI are smaller.
-_ROW_OUTLIER_PX = 2.0
+F64 = npt.NDArray[np.float64]
+
+#: Filament diameters on the market, mm (used when no nominal diameter is given).
+STANDARD_DIAMETERS_MM = (1.75, 2.85)
+#: Half-width of the plausible range around a given nominal diameter, fraction: the
+#: filament's own tolerance (±0.05 mm on 1.75 mm is ±3 %) plus the scale's uncertainty.
+DIAMETER_TOLERANCE = 0.05
+#: Half-width around the standard diameters when none is given (2.85 mm filament is sold
+#: as "3 mm"; 3.0 mm lies within 2.85 mm + 8 %).
+STANDARD_TOLERANCE = 0.08
+#: Largest number of row bands, and fewest rows in one band.
+_MAX_BANDS = 6
+_BAND_ROWS = 12
+#: Strongest candidates kept per sign and band.
+_CANDIDATES = 5
+#: Background must be resolved this many smoothing sigmas (and at least 3 px) outside an
+#: edge inside the ROI.
+_EDGE_CLEAR = 3.0
+#: Interior test: the interior's extreme must stay this fraction of the weaker step
+#: away from the outside level.
+_INTERIOR_FRACTION = 0.5
+#: The weaker edge of a pair must have at least this fraction of the stronger one's slope
+#: (a shading gradient is no match for a silhouette edge).
+_STRENGTH_RATIO = 0.25
+#: Without a nominal width, a band's widest plausible pair is taken when it is at least
+#: this many times wider than the next one (a glint or a gap beside the filament).
+_DOMINANCE = 2.0
+#: Bands agree when their widths, and their centres about a straight line, differ by at
+#: most this many px or this fraction of the width, whichever is larger.
+_BAND_TOL_PX = 3.0
+_BAND_TOL_FRACTION = 0.03
+#: Rows farther than this from an edge's straight line are dropped (or 3 robust sigma).
+_ROW_LINE_TOL_PX = 1.0
+#: The two edge lines may drift apart over the ROI's height by at most this many px plus
+#: this fraction of the height (real edges wiggle by a px or so; a gear's round outline
+#: taken for an edge drifts much more).
+_PARALLEL_TOL_PX = 2.5
+_PARALLEL_TOL_FRACTION = 0.02
+#: A row's edge must be at least this fraction of its band's edge strength.
+_ROW_STRENGTH_FRACTION = 0.3
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class EdgeMeasurement:
     """Result of one width measurement in one image crop.
 
@@ -37,7 +105,7 @@ class EdgeMeasurement:
     width_px
         Perpendicular filament width, px (NaN if not ``ok``).
     left_px, right_px
-        Mean edge columns in crop coordinates, px.
+        Mean edge columns in crop coordinates, px (NaN if not ``ok``).
     tilt_rad
         Angle of the filament axis from the image vertical, rad.
     edge_dn_px
@@ -48,6 +116,18 @@ class EdgeMeasurement:
         The measurement is usable.
     reason
         Why not, if not ``ok``.
+    status
+        ``"ok"``, ``"no_edges"`` (no plausible pair of edges), ``"ambiguous"``
+        (competing plausible pairs, or rows that disagree) or ``"few_rows"``.
+    row_spread_px
+        Standard deviation of the used rows' widths, px (NaN if not ``ok``).
+    row_left_px, row_right_px
+        Edge column of every row, crop coordinates (NaN where none), shape ``(H,)``.
+    row_used
+        Rows that contributed, shape ``(H,)``.
+    rejected
+        Plausible-looking pairs that were not taken, ``(y0, y1, left, right, why)`` in
+        crop coordinates (for drawing).
     """
 
     width_px: float
@@ -58,24 +138,147 @@ class EdgeMeasurement:
     rows_used: int
     ok: bool
     reason: str = ""
+    status: str = "ok"
+    row_spread_px: float = math.nan
+    row_left_px: F64 = field(default_factory=lambda: np.zeros(0))
+    row_right_px: F64 = field(default_factory=lambda: np.zeros(0))
+    row_used: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
+    rejected: tuple[tuple[int, int, float, float, str], ...] = ()
 
 
-def _parabola_peak(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> npt.NDArray[np.float64]:
-    """Sub-pixel position of the extremum at index ``k`` of each row of ``d``."""
+def expected_width_px(mm_per_px: float | None, diameter_mm: float | None = None, *,
+                      tolerance: float | None = None
+                      ) -> tuple[tuple[float, float], ...] | None:
+    """Plausible filament widths in px from the nominal diameter and the scale.
+
+    Parameters
+    ----------
+    mm_per_px
+        Image scale, mm/px; ``None`` (scale still to be calibrated): no range.
+    diameter_mm
+        Nominal filament diameter, mm; ``None``: any of :data:`STANDARD_DIAMETERS_MM`.
+    tolerance
+        Half-width of each range as a fraction of the diameter (default
+        :data:`DIAMETER_TOLERANCE` for a given diameter, :data:`STANDARD_TOLERANCE` for
+        the standard ones).
+
+    Returns
+    -------
+    tuple of (float, float) or None
+        ``((lo_px, hi_px), ...)``, or ``None`` when the scale is unknown.
+    """
+    if mm_per_px is None:
+        return None
+    diameters = STANDARD_DIAMETERS_MM if diameter_mm is None else (diameter_mm,)
+    if tolerance is None:
+        tolerance = STANDARD_TOLERANCE if diameter_mm is None else DIAMETER_TOLERANCE
+    return tuple(((1 - tolerance) * d / mm_per_px, (1 + tolerance) * d / mm_per_px)
+                 for d in diameters)
+
+
+def _refuse(status: str, reason: str, h: int, edge: float = math.nan, rows: int = 0,
+            rejected: tuple[tuple[int, int, float, float, str], ...] = ()
+            ) -> EdgeMeasurement:
+    nan = np.full(h, math.nan)
+    return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, edge, rows, False, reason,
+                           status, math.nan, nan, nan.copy(), np.zeros(h, bool), rejected)
+
+
+def _subpixel(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> F64:
+    """Sub-pixel extremum near index ``k`` of each row of ``d`` (parabola, ±0.5 px)."""
     rows = np.arange(d.shape[0])
     km = np.clip(k, 1, d.shape[1] - 2)
-    a, b, c = (d[rows, km - 1].astype(np.float64), d[rows, km].astype(np.float64),
-               d[rows, km + 1].astype(np.float64))
+    a = d[rows, km - 1].astype(np.float64)
+    b = d[rows, km].astype(np.float64)
+    c = d[rows, km + 1].astype(np.float64)
     den = a - 2.0 * b + c
     with np.errstate(divide="ignore", invalid="ignore"):
         off = np.where(np.abs(den) > 1e-12, 0.5 * (a - c) / den, 0.0)
     return km + np.clip(off, -0.5, 0.5)
 
 
+@dataclass(frozen=True, slots=True)
+class _Pair:
+    left: float          # sub-pixel columns of the two edges
+    right: float
+    sign: float          # +1 bright filament (rising then falling), -1 dark
+    strength: float      # weaker edge slope, DN/px
+
+
+def _candidates(p: F64, thr: float) -> tuple[list[int], list[int]]:
+    """Indices of the strongest local maxima above ``thr`` and minima below ``-thr``."""
+    inner = p[1:-1]
+    rise = np.flatnonzero((inner >= p[:-2]) & (inner > p[2:]) & (inner >= thr)) + 1
+    fall = np.flatnonzero((inner <= p[:-2]) & (inner < p[2:]) & (inner <= -thr)) + 1
+    if rise.size > _CANDIDATES:
+        rise = rise[np.argsort(-p[rise])[:_CANDIDATES]]
+    if fall.size > _CANDIDATES:
+        fall = fall[np.argsort(p[fall])[:_CANDIDATES]]
+    return sorted(rise.tolist()), sorted(fall.tolist())
+
+
+def _band_pairs(p: F64, level: F64, thr: float, clear: int,
+                expected: Sequence[tuple[float, float]] | None, min_sep: float
+                ) -> list[_Pair]:
+    """Plausible edge pairs of one band (step 2 of the module docstring)."""
+    w = p.size
+    rise, fall = _candidates(p, thr)
+    out: list[_Pair] = []
+    for a_list, b_list, sign in ((rise, fall, 1.0), (fall, rise, -1.0)):
+        for i in a_list:
+            if i - clear < 0:
+                continue
+            for j in b_list:
+                sep = j - i
+                if sep < min_sep:
+                    continue
+                if j + clear >= w:
+                    break
+                if expected is not None and not any(lo - 1 <= sep <= hi + 1
+                                                    for lo, hi in expected):
+                    continue
+                out_l = float(level[i - clear])
+                out_r = float(level[j + clear])
+                in_l = float(level[i + clear])
+                in_r = float(level[j - clear])
+                step = min(sign * (in_l - out_l), sign * (in_r - out_r))
+                if step <= 0:
+                    continue
+                if min(abs(p[i]), abs(p[j])) < _STRENGTH_RATIO * max(abs(p[i]), abs(p[j])):
+                    continue
+                inner = level[i + clear:j - clear + 1]
+                if sign > 0:
+                    margin = float(inner.min()) - max(out_l, out_r)
+                else:
+                    margin = min(out_l, out_r) - float(inner.max())
+                if margin < _INTERIOR_FRACTION * step:
+                    continue
+                out.append(_Pair(float(i), float(j), sign,
+                                 float(min(abs(p[i]), abs(p[j])))))
+    return out
+
+
+def _outer(pairs: list[_Pair]) -> list[_Pair]:
+    """Pairs not nested inside another pair (one px of slack)."""
+    keep = []
+    for a in pairs:
+        nested = any(b is not a and b.left <= a.left + 1 and a.right <= b.right + 1
+                     and (b.right - b.left) > (a.right - a.left) for b in pairs)
+        if not nested:
+            keep.append(a)
+    # identical pairs found twice (e.g. both polarities never, same edges) collapse
+    unique: list[_Pair] = []
+    for a in keep:
+        if not any(abs(a.left - b.left) <= 1 and abs(a.right - b.right) <= 1 for b in unique):
+            unique.append(a)
+    return unique
+
+
 def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
-                     min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5
+                     min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5,
+                     expected_px: Sequence[tuple[float, float]] | None = None
                      ) -> EdgeMeasurement:
-    """Measure the filament width in a crop that spans both edges [003 §2.2].
+    """Measure the filament width in a crop that spans both edges (see module docstring).
 
     Parameters
     ----------
@@ -87,61 +290,175 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     min_edge_dn_px
         Weakest accepted edge slope, DN/px.
     min_rows_frac
-        Smallest fraction of rows with two good edges for a valid result.
+        Smallest fraction of the rows that must keep both edges.
+    expected_px
+        Plausible widths ``((lo, hi), ...)`` in px (:func:`expected_width_px`);
+        ``None``: any width of at least ``4·sigma_px`` and 6 px.
 
     Returns
     -------
     EdgeMeasurement
         Width in px and diagnostics; ``ok`` is false (and the width NaN) when the edges
-        cannot be found, never a guessed number.
+        are missing or ambiguous, never a guessed number.
     """
     h, w = crop.shape[:2]
-    img = np.asarray(cv2.GaussianBlur(crop.astype(np.float32), (0, 0), sigmaX=sigma_px,
-                                      sigmaY=1e-3), dtype=np.float32)
-    d = np.zeros_like(img)
-    d[:, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
-    d[:, :2] = 0.0
-    d[:, -2:] = 0.0
-    # polarity from the mean profile: bright filament rises on the left
-    mean_d = d.mean(axis=0)
-    k_max, k_min = int(np.argmax(mean_d)), int(np.argmin(mean_d))
-    bright = k_max < k_min
-    lo_edge, hi_edge = (k_max, k_min) if bright else (k_min, k_max)
-    sep = hi_edge - lo_edge
-    if sep < 3 or min(abs(mean_d[k_max]), abs(mean_d[k_min])) < 0.5 * min_edge_dn_px:
-        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan,
-                               float(max(abs(mean_d[k_max]), abs(mean_d[k_min]))), 0, False,
-                               "no pair of filament edges in the ROI")
-    # per row: search each edge near the mean-profile edge
-    band = max(4, sep // 4)
-    sign = 1.0 if bright else -1.0
-    left_win = slice(max(1, lo_edge - band), min(w - 1, lo_edge + band + 1))
-    right_win = slice(max(1, hi_edge - band), min(w - 1, hi_edge + band + 1))
-    dl = sign * d[:, left_win]
-    dr = -sign * d[:, right_win]
+    sm = np.asarray(cv2.GaussianBlur(crop.astype(np.float32), (0, 0), sigmaX=sigma_px,
+                                     sigmaY=1e-3), dtype=np.float32)
+    d = np.zeros_like(sm)
+    d[:, 1:-1] = 0.5 * (sm[:, 2:] - sm[:, :-2])
+    clear = max(3, math.ceil(_EDGE_CLEAR * sigma_px))
+    min_sep = max(6.0, 4.0 * sigma_px, 2.0 * clear + 1)
+    n_bands = max(1, min(_MAX_BANDS, h // _BAND_ROWS))
+    bounds = np.linspace(0, h, n_bands + 1).round().astype(int)
+    counts = np.diff(bounds).astype(np.float64)[:, None]
+    band_d = np.add.reduceat(d, bounds[:-1], axis=0) / counts
+    band_i = np.add.reduceat(sm, bounds[:-1], axis=0) / counts
+    rejected: list[tuple[int, int, float, float, str]] = []
+    chosen: list[tuple[int, _Pair]] = []
+    n_ambiguous = 0
+    for b in range(n_bands):
+        y0, y1 = int(bounds[b]), int(bounds[b + 1])
+        outer = _outer(_band_pairs(band_d[b].astype(np.float64),
+                                   band_i[b].astype(np.float64), min_edge_dn_px, clear,
+                                   expected_px, min_sep))
+        if expected_px is None and len(outer) > 1:
+            # no nominal width: the filament is the one pair far wider than any other
+            outer.sort(key=lambda q: q.right - q.left, reverse=True)
+            if outer[0].right - outer[0].left >= _DOMINANCE * (outer[1].right - outer[1].left):
+                outer = outer[:1]
+        if len(outer) == 1:
+            chosen.append((b, outer[0]))
+        elif len(outer) > 1:
+            n_ambiguous += 1
+            rejected.extend((y0, y1, q.left, q.right, "competing pair") for q in outer)
+    if not chosen:
+        if n_ambiguous:
+            return _refuse("ambiguous", f"several plausible edge pairs in {n_ambiguous} of "
+                           f"{n_bands} row bands, none unique", h, rejected=tuple(rejected))
+        return _refuse("no_edges", "no pair of filament edges in the ROI"
+                       + ("" if expected_px is None else " at the expected width "
+                          + ", ".join(f"{lo:.0f}–{hi:.0f} px" for lo, hi in expected_px)),
+                       h)
+    # consistency between bands: polarity, width, straight centre line
+    sign = 1.0 if sum(q.sign for _, q in chosen) >= 0 else -1.0
+    widths = np.array([q.right - q.left for _, q in chosen])
+    w_med = float(np.median(widths))
+    tol = max(_BAND_TOL_PX, _BAND_TOL_FRACTION * w_med)
+    agree = [(b, q) for b, q in chosen
+             if q.sign == sign and abs(q.right - q.left - w_med) <= tol]
+    if len(agree) >= 2:
+        yc = np.array([0.5 * (bounds[b] + bounds[b + 1]) for b, _ in agree])
+        cc = np.array([0.5 * (q.left + q.right) for _, q in agree])
+        off = np.abs(cc - _line_at(yc, cc, yc))
+        agree = [bq for bq, o in zip(agree, off, strict=True) if o <= tol]
+    agree_ids = {b for b, _ in agree}
+    for b, q in chosen:
+        if b not in agree_ids:
+            rejected.append((int(bounds[b]), int(bounds[b + 1]), q.left, q.right,
+                             "disagrees with the other rows"))
+    n_disagree = len(chosen) - len(agree) + n_ambiguous
+    n_found = len(chosen) + n_ambiguous
+    if not agree or 4 * n_disagree > n_found or 2 * len(agree) < n_bands:
+        return _refuse("ambiguous", f"filament edges agree in {len(agree)} of {n_bands} row "
+                       f"bands ({n_disagree} ambiguous or disagreeing)", h,
+                       rejected=tuple(rejected))
+    # per row: the derivative extremum near the straight lines through the bands' edges
+    yc = np.array([0.5 * (bounds[b] + bounds[b + 1] - 1) for b, _ in agree])
+    bl = np.array([q.left for _, q in agree])
+    br = np.array([q.right for _, q in agree])
+    rows = np.concatenate([np.arange(bounds[b], bounds[b + 1]) for b, _ in agree])
+    yf = rows.astype(np.float64)
+    pred_l, pred_r = _line_at(yc, bl, yf), _line_at(yc, br, yf)
+    scatter = max(float(np.max(np.abs(bl - _line_at(yc, bl, yc)))),
+                  float(np.max(np.abs(br - _line_at(yc, br, yc)))))
+    r = max(2, math.ceil(2.0 * sigma_px)) + 1 + min(math.ceil(scatter), 2)
+    band_s = np.concatenate([np.full(bounds[b + 1] - bounds[b], q.strength)
+                             for b, q in agree])
+    offs = np.arange(-r, r + 1)
+    il = np.clip(np.rint(pred_l).astype(np.intp)[:, None] + offs, 1, w - 2)
+    ir = np.clip(np.rint(pred_r).astype(np.intp)[:, None] + offs, 1, w - 2)
+    dl = sign * d[rows[:, None], il]
+    dr = -sign * d[rows[:, None], ir]
     kl, kr = np.argmax(dl, axis=1), np.argmax(dr, axis=1)
-    rows = np.arange(h)
-    strength = np.minimum(dl[rows, kl], dr[rows, kr])
-    xl = _parabola_peak(dl, kl) + left_win.start
-    xr = _parabola_peak(dr, kr) + right_win.start
-    good = strength >= min_edge_dn_px
-    widths = xr - xl
-    if good.sum() >= 3:
-        med = float(np.median(widths[good]))
-        mad = float(np.median(np.abs(widths[good] - med)))
-        good &= np.abs(widths - med) <= max(3 * 1.4826 * mad, _ROW_OUTLIER_PX)
-    n = int(good.sum())
-    if n < max(3, min_rows_frac * h):
-        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan,
-                               float(np.median(strength)), n, False,
-                               f"filament edges found in only {n} of {h} rows")
-    y = rows[good].astype(np.float64)
-    centre = 0.5 * (xl[good] + xr[good])
-    slope = float(np.polyfit(y, centre, 1)[0]) if np.ptp(y) > 0 else 0.0
-    tilt = math.atan(slope)
-    width = float(np.mean(widths[good])) * math.cos(tilt)
-    return EdgeMeasurement(width, float(np.mean(xl[good])), float(np.mean(xr[good])), tilt,
-                           float(np.median(strength[good])), n, True)
+    n = rows.size
+    sl, sr = dl[np.arange(n), kl], dr[np.arange(n), kr]
+    xl = _subpixel(sign * d[rows], il[np.arange(n), kl])
+    xr = _subpixel(-sign * d[rows], ir[np.arange(n), kr])
+    floor = np.maximum(min_edge_dn_px, _ROW_STRENGTH_FRACTION * band_s)
+    good_l = (sl >= floor) & (kl > 0) & (kl < 2 * r)
+    good_r = (sr >= floor) & (kr > 0) & (kr < 2 * r)
+    fit_l, keep_l = _edge_line(yf, xl, good_l)
+    fit_r, keep_r = _edge_line(yf, xr, good_r)
+    both = keep_l & keep_r
+    row_left = np.full(h, math.nan)
+    row_right = np.full(h, math.nan)
+    row_left[rows] = np.where(good_l, xl, math.nan)
+    row_right[rows] = np.where(good_r, xr, math.nan)
+    row_used = np.zeros(h, bool)
+    row_used[rows[both]] = True
+    used = int(min(keep_l.sum(), keep_r.sum()))
+    strength = float(np.median(np.minimum(sl, sr)[both])) if both.any() else math.nan
+    if fit_l is None or fit_r is None or used < max(3, min_rows_frac * h):
+        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, strength, used, False,
+                               f"straight filament edges found in only {used} of {h} rows",
+                               "few_rows", math.nan, row_left, row_right, row_used,
+                               tuple(rejected))
+    if abs(fit_r[0] - fit_l[0]) * h > _PARALLEL_TOL_PX + _PARALLEL_TOL_FRACTION * h:
+        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, strength, used, False,
+                               "the two edges are not parallel "
+                               f"({abs(fit_r[0] - fit_l[0]) * h:.1f} px over {h} rows)",
+                               "ambiguous", math.nan, row_left, row_right, row_used,
+                               tuple(rejected))
+    y_mid = 0.5 * (h - 1)
+    tilt = math.atan(0.5 * (fit_l[0] + fit_r[0]))
+    left = fit_l[0] * y_mid + fit_l[1]
+    right = fit_r[0] * y_mid + fit_r[1]
+    width = (right - left) * math.cos(tilt)
+    spread = float(np.std(xr[both] - xl[both])) if both.sum() > 1 else math.nan
+    if expected_px is not None and not any(lo <= width <= hi for lo, hi in expected_px):
+        return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, strength, used, False,
+                               f"the edges' width {width:.1f} px is outside the expected "
+                               + ", ".join(f"{lo:.0f}–{hi:.0f} px" for lo, hi in expected_px),
+                               "no_edges", spread, row_left, row_right, row_used,
+                               tuple(rejected))
+    return EdgeMeasurement(width, left, right, tilt, strength, used, True, "", "ok", spread,
+                           row_left, row_right, row_used, tuple(rejected))
+
+
+def _fit_line(y: F64, x: F64) -> tuple[float, float]:
+    """Least-squares ``x = a·y + b`` (``a = 0`` for a single ``y``)."""
+    ym = float(y.mean())
+    dy = y - ym
+    den = float(dy @ dy)
+    a = float(dy @ x) / den if den > 0 else 0.0
+    return a, float(x.mean()) - a * ym
+
+
+def _line_at(y: F64, x: F64, at: F64) -> F64:
+    """The least-squares line through ``(y, x)`` evaluated at ``at``."""
+    a, b = _fit_line(y, x)
+    return a * at + b
+
+
+def _edge_line(y: F64, x: F64, good: npt.NDArray[np.bool_]
+               ) -> tuple[tuple[float, float] | None, npt.NDArray[np.bool_]]:
+    """Robust straight line along one edge, and the rows on it.
+
+    Least squares, then twice: keep the rows within :data:`_ROW_LINE_TOL_PX` of the line
+    (or 3 robust sigma, if wider) and refit. A tooth mark or speck that moves a few rows'
+    edge drops out.
+    """
+    keep = good.copy()
+    for _ in range(3):
+        if keep.sum() < 3:
+            return None, keep
+        a, b = _fit_line(y[keep], x[keep])
+        res = x - (a * y + b)
+        mad = float(np.median(np.abs(res[keep])))
+        keep = good & (np.abs(res) <= max(_ROW_LINE_TOL_PX, 3 * 1.4826 * mad))
+    if keep.sum() < 3:
+        return None, keep
+    return _fit_line(y[keep], x[keep]), keep
 
 
 def calibration_factor(known_width_mm: float, detected_width_px: float) -> float:

@@ -196,14 +196,15 @@ class SceneSpec:
         gear = Roi("gear", gx0, gy0, gx1 - gx0, gy1 - gy0)
         return RoiSet(gear=gear, before=before, after=after)
 
-    def vision_config(self, *, rotation: bool = True, known_scale: bool = True,
+    def vision_config(self, *, rotation: bool | None = True, known_scale: bool = True,
                       tracking: TrackingParams | None = None) -> VisionConfig:
         """A measurement configuration for this scene.
 
         Parameters
         ----------
         rotation
-            Give the gear centre and drive radius (rotation mode) or not (tangential).
+            ``True``: give the gear centre and drive radius (rotation mode); ``False``:
+            tangential mode; ``None``: neither, the axis is estimated from the motion.
         known_scale
             Give ``mm_per_px`` (true) or calibrate from the nominal width [003 Eq. 4].
         tracking
@@ -215,4 +216,6 @@ class SceneSpec:
             calib_width_mm=None if known_scale else self.nominal_width_mm,
             gear_center_px=self.gear_center_px if rotation else None,
             gear_radius_mm=self.drive_radius_mm if rotation else None,
+            gear_method="tangential" if rotation is False else "auto",
+            diameter_mm=self.nominal_width_mm,
             tracking=tracking or TrackingParams())

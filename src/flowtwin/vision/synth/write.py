@@ -137,6 +137,8 @@ def write_config_toml(config: VisionConfig, path: str | Path) -> Path:
         "roi": {r.name: [r.x, r.y, r.w, r.h] for r in config.rois},
         "filament": {"direction": config.direction},
     }
+    if config.diameter_mm is not None:
+        data["filament"] = {"direction": config.direction, "diameter_mm": config.diameter_mm}
     scale: dict[str, float] = {}
     if config.mm_per_px is not None:
         scale["mm_per_px"] = config.mm_per_px
@@ -149,6 +151,8 @@ def write_config_toml(config: VisionConfig, path: str | Path) -> Path:
         gear["center_px"] = [float(config.gear_center_px[0]), float(config.gear_center_px[1])]
     if config.gear_radius_mm is not None:
         gear["radius_mm"] = config.gear_radius_mm
+    if config.gear_method != "auto":
+        gear["mode"] = config.gear_method
     if gear:
         data["gear"] = gear
     atomic_write_text(path, tomli_w.dumps(data))

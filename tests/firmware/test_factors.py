@@ -1,20 +1,22 @@
-"""Per-firmware encoding of M220/M221/M900 and parsing of Marlin's reports."""
+"""Per-firmware encoding of M220/M221, parsing of Marlin's reports, refused commands."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
-from flowtwin.control.firmware import (
+from flowtwin.errors import FlowtwinError, GcodeError
+from flowtwin.firmware import (
     Channel,
     Firmware,
     applied_percent,
     check_command,
     encode_factor,
-    encode_pressure_advance,
     parse_factor_report,
     query_command,
+    read_factor_command,
 )
-from flowtwin.errors import FlowtwinError, GcodeError
 
 M, K = Firmware.MARLIN, Firmware.KLIPPER
 
@@ -84,9 +86,33 @@ def test_multi_line_refused() -> None:
         check_command(M, "M221 S95\nM220 S90")
 
 
-def test_pressure_advance_per_firmware() -> None:
-    assert encode_pressure_advance(M, 0.05) == "M900 K0.05"
-    assert encode_pressure_advance(K, 0.05) == "SET_PRESSURE_ADVANCE ADVANCE=0.05"
-    assert encode_pressure_advance(K, 0.0) == "SET_PRESSURE_ADVANCE ADVANCE=0"
-    with pytest.raises(FlowtwinError, match="pressure advance out of range"):
-        encode_pressure_advance(M, -0.1)
+def test_klipper_guards_read_the_words_not_the_text() -> None:
+    # line numbers, checksums and lower case are read as the reader reads them
+    with pytest.raises(GcodeError, match="no M900"):
+        check_command(K, "N12 m900 k0.05*37")
+    assert check_command(K, "M9000") == "M9000"
+    assert check_command(K, "M221 S95 ; keep") == "M221 S95 ; keep"
+
+
+@pytest.mark.parametrize(("line", "expected"), [
+    ("M221 S95.5", (Channel.FLOW, 95.5)),
+    ("m220 s90", (Channel.SPEED, 90.0)),
+    ("M221", (Channel.FLOW, None)),
+    ("M221 S", (Channel.FLOW, None)),
+    ("N3 M220 S80*12", (Channel.SPEED, 80.0)),
+    ("M900 K0.1", None),
+    ("G1 X1", None),
+])
+def test_read_factor_command(line: str, expected: tuple[Channel, float | None] | None) -> None:
+    assert read_factor_command(line) == expected
+
+
+@pytest.mark.parametrize("fw", [f for f in Firmware if f.factor_decimals is None])
+def test_unmodelled_firmwares_are_refused_not_guessed(fw: Firmware) -> None:
+    with pytest.raises(FlowtwinError, match=re.escape(f"does not model the M220/M221 "
+                                                      f"commands of {fw.label}")
+                       + ".*allowed: klipper, marlin"):
+        encode_factor(fw, Channel.FLOW, 95.0)
+    with pytest.raises(FlowtwinError, match="does not"):
+        query_command(fw, Channel.FLOW)
+    assert parse_factor_report(fw, "echo:E0 Flow: 95%") is None

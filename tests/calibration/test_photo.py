@@ -1,0 +1,249 @@
+"""K from photos of printed line patterns (flowtwin.calibration.image).
+
+Known answers from the independent renderer (:mod:`flowtwin.calibration.image.photosynth`:
+its own speed profile, advance and lag model, pinhole camera, sheet texture, gloss, JPEG —
+no planner, no twin), the published layouts' geometry, refusals, and the real photos of
+tests/data/kphoto (a check set never tuned on; provenance in PROVENANCE.md there).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from flowtwin.calibration.image.analyse import PhotoResult, analyse_line_photo
+from flowtwin.calibration.image.layouts import (
+    LAYOUTS,
+    layout_params,
+    layout_settings,
+    line_layout_pattern,
+)
+from flowtwin.calibration.image.photosynth import (
+    PhotoConditions,
+    render_photo,
+    scene_from_pattern,
+    synthetic_widths,
+)
+from flowtwin.calibration.image.quality import edge_ratio
+from flowtwin.calibration.kfit import kline_for_machine, pattern_firmware
+from flowtwin.calibration.kline import KLineParams
+from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.cli.calibrate import register
+from flowtwin.errors import CalibrationError, VisionError
+from flowtwin.profiles.machine import load_machine
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "kphoto"
+MACHINE = load_machine("tronvoll2019")
+ACCEL = 1000.0
+runner = CliRunner()
+
+
+def _make_app() -> typer.Typer:
+    app = typer.Typer(add_completion=False)
+
+    @app.callback()
+    def _root() -> None:
+        """flowtwin"""
+
+    register(app)
+    return app
+
+
+APP = _make_app()
+
+
+def _pattern(name: str, **params: float) -> Pattern:
+    base = PrintSettings(firmware=pattern_firmware(MACHINE), accel_mm_s2=ACCEL)
+    if name == "kline":
+        return kline_for_machine(MACHINE, base, KLineParams(**params))  # type: ignore[arg-type]
+    s = layout_settings(name, base, accel_given=True)
+    return line_layout_pattern(name, s, layout_params(name, params))
+
+
+@functools.lru_cache(maxsize=8)
+def _photo(name: str, lag: float, cond: PhotoConditions, params: tuple[tuple[str, float], ...]
+           ) -> tuple[Pattern, np.ndarray]:
+    pat = _pattern(name, **dict(params))
+    marks, tests = scene_from_pattern(pat, lag_s=lag, accel_mm_s2=ACCEL)
+    return pat, render_photo(pat, marks, tests, cond).image
+
+
+# --- layouts -------------------------------------------------------------------------------
+
+def test_layout_defaults_match_the_tools() -> None:
+    # Marlin's generator page: K 0..2 by 0.2, 20/40/20 mm at 20/70 mm/s, 5 mm, 1.2 x nozzle,
+    # acceleration 500; Orca's PA line: 50 lines from 0 by 0.002, 3.5 mm, 0.6 mm, 20/100 mm/s
+    marlin = layout_params("marlin")
+    assert marlin.k_values == pytest.approx([0.2 * i for i in range(11)])
+    assert (marlin.slow_length_mm, marlin.fast_length_mm, marlin.line_pitch_mm) == (20, 40, 5)
+    assert (marlin.slow_speed_mm_s, marlin.fast_speed_mm_s) == (20, 70)
+    s = layout_settings("marlin", PrintSettings())
+    assert s.line_width_mm == pytest.approx(0.48) and s.accel_mm_s2 == 500.0
+    orca = layout_params("orca")
+    assert len(orca.k_values) == 50 and orca.k_values[-1] == pytest.approx(0.098)
+    assert (orca.line_pitch_mm, orca.fast_speed_mm_s, orca.slow_speed_mm_s) == (3.5, 100, 20)
+    assert layout_settings("orca", PrintSettings()).line_width_mm == 0.6
+    prusa = layout_params("prusa")
+    assert (prusa.slow_length_mm, prusa.fast_length_mm) == (25, 100)
+    assert set(LAYOUTS) == {"kline", "marlin", "prusa", "orca", "orca-legacy"}
+    with pytest.raises(CalibrationError, match="unknown line pattern"):
+        layout_params("ellis")
+    with pytest.raises(CalibrationError, match="no parameter"):
+        layout_params("marlin", {"speed": 3.0})
+
+
+@pytest.mark.parametrize("name", ["marlin", "prusa", "orca", "orca-legacy"])
+def test_layout_gcode_lines_and_marks(name: str) -> None:
+    pat = _pattern(name, k_start=0.0, k_end=0.05, k_step=0.01)
+    p = layout_params(name)
+    assert pat.values == pytest.approx([0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
+    for g in range(6):
+        segs = [sg for sg in pat.segments if sg.group == g]
+        assert [sg.role for sg in segs] == ["slow", "fast", "slow"]
+        assert [sg.length_mm for sg in segs] == pytest.approx(
+            [p.slow_length_mm, p.fast_length_mm, p.slow_length_mm])
+        assert [sg.speed_mm_s for sg in segs] == pytest.approx(
+            [p.slow_speed_mm_s, p.fast_speed_mm_s, p.slow_speed_mm_s])
+    marks, tests = scene_from_pattern(pat, lag_s=0.03)
+    assert len(tests) == 6 and len(marks) >= 3     # prime/anchor/indicators and digits
+    ys = [float(tests[g][0][0, 1]) for g in range(6)]
+    assert np.diff(ys) == pytest.approx([p.line_pitch_mm] * 5)
+
+
+# --- the independent renderer's model --------------------------------------------------------
+
+def test_synthetic_bead_is_even_when_the_advance_equals_the_lag() -> None:
+    lengths, speeds = np.array([20.0, 40.0, 20.0]), np.array([20.0, 70.0, 20.0])
+    kw = dict(lag_s=0.04, accel_mm_s2=1000.0, line_width_mm=0.48, layer_height_mm=0.2)
+    pos, even = synthetic_widths(lengths, speeds, k_la_s=0.04, **kw)
+    inner = (pos > 3.0) & (pos < 77.0)
+    assert np.nanmax(np.abs(even[inner] - 0.48)) < 0.005     # 1 %: the ramps are discretised
+    _, low = synthetic_widths(lengths, speeds, k_la_s=0.0, **kw)
+    after_up = (pos > 20.5) & (pos < 24.0)
+    after_down = (pos > 60.5) & (pos < 64.0)
+    assert np.nanmean(low[after_up]) < 0.46 < 0.50 < np.nanmean(low[after_down])
+
+
+def test_edge_ratio_of_a_gaussian() -> None:
+    v = np.arange(-50, 51) * 0.1
+    f, e = edge_ratio(np.exp(-0.5 * v ** 2), 0.1)
+    assert f == pytest.approx(2.3548, abs=0.01) and e / f == pytest.approx(0.716, abs=0.01)
+
+
+# --- known answers on independent renders ----------------------------------------------------
+
+CASES = {
+    "marlin, white PLA on textured black PEI, tilted 8°, turned 5°": (
+        "marlin", 0.05, PhotoConditions(tilt_deg=8.0, roll_deg=5.0, seed=1),
+        (("k_start", 0.0), ("k_end", 0.1), ("k_step", 0.01))),
+    "prusa, dark beads on a glossy light sheet, uneven light": (
+        "prusa", 0.04, PhotoConditions(px_per_mm=10.0, light_beads=False,
+                                       bead_bgr=(40, 60, 150), sheet_bgr=(200, 205, 210),
+                                       sheet="textured", texture=0.05, gloss=0.25,
+                                       falloff=0.5, tilt_deg=5.0, roll_deg=-3.0, seed=2),
+        (("k_start", 0.0), ("k_end", 0.08), ("k_step", 0.01))),
+    "orca-legacy, patterned sheet, turned -20°, JPEG 75": (
+        "orca-legacy", 0.03, PhotoConditions(px_per_mm=8.0, tilt_deg=6.0, roll_deg=-20.0,
+                                             sheet="patterned", jpeg_quality=75, seed=3),
+        (("k_start", 0.0), ("k_end", 0.06), ("k_step", 0.004))),
+    "kline, dark on light, upside down": (
+        "kline", 0.06, PhotoConditions(px_per_mm=10.0, light_beads=False, bead_bgr=(30, 30, 30),
+                                       sheet_bgr=(210, 210, 210), texture=0.05,
+                                       roll_deg=178.0, tilt_deg=4.0, seed=4),
+        (("k_start", 0.02), ("k_end", 0.1), ("k_step", 0.01))),
+}
+
+
+@functools.lru_cache(maxsize=8)
+def _analysed(case: str) -> tuple[float, float, PhotoResult]:
+    name, lag, cond, params = CASES[case]
+    pat, img = _photo(name, lag, cond, params)
+    step = dict(params)["k_step"]
+    return lag, step, analyse_line_photo(img, pat, machine=MACHINE)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_photo_known_answer(case: str) -> None:
+    lag, step, res = _analysed(case)
+    _name, _, cond, _ = CASES[case]
+    assert res.light_beads == cond.light_beads
+    assert abs(res.k_best_line_s - lag) <= step + 1e-9
+    assert res.lag is not None, res.lag_problem
+    # the renderer's lag model is not the twin's (closed-form trapezoids, no column, no
+    # smoothing window): the fitted lag agrees within 15 %, not within its own sigma
+    assert abs(res.lag.k_s - lag) <= 0.15 * lag
+    assert res.reprojection_rms_mm < 0.3
+
+
+# --- refusals ---------------------------------------------------------------------------------
+
+def test_refuses_blur_cut_lines_and_too_few_lines() -> None:
+    params = (("k_start", 0.0), ("k_end", 0.1), ("k_step", 0.01))
+    pat, img = _photo("marlin", 0.05, PhotoConditions(tilt_deg=8.0, roll_deg=5.0, seed=1),
+                      params)
+    blurred = cv2.GaussianBlur(img, (0, 0), 6.0)
+    # blur makes even the polarity undecidable; told the polarity, the blur check refuses
+    with pytest.raises(VisionError, match=r"cannot tell whether|blurred"):
+        analyse_line_photo(blurred, pat, machine=MACHINE)
+    with pytest.raises(VisionError, match=r"blurred|no clear profile|no printed lines"):
+        analyse_line_photo(blurred, pat, machine=MACHINE, polarity="light")
+    h, w = img.shape[:2]
+    with pytest.raises(VisionError, match="cut by the edge"):
+        analyse_line_photo(img[:, : int(0.6 * w)], pat, machine=MACHINE)
+    rows = [r for r in range(h) if img[r, w // 2, 1] > 150]
+    with pytest.raises(VisionError, match=r"found|too few|no printed lines"):
+        analyse_line_photo(img[: rows[0] + 30 if rows else h // 4], pat, machine=MACHINE)
+    with pytest.raises(VisionError, match="blank"):
+        analyse_line_photo(np.full((300, 400), 30, np.uint8), pat, machine=MACHINE)
+
+
+# --- real photos: the check set ----------------------------------------------------------------
+
+def test_real_photo_orca_wiki_pa_lines() -> None:
+    """OrcaSlicer wiki, pressure-advance page: PA line test, K 0..0.098 by 0.002; its
+    authors judged K = 0.016 best. Never tuned on; the figures go to docs/calibration.md."""
+    pat = _pattern("orca-legacy")
+    res = analyse_line_photo(DATA / "orca-pa-lines.png", pat, machine=MACHINE)
+    assert res.light_beads and len(res.lines) == 50
+    assert abs(res.k_best_line_s - 0.016) <= 0.004 + 1e-9      # within two steps
+    assert res.lag is not None and abs(res.lag.k_s - 0.016) <= 0.006
+
+
+def test_real_photo_orca_wiki_crop() -> None:
+    pat = _pattern("orca-legacy", k_end=0.02)
+    res = analyse_line_photo(DATA / "orca-pa-line-0-016.png", pat, machine=MACHINE)
+    assert abs(res.k_best_line_s - 0.016) <= 0.004 + 1e-9
+    assert res.lag is not None and abs(res.lag.k_s - 0.016) <= 0.006
+
+
+# --- CLI ------------------------------------------------------------------------------------------
+
+def test_cli_from_image_marlin_json_fragment_and_annotated_copy(tmp_path: Path) -> None:
+    params = (("k_start", 0.0), ("k_end", 0.1), ("k_step", 0.01))
+    _, img = _photo("marlin", 0.05, PhotoConditions(tilt_deg=8.0, roll_deg=5.0, seed=1),
+                    params)
+    photo = tmp_path / "photo.jpg"
+    assert cv2.imwrite(str(photo), img)
+    frag, ann = tmp_path / "pa.toml", tmp_path / "annotated.png"
+    result = runner.invoke(APP, ["calibrate", "from-image", str(photo), "--pattern", "marlin",
+                                 "--k-start", "0", "--k-end", "0.1", "--k-step", "0.01",
+                                 "--accel", str(ACCEL), "-o", str(frag), "--annotate",
+                                 str(ann), "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["k_best_line_s"] == pytest.approx(0.05, abs=0.0101)
+    assert math.isfinite(out["k_s"]) and out["k_err_s"] > 0 and out["beads"] == "light"
+    assert "k_s" in frag.read_text()
+    shown = cv2.imread(str(ann))
+    assert shown is not None and shown.shape[1] > img.shape[1]
+    result = runner.invoke(APP, ["calibrate", "from-image", str(photo), "--pattern", "chevron"])
+    assert isinstance(result.exception, CalibrationError)
+    assert "not read" in str(result.exception)

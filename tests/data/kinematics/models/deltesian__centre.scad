@@ -1,0 +1,2 @@
+// centre 0,100
+cylinder(d=30, h=3, $fn=96);

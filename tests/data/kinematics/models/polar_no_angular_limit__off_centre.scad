@@ -1,0 +1,2 @@
+// centre 60,0
+cylinder(d=30, h=3, $fn=96);
