@@ -18,7 +18,9 @@ from flowtwin.compensation.nonlinear import (
     m592_command,
     slip_multiplier,
 )
-from flowtwin.errors import DataError
+from flowtwin.errors import DataError, ProfileError
+from flowtwin.firmware import Firmware
+from flowtwin.firmware.nonlinear import NonlinearFormula, nonlinear_formula
 from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.planning import PlanResult
 from flowtwin.profiles.machine import Machine, load_machine
@@ -59,12 +61,12 @@ def test_fit_is_within_its_stated_residual(machine: Machine, firmware: str) -> N
 
 
 def test_firmware_formulas_and_commands() -> None:
-    marlin = NonlinearExtrusionFit("marlin", 0.001, 0.01, 1.02, None, 0.2, 10.0, 1.02, 0.0,
+    marlin = NonlinearExtrusionFit(Firmware.MARLIN, 0.001, 0.01, 1.02, None, 0.2, 10.0, 1.02, 0.0,
                                    0.0, None, "")
     # C + max(A·v² + B·v, 0) [Marlin Stepper::calc_nonlinear_e]
     assert float(marlin.multiplier(5.0)) == pytest.approx(1.02 + 0.025 + 0.05)
     assert m592_command(marlin) == "M592 S1 A0.001 B0.01 C1.02"
-    rrf = NonlinearExtrusionFit("reprapfirmware", 0.01, 0.001, 1.0, 0.2, 0.2, 10.0, 1.0, 0.0,
+    rrf = NonlinearExtrusionFit(Firmware.REPRAPFIRMWARE, 0.01, 0.001, 1.0, 0.2, 0.2, 10.0, 1.0, 0.0,
                                 0.0, None, "")
     # 1 + min(A·v + B·v², L) [RRF DDA::Prepare]
     assert float(rrf.multiplier(5.0)) == pytest.approx(1.0 + 0.05 + 0.025)
@@ -72,14 +74,23 @@ def test_firmware_formulas_and_commands() -> None:
     assert m592_command(rrf) == "M592 D0 A0.01 B0.001 L0.2"
 
 
-def test_klipper_has_none_and_points_to_the_baked_slip(machine: Machine) -> None:
-    fit = fit_nonlinear_extrusion(machine, "klipper")
-    assert fit.command is None and "--slip" in fit.note
-    assert fit.max_residual > 0.1  # the slip left uncorrected without any setting
+@pytest.mark.parametrize("firmware", list(Firmware), ids=[f.value for f in Firmware])
+def test_every_firmware_gets_settings_or_the_baked_slip(machine: Machine,
+                                                        firmware: Firmware) -> None:
+    """Marlin and RRF get an M592; the others (Klipper among them) have none, and the fit
+    says so and points to the baked slip."""
+    fit = fit_nonlinear_extrusion(machine, firmware)
+    assert fit.firmware is firmware
+    if nonlinear_formula(firmware) is NonlinearFormula.NONE:
+        assert fit.command is None and "--slip" in fit.note
+        assert fit.max_residual > 0.1  # the slip left uncorrected without any setting
+    else:
+        assert fit.command is not None and fit.command.startswith("M592 ")
+        assert fit.max_residual < 0.01
 
 
 def test_bad_requests_are_refused(machine: Machine) -> None:
-    with pytest.raises(DataError, match="firmware"):
+    with pytest.raises(ProfileError, match="firmware"):
         fit_nonlinear_extrusion(machine, "smoothie")
     with pytest.raises(DataError, match="feed range"):
         fit_nonlinear_extrusion(machine, "marlin", feed_max_mm_s=0.1)

@@ -27,12 +27,7 @@ from flowtwin.compensation import (
     best_pressure_advance,
     compensate,
 )
-from flowtwin.compensation.nonlinear import (
-    NONLINEAR_FIRMWARES,
-    NonlinearExtrusionFit,
-    fit_nonlinear_extrusion,
-)
-from flowtwin.errors import FlowtwinError
+from flowtwin.compensation.nonlinear import NonlinearExtrusionFit, fit_nonlinear_extrusion
 from flowtwin.profiles.machine import load_machine
 from flowtwin.simulation import DEFAULT_MACHINE
 
@@ -188,8 +183,9 @@ def register(app: typer.Typer) -> None:
             "--nonlinear", help="Also fit the firmware's nonlinear extrusion (M592) to the "
                                 "twin's slip.")] = False,
         firmware: Annotated[str | None, typer.Option(
-            "--firmware", help="Nonlinear extrusion for this firmware: marlin, "
-                               "reprapfirmware or klipper (default: the printer's).")] = None,
+            "--firmware", help="Nonlinear extrusion for this firmware (marlin, "
+                               "reprapfirmware, klipper, …; default: the printer's).")
+        ] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
@@ -230,15 +226,12 @@ def nonlinear_settings(profile: str, klipper_config: Path | None,
     """The nonlinear-extrusion fit for the set-up's (or the given) firmware."""
     m = load_machine(profile)
     fw = firmware or ("klipper" if klipper_config is not None else m.printer.firmware)
-    if fw not in NONLINEAR_FIRMWARES:
-        raise FlowtwinError("no nonlinear extrusion known for this firmware", field="--firmware",
-                            value=fw, allowed=", ".join(NONLINEAR_FIRMWARES))
     return fit_nonlinear_extrusion(m, fw)
 
 
 def render_nonlinear(fit: NonlinearExtrusionFit) -> None:
     """Print a nonlinear-extrusion fit with rich."""
-    rows = [("firmware", fit.firmware), ("command", fit.command or "(none)"),
+    rows = [("firmware", fit.firmware.label), ("command", fit.command or "(none)"),
             ("feed range", f"{fit.feed_min_mm_s:g}–{fit.feed_max_mm_s:.1f} mm/s of filament"),
             ("residual", f"{100 * fit.rms_residual:.2f} % RMS, "
                          f"{100 * fit.max_residual:.2f} % worst")]

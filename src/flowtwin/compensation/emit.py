@@ -310,6 +310,16 @@ def write_draft(draft: Draft, destination: str | os.PathLike[str],
                       lay.line_has_g92, lay.flags, lay.q_xyz, lay.q_dec, lay.q_e, lay.q_f,
                       original.e_decimals, buf)
     data = buf[:used].tobytes()
+    if original.bgcode:  # stored as the original was (compression, checksum, encoding)
+        from flowtwin.gcode.bgcode.read import read_bgcode_info
+        from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+        with open(original.source, "rb") as fh:
+            info = read_bgcode_info(fh, original.source)
+        text_to_bgcode(data, destination, file_metadata=info.file_metadata,
+                       options=BgcodeOptions.like(info.compression, info.checksum,
+                                                  info.gcode_encoding))
+        return lay
     if original.gzip:
         data = gzip.compress(data, compresslevel=6, mtime=0)
     atomic_write_bytes(destination, data)

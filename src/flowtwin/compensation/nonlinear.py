@@ -25,8 +25,10 @@ words). Two firmwares can apply such a multiplier themselves, from the requested
 feed range (least squares on an even grid of speeds) and states the residual;
 :func:`apply_nonlinear_extrusion` executes a firmware's formula on a move table (what the
 printer would extrude with the settings), so the settings can be checked against the baked
-feed-forward by simulating both. Klipper has no nonlinear extrusion: the slip can only be
-baked into the G-code (``flowtwin compensate --slip``).
+feed-forward by simulating both. The formulas and the command are the firmware model's
+(:mod:`flowtwin.firmware.nonlinear`). Klipper (and Prusa's Buddy firmware, Repetier) has no
+nonlinear extrusion: the slip can only be baked into the G-code (``flowtwin compensate
+--slip``).
 """
 
 from __future__ import annotations
@@ -38,20 +40,23 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import DataError
+from flowtwin.firmware import Firmware
+from flowtwin.firmware.nonlinear import (
+    RRF_DEFAULT_LIMIT,
+    NonlinearFormula,
+    nonlinear_command,
+    nonlinear_formula,
+)
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.planner.timeline import Timeline
 from flowtwin.profiles.machine import Machine
 from flowtwin.simulation.parameters import operating_point
 
-__all__ = ["NONLINEAR_FIRMWARES", "NonlinearExtrusionFit", "apply_nonlinear_extrusion",
-           "fit_nonlinear_extrusion", "m592_command", "slip_multiplier"]
+__all__ = ["NonlinearExtrusionFit", "apply_nonlinear_extrusion", "fit_nonlinear_extrusion",
+           "m592_command", "slip_multiplier"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Firmwares with a nonlinear-extrusion formula, and Klipper (which has none).
-NONLINEAR_FIRMWARES = ("marlin", "reprapfirmware", "klipper")
-#: RepRapFirmware's default upper limit of the correction (``DefaultNonlinearExtrusionLimit``).
-RRF_DEFAULT_LIMIT = 0.2
 #: Fixed-point iterations of ``v_c = v / (1 − s(v_c))`` (``s'·F ≪ 1``: converges fast).
 _ITERATIONS = 30
 
@@ -63,11 +68,11 @@ class NonlinearExtrusionFit:
     Attributes
     ----------
     firmware
-        ``"marlin"``, ``"reprapfirmware"`` or ``"klipper"``.
+        The firmware.
     a, b, c
         The firmware's coefficients: Marlin ``C + max(A·v² + B·v, 0)``; RRF
-        ``1 + min(A·v + B·v², L)`` (``c`` = 1: the constant part is the flow's); Klipper:
-        none (0, 0, 1).
+        ``1 + min(A·v + B·v², L)`` (``c`` = 1: the constant part is the flow's); a firmware
+        without nonlinear extrusion: none (0, 0, 1).
     limit
         RRF's ``L`` (``None`` for Marlin and Klipper).
     feed_min_mm_s, feed_max_mm_s
@@ -79,12 +84,12 @@ class NonlinearExtrusionFit:
         RMS and largest ``|m_firmware(v)/m(v) − 1|`` over the range (for RRF against
         ``m/offset``, the part its formula can hold).
     command
-        The command to send, or ``None`` (Klipper).
+        The command to send, or ``None`` (no nonlinear extrusion).
     note
         What to do with it, in words.
     """
 
-    firmware: str
+    firmware: Firmware
     a: float
     b: float
     c: float
@@ -100,16 +105,17 @@ class NonlinearExtrusionFit:
     def multiplier(self, v_mm_s: npt.ArrayLike) -> FloatArray:
         """The firmware's E multiplier at requested E speed ``v`` (mm/s)."""
         v = np.asarray(v_mm_s, dtype=np.float64)
-        if self.firmware == "marlin":
+        formula = nonlinear_formula(self.firmware)
+        if formula is NonlinearFormula.INSTANTANEOUS:
             return self.c + np.maximum(self.a * v * v + self.b * v, 0.0)
-        if self.firmware == "reprapfirmware":
+        if formula is NonlinearFormula.MOVE_AVERAGE:
             lim = RRF_DEFAULT_LIMIT if self.limit is None else self.limit
             return 1.0 + np.minimum(self.a * v + self.b * v * v, lim)
         return np.ones_like(v)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able values."""
-        return {"firmware": self.firmware, "a": self.a, "b": self.b, "c": self.c,
+        return {"firmware": self.firmware.value, "a": self.a, "b": self.b, "c": self.c,
                 "limit": self.limit, "feed_min_mm_s": self.feed_min_mm_s,
                 "feed_max_mm_s": self.feed_max_mm_s, "offset": self.offset,
                 "rms_residual": self.rms_residual, "max_residual": self.max_residual,
@@ -155,7 +161,7 @@ def slip_multiplier(machine: Machine, feed_mm_s: npt.ArrayLike, *,
     return out
 
 
-def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
+def fit_nonlinear_extrusion(machine: Machine, firmware: Firmware | str, *,
                             feed_max_mm_s: float | None = None, feed_min_mm_s: float = 0.2,
                             points: int = 64) -> NonlinearExtrusionFit:
     """Fit a firmware's nonlinear-extrusion coefficients to the twin's slip.
@@ -165,7 +171,7 @@ def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
     machine
         The set-up (its drive, hot end, material, temperature and layer height).
     firmware
-        ``"marlin"``, ``"reprapfirmware"`` or ``"klipper"``.
+        The firmware (or its name).
     feed_max_mm_s
         Fastest requested filament speed to cover, mm/s; default: the printer's E speed
         limit or, when lower, the speed at which the feed force reaches 90 % of the
@@ -179,9 +185,8 @@ def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
     -------
     NonlinearExtrusionFit
     """
-    if firmware not in NONLINEAR_FIRMWARES:
-        raise DataError("unknown firmware for nonlinear extrusion", field="firmware",
-                        value=firmware, allowed=", ".join(NONLINEAR_FIRMWARES))
+    fw = Firmware.parse(firmware)
+    formula = nonlinear_formula(fw)
     v_max = _feed_max(machine) if feed_max_mm_s is None else float(feed_max_mm_s)
     if not (0.0 < feed_min_mm_s < v_max):
         raise DataError("feed range is empty", field="feed_max_mm_s", value=v_max,
@@ -189,21 +194,21 @@ def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
     v = np.linspace(feed_min_mm_s, v_max, max(points, 8))
     m = slip_multiplier(machine, v)
     offset = float(slip_multiplier(machine, np.array([1e-3]))[0])
-    if firmware == "klipper":
-        res = m - 1.0
+    if formula is NonlinearFormula.NONE:
+        res = 1.0 / m - 1.0
         return NonlinearExtrusionFit(
-            "klipper", 0.0, 0.0, 1.0, None, float(v[0]), v_max, offset,
+            fw, 0.0, 0.0, 1.0, None, float(v[0]), v_max, offset,
             float(np.sqrt(np.mean(res ** 2))), float(np.max(np.abs(res))), None,
-            "Klipper has no nonlinear extrusion: bake the slip into the G-code "
+            f"{fw.label} has no nonlinear extrusion: bake the slip into the G-code "
             "(flowtwin compensate --slip); the residual is the slip left uncorrected")
-    if firmware == "marlin":
+    if formula is NonlinearFormula.INSTANTANEOUS:
         # m ≈ C + B·v + A·v², C = m(0) (slow moves exact), B and A by least squares on
         # the relative error
         c = offset
         w = 1.0 / m
         design = np.column_stack([v, v * v]) * w[:, None]
         (b, a), *_ = np.linalg.lstsq(design, (m - c) * w, rcond=None)
-        fit = NonlinearExtrusionFit("marlin", float(a), float(b), float(c), None, float(v[0]),
+        fit = NonlinearExtrusionFit(fw, float(a), float(b), float(c), None, float(v[0]),
                                     v_max, offset, 0.0, 0.0, None,
                                     "Marlin with NONLINEAR_EXTRUSION (bugfix-2.1.x: A "
                                     "quadratic, B linear); with it on, do not bake the slip "
@@ -217,7 +222,7 @@ def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
         (a, b), *_ = np.linalg.lstsq(design, (target - 1.0) * w, rcond=None)
         limit = max(RRF_DEFAULT_LIMIT, float(np.max(target - 1.0)) * 1.05)
         fit = NonlinearExtrusionFit(
-            "reprapfirmware", float(a), float(b), 1.0, limit, float(v[0]), v_max, offset,
+            fw, float(a), float(b), 1.0, limit, float(v[0]), v_max, offset,
             0.0, 0.0, None,
             f"RepRapFirmware; the constant part ({100 * (offset - 1):.2f} % more E at any "
             "speed) is the E steps' or the flow's (M92 / M221), not M592's; with it on, do "
@@ -229,17 +234,10 @@ def fit_nonlinear_extrusion(machine: Machine, firmware: str, *,
 
 
 def m592_command(fit: NonlinearExtrusionFit) -> str | None:
-    """The firmware's ``M592`` for the fitted coefficients (``None`` for Klipper).
-
-    Marlin: ``M592 S1 A<quadratic> B<linear> C<constant>``; RepRapFirmware:
-    ``M592 D0 A<linear> B<quadratic> L<limit>``. Six significant digits.
-    """
-    if fit.firmware == "marlin":
-        return f"M592 S1 A{fit.a:.6g} B{fit.b:.6g} C{fit.c:.6g}"
-    if fit.firmware == "reprapfirmware":
-        lim = RRF_DEFAULT_LIMIT if fit.limit is None else fit.limit
-        return f"M592 D0 A{fit.a:.6g} B{fit.b:.6g} L{lim:.6g}"
-    return None
+    """The firmware's ``M592`` for the fitted coefficients (``None`` without nonlinear
+    extrusion; :func:`flowtwin.firmware.nonlinear.nonlinear_command`)."""
+    return nonlinear_command(fit.firmware, fit.a, fit.b, c=fit.c,
+                             limit=RRF_DEFAULT_LIMIT if fit.limit is None else fit.limit)
 
 
 def _feed_max(machine: Machine) -> float:
@@ -296,7 +294,8 @@ def apply_nonlinear_extrusion(table: MoveTable, timeline: Timeline,
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(path > 0, de / path, 0.0)
     new = de.copy()
-    if fit.firmware == "marlin":
+    formula = nonlinear_formula(fit.firmware)
+    if formula is NonlinearFormula.INSTANTANEOUS:
         # ∫ m(v) v dt with m = C + A v² + B v (the max(·, 0) never binds for A, B ≥ 0)
         def moments(v0: FloatArray, v1: FloatArray, t: FloatArray) -> FloatArray:
             # ∫ (C v + B v² + A v³) dt for v linear from v0 to v1 over t
@@ -309,7 +308,7 @@ def apply_nonlinear_extrusion(table: MoveTable, timeline: Timeline,
         total = (moments(r * sv, r * cv, ta) + moments(r * cv, r * cv, tc)
                  + moments(r * cv, r * ev, td))
         new = np.where(fwd, total, de)
-    elif fit.firmware == "reprapfirmware":
+    elif formula is NonlinearFormula.MOVE_AVERAGE:
         with np.errstate(divide="ignore", invalid="ignore"):
             v_avg = np.where(duration > 0, de / duration, 0.0)
         new = np.where(fwd, de * fit.multiplier(v_avg), de)

@@ -59,6 +59,8 @@ class OriginalFile:
         shape ``(n_lines + 1,)``.
     gzip
         The file was gzip-compressed (the output is too).
+    bgcode
+        The file is a Prusa binary G-code (the output is stored the same way).
     e_decimals
         Decimals of the E grid.
     abs_xyz, abs_e
@@ -87,6 +89,7 @@ class OriginalFile:
     text: npt.NDArray[np.uint8]
     line_start: IntArray
     gzip: bool
+    bgcode: bool
     e_decimals: int
     abs_xyz: BoolArray
     abs_e: BoolArray
@@ -134,8 +137,11 @@ def read_original(source: str | os.PathLike[str], table: MoveTable, *,
         :data:`MAX_E_DECIMALS` decimals.
     """
     name = str(Path(source))
-    with open(name, "rb") as probe:
-        compressed = probe.read(2) == b"\x1f\x8b"
+    try:
+        with open(name, "rb") as probe:
+            head = probe.read(4)
+    except OSError as exc:
+        raise GcodeError(f"cannot open G-code file: {exc.strerror}", source=name) from exc
     stream, _ = open_source(source)
     try:
         data = stream.read()
@@ -155,7 +161,8 @@ def read_original(source: str | os.PathLike[str], table: MoveTable, *,
     for at, _value in modes[4]:
         if at < len(table):
             e_reset[at] = True
-    return OriginalFile(name, text, line_start, compressed, decimals, modes[0], modes[1],
+    return OriginalFile(name, text, line_start, head[:2] == b"\x1f\x8b", head == b"GCDE",
+                        decimals, modes[0], modes[1],
                         modes[2], modes[3], row_e, e_before, e_reset,
                         _inert_lines(text, line_start, table), _layers_by_z(table))
 
