@@ -103,6 +103,21 @@ material = "pla-4043d"
 filament = "pla-4043d-1.75"
 temperature_c = 215.0
 """
+#: The Klipper prints' drive, hot end (an E3D Volcano: the fast prints need its melt
+#: capacity) and PLA; the motion comes from each print's printer.cfg.
+KLIPPER_SETUP = """\
+kind = "setup"
+name = "validation-klipper-volcano"
+description = "Klipper printer (printer.cfg per print), E3D Volcano 0.4 mm, PLA at 215 C"
+printer = "generic-klipper"
+drive = "hobb-goblin-80n"
+hotend = "e3d-volcano-0.4"
+material = "pla-4043d"
+filament = "pla-4043d-1.75"
+temperature_c = 215.0
+"""
+#: Line width CuraEngine prints with (its default for a 0.4 mm nozzle), mm.
+CURA_LINE_MM = 0.4
 
 
 def _first_layer(p: Print) -> float:
@@ -113,8 +128,20 @@ def _travel(p: Print) -> float:
     return min(300.0, max(150.0, 1.5 * p.infill_mm_s))
 
 
-def slicer_command(p: Print, stl: Path, gcode: Path) -> list[str]:
-    """The command line that slices ``stl`` into ``gcode`` with the row's settings."""
+def max_flow_mm3_s(p: Print, out: Path) -> float:
+    """The hot end's maximum volumetric flow at the print's layer height (the twin's
+    ``flowtwin limits``), rounded down to 0.5 mm³/s."""
+    from flowtwin.profiles.machine import load_machine
+    from flowtwin.simulation.limits import flow_limit
+
+    machine, _cfg = machine_of(p, out)
+    q = flow_limit(load_machine(machine), layer_height_mm=p.layer_mm).max_volumetric_flow_mm3_s
+    return float(int(2.0 * q) / 2.0)
+
+
+def slicer_command(p: Print, stl: Path, gcode: Path, max_flow: float) -> list[str]:
+    """The command line that slices ``stl`` into ``gcode`` with the row's settings, held to
+    ``max_flow`` (mm³/s)."""
     w, i, a = p.wall_mm_s, p.infill_mm_s, p.accel_mm_s2
     if p.slicer.startswith("prusa"):
         cmd = ["prusa-slicer", "--export-gcode", "--nozzle-diameter", "0.4",
@@ -132,7 +159,7 @@ def slicer_command(p: Print, stl: Path, gcode: Path) -> list[str]:
                f"{0.5 * w:g}", "--travel-speed", f"{_travel(p):g}", "--first-layer-speed",
                "30", "--default-acceleration", f"{a:g}", "--perimeter-acceleration",
                f"{a:g}", "--infill-acceleration", f"{a:g}", "--first-layer-acceleration",
-               f"{min(a, 1000.0):g}"]
+               f"{min(a, 1000.0):g}", "--max-volumetric-speed", f"{max_flow:g}"]
         if p.relative_e:
             cmd += ["--use-relative-e-distances", "--layer-gcode", "G92 E0"]
         return [*cmd, "-o", str(gcode), str(stl)]
@@ -149,12 +176,14 @@ def slicer_command(p: Print, stl: Path, gcode: Path) -> list[str]:
                f"{0.5 * i:g}", "--gap-fill-speed", f"{0.5 * w:g}", "--bridge-speed",
                f"{0.5 * w:g}", "--travel-speed", f"{_travel(p):g}", "--first-layer-speed",
                "30", "--default-acceleration", f"{a:g}", "--perimeter-acceleration", f"{a:g}",
-               "--infill-acceleration", f"{a:g}"]
+               "--infill-acceleration", f"{a:g}", "--max-volumetric-speed", f"{max_flow:g}"]
         if p.relative_e:
             cmd += ["--use-relative-e-distances"]
         return [*cmd, "-o", str(gcode), str(stl)]
     if p.slicer == "cura":
         d = CURA_DEFINITIONS
+        cap = max_flow / (CURA_LINE_MM * p.layer_mm)  # the fastest line the hot end melts
+        w, i = min(w, cap), min(i, cap)
         settings = {
             "machine_width": "200", "machine_depth": "200", "machine_height": "200",
             "machine_gcode_flavor": "RepRap (Marlin/Sprinter)",
@@ -191,7 +220,9 @@ def machine_of(p: Print, out: Path) -> tuple[str, str | None]:
         cfg = out / f"{p.name}.cfg"
         cfg.write_text(KLIPPER_CFG.format(velocity=p.velocity_mm_s, accel=p.accel_mm_s2,
                                           scv=p.scv_mm_s))
-        return "tronvoll2019", str(cfg)
+        setup = out / "validation-klipper-volcano.toml"
+        setup.write_text(KLIPPER_SETUP)
+        return str(setup), str(cfg)
     if p.printer == "marlin-mk25":
         return "tronvoll2019", None
     if p.printer == "marlin-generic":
@@ -228,8 +259,7 @@ def generate(split: str | None = None, out: Path = OUT) -> list[Path]:
         if not stl.exists():
             _run(["openscad", "-o", str(stl), str(MODELS / f"{p.model}.scad")], log)
         gcode = out / f"{p.name}.gcode"
-        _run(slicer_command(p, stl, gcode), log)
-        machine_of(p, out)
+        _run(slicer_command(p, stl, gcode, max_flow_mm3_s(p, out)), log)
         paths.append(gcode)
         print(f"sliced {gcode.name}", flush=True)
     manifest = out / ("MANIFEST.tsv" if split is None else f"MANIFEST-{split}.tsv")

@@ -6,8 +6,13 @@ Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slice
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
 ``CuraEngine`` 4.13) with speeds of 40–300 mm/s, accelerations of 500–5000 mm/s², layers
 of 0.1–0.3 mm, relative or absolute E, and compensated for a Klipper printer (a
-``printer.cfg`` written from the row's limits) or a Marlin one (a set-up). The dev and
-check sets use different models and different settings.
+``printer.cfg`` written from the row's limits, with an E3D Volcano) or a Marlin one (an
+E3D V6). Each slicer is held to the hot end's maximum volumetric flow at the print's layer
+height (``flowtwin limits``: the flow at which 5 % is lost to slip), as a user sets up a
+slicer for a hot end (PrusaSlicer's and Slic3r's ``max_volumetric_speed``; CuraEngine has
+none: its speeds are capped to that flow for its line width): the requested speeds reach
+the fast end of the range where the lines are thin. The dev and check sets use different
+models and different settings.
 """
 
 from __future__ import annotations
