@@ -7,12 +7,15 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean services fuzz
+.PHONY: install demo test bench lint clean services browser fuzz slicer
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[all,dev]'
+	# compile the plan/simulate kernels into numba's cache now (35-100 s once), not in the
+	# user's first command
+	$(PY) -m flowtwin.warmup
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -25,7 +28,17 @@ demo: $(STAMP)
 services: $(STAMP)
 	$(PY) tests/control/services/install.py octoprint moonraker
 
-test: $(STAMP) services
+# a real browser for the report tests: Debian's chromium (apt-get) and Playwright for
+# Python pointed at it (a no-op once installed)
+browser: $(STAMP)
+	$(PY) tests/report/browser_install.py
+
+# a real slicer for the post-processing tests: Debian's prusa-slicer and openscad
+# (apt-get; a no-op once installed)
+slicer: $(STAMP)
+	$(PY) tests/postprocess/slicer_install.py
+
+test: $(STAMP) services browser slicer
 	$(PY) -m pytest -q -n 2 --dist loadgroup
 
 $(VENV)/.peers-stamp: $(STAMP) benchmarks/peers.txt

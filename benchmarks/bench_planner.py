@@ -18,7 +18,7 @@ from flowtwin.planner.from_profile import klipper_settings
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options
 from flowtwin.planner.marlin import MarlinSettings, plan_marlin
-from flowtwin.planning import load_printer
+from flowtwin.planner.plan_file import load_printer
 
 HERE = Path(__file__).resolve().parent
 

@@ -135,7 +135,7 @@ def _plan_fn(path: Path) -> Callable[[], object]:
     from flowtwin.planner.from_profile import klipper_settings
     from flowtwin.planner.klipper import plan_klipper
     from flowtwin.planner.klipper_config import klipper_read_options
-    from flowtwin.planning import load_printer
+    from flowtwin.planner.plan_file import load_printer
 
     settings = klipper_settings(load_printer("generic-klipper"))
     opts = klipper_read_options(settings)

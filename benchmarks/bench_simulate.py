@@ -116,7 +116,7 @@ def _stages(path: Path, cfg: Path | None, repeat: int) -> dict[str, float]:
     from flowtwin.planner.klipper import plan_klipper
     from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
     from flowtwin.planner.marlin import plan_marlin
-    from flowtwin.planning import PlanResult
+    from flowtwin.planner.plan_file import PlanResult
     from flowtwin.profiles.machine import load_machine
     from flowtwin.simulation.parameters import move_parameters
     from flowtwin.simulation.pipeline import DEFAULT_MACHINE

@@ -75,24 +75,26 @@ def _text_or_bytes(rng: random.Random, data: bytes) -> bytes:
 def gcode_target(seed: int) -> Target:
     """G-code text: read, plan (Klipper and Marlin), simulate; samples compensate and CLI."""
     pool = LinePool(_corpus(), random.Random(seed))
-    machine: list[Any] = []
+    loaded: dict[str, Any] = {}
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import load_printer, plan_gcode
         from flowtwin.profiles.machine import load_machine
         from flowtwin.simulation import simulate
 
+        if not loaded:  # profiles once per worker: the documents are what is fuzzed
+            loaded["machine"] = load_machine("tronvoll2019")
+            loaded["printers"] = [load_printer(n) for n in ("generic-klipper", "generic-marlin")]
+        data = path.read_bytes()  # the file is read once; the readers take its bytes
         target.count("read")
-        read_gcode(path)
+        read_gcode(data)
         target.count("plan")
-        result = plan_gcode(path, printer=rng.choice(("generic-klipper", "generic-marlin")))
+        result = plan_gcode(data, printer=rng.choice(loaded["printers"]))
         result.summary()
         result.per_layer()
-        if not machine:
-            machine.append(load_machine("tronvoll2019"))
         target.count("simulate")
-        simulate(path, machine=machine[0]).summary()
+        simulate(data, machine=loaded["machine"]).summary()
         if rng.random() < 0.002:
             from flowtwin.compensation import compensate
 
@@ -150,7 +152,7 @@ def bgcode_target(seed: int) -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.gcode.reader import read_gcode
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         target.count("read")
         read_gcode(path)
@@ -186,7 +188,7 @@ def klipper_cfg_target() -> Target:
 
     def run(path: Path, rng: random.Random) -> None:
         from flowtwin.planner.klipper_config import load_printer_cfg
-        from flowtwin.planning import plan_gcode
+        from flowtwin.planner.plan_file import plan_gcode
 
         target.count("load")
         load_printer_cfg(path)
@@ -242,7 +244,7 @@ def width_csv_target() -> Target:
              b"# measured\nposition_mm,width_mm\n0,0.45\n1,0.46\n2,0.47\n3,0.44\n"]
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.lagfit import read_width_profiles
+        from flowtwin.calibration.fits.lagfit import read_width_profiles
 
         target.count("read")
         read_width_profiles(path)
@@ -257,7 +259,7 @@ def orca_table_target() -> Target:
              b"0.045,15,5000\n", b'"0.04,5,1000\\n0.05,20,1000\\n0.03,5,3000\\n0.04,20,3000"']
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.adaptive_pa import read_orca_model
+        from flowtwin.calibration.tuning.adaptive_pa import read_orca_model
 
         target.count("read")
         read_orca_model(path)
@@ -304,7 +306,7 @@ def image_target() -> Target:
         return mutate_bytes(rng, rng.choice(seeds))
 
     def run(path: Path, rng: random.Random) -> None:
-        from flowtwin.calibration.kimage import load_grey
+        from flowtwin.calibration.image.kimage import load_grey
 
         target.count("load")
         load_grey(path)

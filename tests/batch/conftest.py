@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from flowtwin.gcode.generator import PrintSpec, write_print
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.simulation import simulate
 
 

@@ -21,7 +21,7 @@ from flowtwin.batch.jobs import (
 )
 from flowtwin.batch.overrides import MachineBuilder, load_base
 from flowtwin.errors import FlowtwinError
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 
 
 def _job(path: Path, **kw: object) -> Job:
@@ -132,3 +132,28 @@ def test_flatten_keeps_scalars_and_encodes_tables() -> None:
                     "f": None, "g": "text", "h": True}
     assert isinstance(flat["a"], float) and not isinstance(flat["a"], np.generic)
     assert not any(isinstance(v, float) and math.isnan(v) for v in flat.values())
+
+
+def test_large_files_are_evaluated_streamed_with_the_same_row(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A row of a file above the streaming threshold has the keys and figures of the
+    whole-table row (plan: sums to the bit, times to 1e-11; simulate: to 1e-9)."""
+    import flowtwin.planner.plan_stream
+    from flowtwin.batch.jobs import evaluate
+    from flowtwin.gcode.generator import PrintSpec, write_print
+    from flowtwin.profiles.machine import load_machine
+
+    path = tmp_path / "p.gcode"
+    write_print(path, PrintSpec(layers=8))
+    machine = load_machine("tronvoll2019")
+    whole = {e: evaluate(str(path), machine, engine=e)[0] for e in ("plan", "simulate")}
+    monkeypatch.setattr(flowtwin.planner.plan_stream, "STREAM_ABOVE_BYTES", 0)
+    streamed = {e: evaluate(str(path), machine, engine=e)[0] for e in ("plan", "simulate")}
+    for engine, rel in (("plan", 1e-11), ("simulate", 1e-9)):
+        a, b = whole[engine], streamed[engine]
+        assert a.keys() == b.keys(), engine
+        for key, val in a.items():
+            if isinstance(val, float):
+                assert b[key] == pytest.approx(val, rel=rel, abs=1e-9), (engine, key)
+            elif not isinstance(val, dict):
+                assert b[key] == val, (engine, key)

@@ -11,11 +11,15 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagmodel import LagParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
-from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.fits.lagmodel import LagParams
+from flowtwin.calibration.image.twin_render import (
+    ImageConditions,
+    RenderedImage,
+    render_pattern_image,
+)
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.firmware import Firmware
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode

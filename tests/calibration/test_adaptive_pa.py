@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
-from flowtwin.calibration.adaptive_pa import (
+from flowtwin.calibration.csvdata import read_table, read_table_text
+from flowtwin.calibration.tuning.adaptive_pa import (
     ADAPTIVE_PA_COLUMNS,
     FIT_K_MEASUREMENT_HEADER,
     AdaptivePaTable,
@@ -21,7 +22,6 @@ from flowtwin.calibration.adaptive_pa import (
     table_from_measurements,
     write_orca_model,
 )
-from flowtwin.calibration.csvdata import read_table, read_table_text
 from flowtwin.errors import DataError
 from flowtwin.physics.deposition import bead_area_mm2
 

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.calibration.beadwidth import (
+from flowtwin.calibration.image.beadwidth import (
     Strip,
     area_widths,
     dark_level,

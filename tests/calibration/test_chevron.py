@@ -7,9 +7,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.chevron import ChevronParams, chevron_pattern
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.chevron import ChevronParams, chevron_pattern
+from flowtwin.calibration.patterns.pattern import PrintSettings
+from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.firmware import Firmware
 
 PARAMS = ChevronParams(k_start=0.0, k_end=0.03, k_step=0.01, layers=3, walls=3)

@@ -14,11 +14,11 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagmodel import LagParams, lag_model
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.render import ImageConditions
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
+from flowtwin.calibration.image.twin_render import ImageConditions
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.cli.calibrate import register
 from flowtwin.errors import CalibrationError, DataError, VisionError
 from flowtwin.gcode.reader import read_gcode
@@ -109,7 +109,7 @@ _ALL_OPTIONS = {o for opts, _ in _OWN_OPTIONS.values() for o in opts}
 
 def test_every_pattern_kind_has_its_command_options_and_help() -> None:
     from flowtwin.calibration.guide import PATTERN_KIND_HELP
-    from flowtwin.calibration.patterns import PATTERN_KINDS
+    from flowtwin.calibration.patterns.catalog import PATTERN_KINDS
     from flowtwin.cli.calibrate_pattern import _KIND_OPTIONS
 
     assert set(PATTERN_KINDS) == set(_KIND_OPTIONS) == set(PATTERN_KIND_HELP) == set(
@@ -140,7 +140,7 @@ def test_pattern_option_of_another_kind_is_a_usage_error(tmp_path: Path) -> None
 
 def test_pattern_defaults_are_the_kinds_defaults(tmp_path: Path) -> None:
     # options left out give the parameter object's defaults (the same file as the API)
-    from flowtwin.calibration.patterns import generate_pattern
+    from flowtwin.calibration.patterns.catalog import generate_pattern
 
     for kind in _OWN_OPTIONS:
         out = tmp_path / f"{kind}.gcode"

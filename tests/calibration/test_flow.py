@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.flow import (
+from flowtwin.calibration.patterns.flow_rate import (
     FlowBlockParams,
     FlowLineParams,
     MaxFlowParams,
@@ -16,8 +16,8 @@ from flowtwin.calibration.flow import (
     flowline_pattern,
     maxflow_pattern,
 )
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.pattern import PrintSettings
+from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 

@@ -9,15 +9,16 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kimage import analyse_kline_image, load_grey
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
-from flowtwin.calibration.patterns import generate_pattern
-from flowtwin.calibration.render import ImageConditions, RenderedImage
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.image.kimage import analyse_kline_image
+from flowtwin.calibration.image.twin_render import ImageConditions, RenderedImage
+from flowtwin.calibration.patterns.catalog import generate_pattern
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine
+from flowtwin.vision.loader import load_grey
 
 Render = Callable[[float, ImageConditions], RenderedImage]
 
@@ -98,7 +99,7 @@ def test_image_files(tmp_path: Path, render_kline7: Render, kline7: Pattern,
     assert np.array_equal(grey, img.image) and name == str(colour)
     not_image = tmp_path / "notes.png"
     not_image.write_text("not an image")
-    with pytest.raises(VisionError, match="cannot read the file as an image"):
+    with pytest.raises(VisionError, match="not a readable image"):
         analyse_kline_image(not_image, kline7, machine=tronvoll)
     with pytest.raises(VisionError, match="no such image file"):
         analyse_kline_image(tmp_path / "missing.png", kline7, machine=tronvoll)
@@ -131,3 +132,16 @@ def test_pattern_must_match_the_machine(kline7: Pattern, tronvoll: Machine) -> N
         analyse_kline_image(np.zeros((50, 50), np.uint8), chevron, machine=tronvoll)
     with pytest.raises(CalibrationError, match="unknown width measurement"):
         analyse_kline_image(np.zeros((50, 50), np.uint8), kline7, method="sobel")
+
+
+def test_16_bit_images_load_as_vision_loads_them(render_kline7: Render, kline7: Pattern,
+                                                  tronvoll: Machine) -> None:
+    # one image loader for calibration and vision (flowtwin.vision.loader): a 16-bit scan
+    # of the same picture (x·257) reads back as the 8-bit picture and gives the same K
+    img = render_kline7(0.05, ImageConditions(px_per_mm=8.0))
+    wide = img.image.astype(np.uint16) * 257
+    assert np.array_equal(load_grey(wide)[0], img.image)
+    a = analyse_kline_image(img.image, kline7, machine=tronvoll)
+    b = analyse_kline_image(wide, kline7, machine=tronvoll)
+    assert a.lag is not None and b.lag is not None
+    assert b.lag.k_s == a.lag.k_s

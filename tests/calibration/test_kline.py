@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kline import KLineParams, kline_pattern
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.kline import KLineParams, kline_pattern
+from flowtwin.calibration.patterns.pattern import PrintSettings
+from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.firmware import Firmware
 
 

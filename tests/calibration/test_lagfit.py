@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.csvdata import read_table_text
-from flowtwin.calibration.kfit import fit_k, kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagfit import (
+from flowtwin.calibration.fits.kfit import fit_k, kline_for_machine
+from flowtwin.calibration.fits.lagfit import (
     PROFILE_COLUMNS,
     WidthProfile,
     fit_lag,
     profiles_from_table,
     read_width_profiles,
 )
-from flowtwin.calibration.lagmodel import LagModel, LagParams, lag_model, printed_runs
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, lag_model, printed_runs
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.printer import PressureAdvance
@@ -57,7 +57,7 @@ def test_known_lag_is_recovered_within_its_uncertainty(line: tuple[Pattern, LagM
     assert fit.k_err_s < 0.05 * 0.045          # a useful measurement, not a shrug
     assert fit.rms_mm == pytest.approx(NOISE_MM, rel=0.15)
     assert fit.n_points + fit.n_excluded == X.size
-    assert fit.machine_lag_s == pytest.approx(0.06, abs=0.002)   # SPEC §4 default
+    assert fit.machine_lag_s == pytest.approx(0.06, abs=0.002)   # docs/spec.md §4 default
 
 
 def test_reported_uncertainty_matches_the_scatter(line: tuple[Pattern, LagModel]) -> None:

@@ -8,14 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.calibration.kfit import kline_for_machine
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.lagmodel import LagParams, _path_kinematics, lag_model, printed_runs
-from flowtwin.calibration.pattern_base import PrintSettings
+from flowtwin.calibration.fits.kfit import kline_for_machine
+from flowtwin.calibration.fits.lagmodel import LagParams, _path_kinematics, lag_model, printed_runs
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.errors import CalibrationError
 from flowtwin.physics.deposition import bead_area_mm2
+from flowtwin.planner.plan_file import load_printer
 from flowtwin.planner.timeline import PHASE_DTYPE
-from flowtwin.planning import load_printer
 from flowtwin.profiles.machine import Machine, load_machine
 
 
@@ -65,7 +65,7 @@ def test_width_after_a_speed_step_is_bellinis_response(klipper_machine: Machine)
 def test_steady_width_is_the_slicer_bead(klipper_machine: Machine) -> None:
     """After the transient the bead is the slicer's ``A = w·h − (1 − π/4)·h²`` [001 Eq. 7],
     for the filament really fed: the G-code is written for 1.75 mm, the set-up's PLA is
-    1.752 mm (SPEC §4), so the bead carries (1.752/1.75)² more melt."""
+    1.752 mm (docs/spec.md §4), so the bead carries (1.752/1.75)² more melt."""
     s = PrintSettings(accel_mm_s2=2000.0, line_width_mm=0.45, layer_height_mm=0.25)
     p = kline_for_machine(klipper_machine, s, KLineParams(k_start=0.0, k_end=0.0,
                                                           mark_every=0))

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.calibration.linefind import find_lines, local_scale, register_pattern
-from flowtwin.calibration.render import ImageConditions, RenderedImage
+from flowtwin.calibration.image.linefind import find_lines, local_scale, register_pattern
+from flowtwin.calibration.image.twin_render import ImageConditions, RenderedImage
 from flowtwin.errors import VisionError
 
 Render = Callable[[float, ImageConditions], RenderedImage]

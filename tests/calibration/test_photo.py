@@ -19,6 +19,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from flowtwin.calibration.fits.kfit import kline_for_machine, pattern_firmware
 from flowtwin.calibration.image.analyse import PhotoResult, analyse_line_photo
 from flowtwin.calibration.image.layouts import (
     LAYOUTS,
@@ -33,9 +34,8 @@ from flowtwin.calibration.image.photosynth import (
     synthetic_widths,
 )
 from flowtwin.calibration.image.quality import edge_ratio
-from flowtwin.calibration.kfit import kline_for_machine, pattern_firmware
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import Pattern, PrintSettings
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import Pattern, PrintSettings
 from flowtwin.cli.calibrate import register
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import load_machine

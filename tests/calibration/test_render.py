@@ -7,10 +7,10 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from flowtwin.calibration.beadwidth import area_widths, sample_strip, window_widths
-from flowtwin.calibration.lagmodel import LagParams, lag_model
-from flowtwin.calibration.pattern_base import Pattern
-from flowtwin.calibration.render import ImageConditions, RenderedImage
+from flowtwin.calibration.fits.lagmodel import LagParams, lag_model
+from flowtwin.calibration.image.beadwidth import area_widths, sample_strip, window_widths
+from flowtwin.calibration.image.twin_render import ImageConditions, RenderedImage
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.profiles.machine import Machine
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from flowtwin.calibration.slipfit import fit_slip_records
+from flowtwin.calibration.fits.slipfit import fit_slip_records
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.profiles import load_rollers
 from flowtwin.profiles.toml_io import profile_from_toml

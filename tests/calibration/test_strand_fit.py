@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.csvdata import read_table_text
-from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
+from flowtwin.calibration.fits.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.physics.strand import (
     StrandModel,

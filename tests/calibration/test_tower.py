@@ -7,9 +7,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.tower import TowerParams, tower_k_at, tower_pattern
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.pattern import PrintSettings
+from flowtwin.calibration.patterns.tower import TowerParams, tower_k_at, tower_pattern
+from flowtwin.calibration.patterns.verify import verify_pattern
 from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 

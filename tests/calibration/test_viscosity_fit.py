@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration.csvdata import read_table_text
-from flowtwin.calibration.viscosity_fit import (
+from flowtwin.calibration.fits.viscosity_fit import (
     VISCOSITY_COLUMNS,
     ViscositySweep,
     apparent_viscosity_pa_s,

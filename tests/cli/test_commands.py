@@ -121,3 +121,20 @@ def test_simulate_stream_equals_whole_simulation(small_gcode: Path) -> None:
     streamed = json.loads(res.stdout)
     for key in ("commanded_volume_mm3", "delivered_volume_mm3", "total_time_s"):
         assert streamed[key] == pytest.approx(whole[key], rel=1e-9)
+
+
+def test_simulate_series_at_the_asked_interval(small_gcode: Path, tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    import numpy as np
+
+    out = tmp_path / "s.csv"
+    res = runner.invoke(app, ["simulate", str(small_gcode), "--json", "--series", str(out),
+                              "--series-dt", "0.002"])
+    assert res.exit_code == 0, res.output
+    data = np.genfromtxt(out, delimiter=",", names=True)
+    t = data[data.dtype.names[0]]
+    assert np.allclose(np.diff(t), 0.002, rtol=0, atol=1e-7)
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", str(small_gcode), "--series", str(out), "--series-dt", "-1"])
+    assert exc.value.code == 2
+    assert "--series-dt" in capsys.readouterr().err

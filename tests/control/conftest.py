@@ -316,7 +316,7 @@ def check_moonraker_exchange(path: Path) -> None:
     """
     import json
 
-    from flowtwin.control.moonraker import factors_from_status, split_rpc_message
+    from flowtwin.control.transports.moonraker import factors_from_status, split_rpc_message
     from flowtwin.firmware import Channel
 
     record = json.loads(path.read_text())

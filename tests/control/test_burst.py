@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.control.burst import measure_burst
-from flowtwin.control.twin_camera import twin_scene
+from flowtwin.control.loop.burst import measure_burst
+from flowtwin.control.simulated.camera import twin_scene
 from flowtwin.vision import Frame
 from flowtwin.vision.synth import MotionSeries, SyntheticCamera
 

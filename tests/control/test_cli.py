@@ -11,7 +11,7 @@ import typer
 from typer.testing import CliRunner
 
 from flowtwin.cli import control as control_cli
-from flowtwin.control.log import COLUMNS
+from flowtwin.control.loop.log import COLUMNS
 from flowtwin.errors import FlowtwinError
 
 
@@ -102,7 +102,7 @@ def test_twin_camera_prints_the_polygon_in_simulated_time(app: typer.Typer,
 def test_video_source_ends_with_the_recording(app: typer.Typer, tmp_path: Path) -> None:
     import cv2
 
-    from flowtwin.control.twin_camera import twin_scene
+    from flowtwin.control.simulated.camera import twin_scene
     from flowtwin.vision.synth import (
         MotionSeries,
         SyntheticCamera,
@@ -144,7 +144,7 @@ def test_source_errors(app: typer.Typer, args: list[str], match: str) -> None:
 
 
 def test_missing_camera_is_a_user_error(app: typer.Typer, tmp_path: Path) -> None:
-    from flowtwin.control.twin_camera import twin_scene
+    from flowtwin.control.simulated.camera import twin_scene
     from flowtwin.vision.synth import write_config_toml
 
     cfg = write_config_toml(twin_scene(2.85).vision_config(), tmp_path / "v.toml")

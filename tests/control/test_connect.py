@@ -5,14 +5,14 @@ from __future__ import annotations
 import httpx
 import pytest
 
-from flowtwin.control._net import guarded_client, websocket_url
-from flowtwin.control.clock import SimClock
 from flowtwin.control.connect import open_printer
-from flowtwin.control.credentials import ApiKey
-from flowtwin.control.marlin_serial import SerialPrinter
-from flowtwin.control.moonraker import MoonrakerPrinter
-from flowtwin.control.octoprint import OctoPrintPrinter
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.loop.clock import SimClock
+from flowtwin.control.simulated.twin import TwinPrinter
+from flowtwin.control.transports._net import guarded_client, websocket_url
+from flowtwin.control.transports.credentials import ApiKey
+from flowtwin.control.transports.marlin_serial import SerialPrinter
+from flowtwin.control.transports.moonraker import MoonrakerPrinter
+from flowtwin.control.transports.octoprint import OctoPrintPrinter
 from flowtwin.errors import PrinterConnectionError, ProfileError
 from flowtwin.firmware import Firmware
 

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from flowtwin.control.controllers import (
+from flowtwin.control.loop.controllers import (
     FeedForwardController,
     GreeffController,
     Limits,

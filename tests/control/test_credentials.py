@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from flowtwin.control.credentials import ApiKey, load_api_key
+from flowtwin.control.transports.credentials import ApiKey, load_api_key
 from flowtwin.errors import ProfileError
 
 SECRET = "S3CRET-KEY-0123456789"

@@ -8,13 +8,19 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.control.extrusion import ExtruderState, StepParams, step_extrusion, step_params
-from flowtwin.control.job import PrintJob
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
 from flowtwin.control.printer import Factors
-from flowtwin.control.twinjob import JobRunner
+from flowtwin.control.simulated.extruder import (
+    ExtruderState,
+    StepParams,
+    step_extrusion,
+    step_params,
+)
+from flowtwin.control.simulated.job import PrintJob
+from flowtwin.control.simulated.runner import JobRunner
 from flowtwin.physics.drive import steady_state_slip
+from flowtwin.physics.lag import lag_step
 from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 from flowtwin.simulation import simulate
 from flowtwin.simulation.parameters import operating_point
 
@@ -127,3 +133,21 @@ def test_bad_parameters_are_refused() -> None:
         StepParams(lag_k_s=0.0, compliance_mm_per_n=0.01)
     with pytest.raises(ValueError, match="bad step"):
         step_extrusion(ExtruderState(), math.nan, 0.01, StepParams(0.1, 0.01))
+
+
+def test_without_slip_the_step_is_the_lag_primitive() -> None:
+    # no slip, no force limit: the state equation is the lag with no backflow, which
+    # flowtwin.physics.lag.lag_step solves (same closed forms, rounding apart)
+    p = StepParams(lag_k_s=0.07, compliance_mm_per_n=0.015)
+    rng = np.random.default_rng(17)
+    st = ExtruderState()
+    x = 0.0
+    for _ in range(2000):
+        v = float(rng.choice([3.0, 1.5, 0.0, -20.0, 20.0], p=[.35, .3, .15, .1, .1]))
+        dt = float(rng.uniform(0.001, 0.08))
+        st, fl = step_extrusion(st, v, dt, p)
+        ref = lag_step(x, v, 0.0, dt, p.lag_k_s)
+        x = ref.x_mm
+        assert st.compression_mm == pytest.approx(x, abs=1e-14)
+        assert fl.out_mm == pytest.approx(ref.out_mm, abs=1e-14)
+        assert fl.fed_mm == pytest.approx(ref.fed_mm, abs=1e-14)

@@ -6,8 +6,13 @@ import re
 
 import pytest
 
-from flowtwin.control.marlin_serial import MarlinLineCodec, SerialPrinter, checksum, parse_reply
 from flowtwin.control.printer import ConnectionLost
+from flowtwin.control.transports.marlin_serial import (
+    MarlinLineCodec,
+    SerialPrinter,
+    checksum,
+    parse_reply,
+)
 from flowtwin.firmware import Channel
 
 

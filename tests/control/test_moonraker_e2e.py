@@ -10,13 +10,13 @@ from pathlib import Path
 import httpx
 import pytest
 
-from flowtwin.control.clock import RealClock
-from flowtwin.control.controllers import Limits, PIController
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import SyntheticSlipSource
-from flowtwin.control.moonraker import MoonrakerPrinter
+from flowtwin.control.loop.clock import RealClock
+from flowtwin.control.loop.controllers import Limits, PIController
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.measurement import SyntheticSlipSource
+from flowtwin.control.loop.supervisor import FaultKind, LoopSettings, Status, run_control
 from flowtwin.control.printer import CommandRejected
-from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
+from flowtwin.control.transports.moonraker import MoonrakerPrinter
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Channel
 

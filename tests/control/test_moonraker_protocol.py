@@ -12,7 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from flowtwin.control.moonraker import factors_from_status, rpc_request, split_rpc_message
+from flowtwin.control.transports.moonraker import (
+    factors_from_status,
+    rpc_request,
+    split_rpc_message,
+)
 from flowtwin.firmware import Channel
 
 FIXTURE = Path(__file__).resolve().parent / "fixtures" / "moonraker_exchange.json"

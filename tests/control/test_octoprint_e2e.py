@@ -14,13 +14,13 @@ import typer
 from typer.testing import CliRunner
 
 from flowtwin.cli import control as control_cli
-from flowtwin.control.clock import RealClock
-from flowtwin.control.controllers import GreeffController, Limits
-from flowtwin.control.credentials import ApiKey
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import SyntheticSlipSource
-from flowtwin.control.octoprint import OctoPrintPrinter
-from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
+from flowtwin.control.loop.clock import RealClock
+from flowtwin.control.loop.controllers import GreeffController, Limits
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.measurement import SyntheticSlipSource
+from flowtwin.control.loop.supervisor import FaultKind, LoopSettings, Status, run_control
+from flowtwin.control.transports.credentials import ApiKey
+from flowtwin.control.transports.octoprint import OctoPrintPrinter
 from flowtwin.errors import GcodeError, PrinterConnectionError
 from flowtwin.firmware import Firmware
 

@@ -7,12 +7,12 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from flowtwin.control.clock import SimClock
-from flowtwin.control.controllers import GreeffController, Limits, PIController, WindowState
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import Measurement, SyntheticSlipSource
-from flowtwin.control.supervisor import FaultKind, LoopSettings, Status, run_control
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.loop.clock import SimClock
+from flowtwin.control.loop.controllers import GreeffController, Limits, PIController, WindowState
+from flowtwin.control.loop.log import ControlLog
+from flowtwin.control.loop.measurement import Measurement, SyntheticSlipSource
+from flowtwin.control.loop.supervisor import FaultKind, LoopSettings, Status, run_control
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.firmware import Channel, Firmware
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from flowtwin.control.clock import AcceleratedClock, SimClock
+from flowtwin.control.loop.clock import AcceleratedClock, SimClock
 from flowtwin.control.printer import CommandRejected, ConnectionLost, Printer
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.errors import FlowtwinError, GcodeError
 from flowtwin.firmware import Firmware
 

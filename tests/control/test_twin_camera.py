@@ -7,14 +7,14 @@ import math
 import cv2
 import pytest
 
-from flowtwin.control.clock import SimClock
-from flowtwin.control.job import PrintJob
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
-from flowtwin.control.twin import TwinPrinter
-from flowtwin.control.twin_camera import TwinCameraSource, twin_scene
-from flowtwin.control.twinjob import JobRunner
+from flowtwin.control.loop.clock import SimClock
+from flowtwin.control.simulated.camera import TwinCameraSource, twin_scene
+from flowtwin.control.simulated.job import PrintJob
+from flowtwin.control.simulated.runner import JobRunner
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.errors import ProfileError
 from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 
 GREEFF = load_machine("greeff2017")
 SCENE = twin_scene(2.85, width_px=320, height_px=256, mm_per_px=0.05)

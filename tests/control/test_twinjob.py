@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from flowtwin.control.clock import SimClock
-from flowtwin.control.job import PrintJob
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
+from flowtwin.control.loop.clock import SimClock
 from flowtwin.control.printer import Factors
-from flowtwin.control.twin import TwinPrinter
-from flowtwin.control.twinjob import JobRunner
+from flowtwin.control.simulated.job import PrintJob
+from flowtwin.control.simulated.runner import JobRunner
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.errors import ProfileError
 from flowtwin.profiles import load_machine
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec, polygon_gcode
 from flowtwin.simulation.parameters import operating_point
 
 GREEFF = load_machine("greeff2017")

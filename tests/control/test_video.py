@@ -8,10 +8,10 @@ from pathlib import Path
 import cv2
 import pytest
 
-from flowtwin.control.clock import RealClock, SimClock
-from flowtwin.control.measurement import Measurement, MeasurementLost, MeasurementSource
-from flowtwin.control.twin_camera import twin_scene
-from flowtwin.control.video import CameraSource, VideoSource
+from flowtwin.control.loop.clock import RealClock, SimClock
+from flowtwin.control.loop.measurement import Measurement, MeasurementLost, MeasurementSource
+from flowtwin.control.loop.video import CameraSource, VideoSource
+from flowtwin.control.simulated.camera import twin_scene
 from flowtwin.errors import ProfileError, VisionError
 from flowtwin.vision.synth import MotionSeries, SyntheticCamera, write_video
 

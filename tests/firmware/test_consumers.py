@@ -1,7 +1,7 @@
 """Every consumer of the firmware model handles every firmware.
 
 Parametrised over :class:`flowtwin.firmware.Firmware`: adding a member runs each check
-below for it. The consumers: planner selection (:func:`flowtwin.planning.plan_gcode`), the
+below for it. The consumers: planner selection (:func:`flowtwin.planner.plan_file.plan_gcode`), the
 dynamics' pressure advance, the advance command written and read back, the calibration
 patterns, the closed loop's multiplier commands and the twin's firmware-settings files.
 """
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from flowtwin.calibration import PrintSettings, generate_pattern
-from flowtwin.compensation.settings import best_pressure_advance, pa_test_gcode
-from flowtwin.control.clock import SimClock
+from flowtwin.calibration.tuning.advance_settings import best_pressure_advance, pa_test_gcode
+from flowtwin.control.loop.clock import SimClock
 from flowtwin.control.printer import FactorTracker
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.simulated.twin import TwinPrinter
 from flowtwin.dynamics import (
     AdvanceSettings,
     advance_schedule,
@@ -42,7 +42,7 @@ from flowtwin.firmware import (
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import KlipperSettings
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles import PrinterProfile, load_builtin
 from flowtwin.profiles.machine import load_machine
 

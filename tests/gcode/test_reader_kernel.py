@@ -11,9 +11,9 @@ import pytest
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode._bytes import _parse_number, _parse_number_long
+from flowtwin.gcode.inputs import line_chunks
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.gcode.reader import ReadOptions, iter_move_chunks, read_gcode
-from flowtwin.gcode.source import line_chunks
 
 
 def _checksummed(body: str) -> str:

@@ -1,4 +1,4 @@
-"""Calibration targets of the default constants (SPEC §4) against [001 Table II] and [003]."""
+"""Calibration targets of the default constants (docs/spec.md §4): [001 Table II], [003]."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ TARGETS = np.array([row.k_average_s for row in TRONVOLL_TABLE_II])
 
 
 def test_default_lag_factor_is_006_s_at_02_mm() -> None:
-    # SPEC §4: K ≈ 0.06 s at 0.2 mm layers [001 Table II]. The stored constants are
+    # docs/spec.md §4: K ≈ 0.06 s at 0.2 mm layers [001 Table II]. The stored constants are
     # rounded to 3 significant digits, hence 1 %.
     assert float(setup_lag_factor_s(TRONVOLL_MK25, layer_height_mm=0.2)) == pytest.approx(
         0.06, rel=0.01)
@@ -48,7 +48,7 @@ def test_rederivation_matches_stored_constants() -> None:
 
 def test_lubrication_exponent_cannot_reproduce_table_ii() -> None:
     # Why n = 1: the gap-flow (lubrication) form n = 3 fitted the same way misses Table II
-    # by more than the ±15 % SPEC allows.
+    # by more than 15 % (docs/physics.md §5: n = 3 cannot reproduce it).
     hotend = replace(TRONVOLL_MK25.hotend, back_pressure_exponent=3.0)
     cal = derive_tronvoll_calibration(replace(TRONVOLL_MK25, hotend=hotend))
     errors = np.array(cal.lag_factors_s) / np.array(cal.targets_s) - 1.0

@@ -28,7 +28,7 @@ TOOTHED = (1, 2, 3, 5, 6, 7)
 
 @pytest.mark.parametrize("number", [1, 2, 4, 5, 6, 7])
 def test_eq9_reproduces_table3_fp_min(number: int) -> None:
-    # [000 Table 3] prints F_p,min rounded to 1 N; SPEC §3.1 states all rows except #3
+    # [000 Table 3] prints F_p,min rounded to 1 N; docs/spec.md §3.1 states all rows except #3
     # agree with Eq. 9 within 2 %.
     r = ROLLERS[number]
     fp_min = min_pinch_force_n(percent_to_fraction(r.k_s_pct_n),
@@ -37,7 +37,7 @@ def test_eq9_reproduces_table3_fp_min(number: int) -> None:
 
 
 def test_eq9_roller3_disagrees_with_table3() -> None:
-    # The data check SPEC §3.1 asks to surface: Eq. 9 gives 54.8 N, Table 3 prints 77 N.
+    # The data check docs/spec.md §3.1 asks to surface: Eq. 9 gives 54.8 N, Table 3 prints 77 N.
     r = ROLLERS[3]
     fp_min = float(min_pinch_force_n(percent_to_fraction(r.k_s_pct_n),
                                      percent_to_fraction(r.k_inf_pct_per_n)))

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
 
-from flowtwin.physics.column import compliance_mm_per_n
+from flowtwin.physics.compliance import compliance_mm_per_n
 from flowtwin.physics.lag import compression_from_flow_mm, lag_factor_s, step_response_fraction
 
 AREA = np.pi * 1.752 ** 2 / 4

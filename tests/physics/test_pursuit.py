@@ -7,12 +7,12 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.optimize import brentq
 
-from flowtwin.physics.pursuit import laid_road, polyline_distance_mm
-from flowtwin.physics.trajectory import (
+from flowtwin.physics.nozzle_path import (
     circle_nozzle_radius_mm,
     nozzle_positions_mm,
     unit_tangents_from_slope,
 )
+from flowtwin.physics.pursuit import laid_road, polyline_distance_mm
 
 L = 0.06
 

@@ -10,8 +10,8 @@ start marker goes after the first move that has set X, Y and Z since the last st
 ``G28``, because Kalico's batch-mode ``G28`` leaves the axes at 5 mm instead of
 ``position_endstop`` (that first move then starts from a different place). The end marker
 goes before the first ``G28`` after the last extrusion. Each cfg gets
-``min_extrude_temp: 0`` and ``[telemetry] enabled: False`` (NOTES.md: batch mode reads no
-temperatures). Prints ``file cfg start_line end_line seconds`` per cfg.
+``min_extrude_temp: 0`` and ``[telemetry] enabled: False`` (docs/external-tools.md: batch
+mode reads no temperatures). Prints ``file cfg start_line end_line seconds`` per cfg.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from flowtwin.planner.marlin_delta import (
     segment_moves,
     tower_distances,
 )
-from flowtwin.planning import plan_gcode
+from flowtwin.planner.plan_file import plan_gcode
 from flowtwin.profiles import load_builtin, profile_from_dict
 
 KOSSEL = MarlinDelta(radius_mm=97.0, diagonal_rod_mm=218.0, segments_per_second=80.0,

@@ -114,7 +114,7 @@ def test_tronvoll_setup_matches_table_i() -> None:
     # 8-bit Prusa-Firmware: Marlin's planner and Linear Advance (M900), as [001] used
     assert printer.firmware == "marlin"
     assert printer.extruder.nozzle_diameter_mm == 0.4
-    # SPEC §4: roller #3 at 80 N; rotation distance π·7.98 mm ([000 Eq. 1] v = ω·r)
+    # docs/spec.md §4: roller #3 at 80 N; rotation distance π·7.98 mm ([000 Eq. 1] v = ω·r)
     assert (drive.roller_id, drive.pinch_force_n) == (3, 80.0)
     assert drive.rotation_distance_mm == pytest.approx(math.pi * 7.98, abs=1e-4)
 

@@ -26,7 +26,7 @@ def test_eq9_agrees_with_table3_within_2_percent(number: int) -> None:
     """[000 Eq. 9] F_p,min = sqrt(k_s/(0.1·k_∞)) from the row's own k_s and k_∞.
 
     2 %: Table 3 rounds F_p,min to whole newtons and k_∞ to 0.01 %/N (±0.005 on 0.22 is
-    ±2.3 % in k_∞, ±1.1 % in its square root); SPEC §3.1 states 2 % for these rows.
+    ±2.3 % in k_∞, ±1.1 % in its square root); docs/spec.md §3.1 states 2 % for these rows.
     """
     r = ROLLERS[number]
     eq9 = math.sqrt(r.k_s_pct_N / (0.1 * r.k_inf_pct_per_N))

@@ -98,7 +98,7 @@ def test_the_summary_counts_each_kind(repro_ctx: ReproContext) -> None:
 def test_data_checks_are_the_documented_discrepancies(repro_ctx: ReproContext) -> None:
     rows = {r.claim_id: r for r in run("nienhaus2021", ctx=repro_ctx).rows}
     disc = rows["table3-fpmin-3-discrepancy"]
-    # SPEC §3.1: Table 3 prints 77 N, Eq. 9 gives 54.8 N
+    # docs/spec.md §3.1: Table 3 prints 77 N, Eq. 9 gives 54.8 N
     assert disc.paper_value == 77.0
     assert disc.flowtwin_value == pytest.approx(54.77, abs=0.01)
     assert disc.kind == RowKind.DATA_CHECK

@@ -11,8 +11,12 @@ import io
 import cv2
 import pytest
 
-from flowtwin.control.polygon import PolygonSpec
-from flowtwin.control.printjob import PrintJobComparison, PrintJobSettings, compare_print_jobs
+from flowtwin.reproduce.greeff2017_loop import (
+    PrintJobComparison,
+    PrintJobSettings,
+    compare_print_jobs,
+)
+from flowtwin.reproduce.greeff2017_polygon import PolygonSpec
 from flowtwin.reproduce.greeff2017_printjob import (
     PRINT_JOB_FIGURE,
     print_job_figure,

@@ -1,4 +1,4 @@
-"""The default twin reproduces the seeds' magnitudes (SPEC §4), through the profiles."""
+"""The default twin reproduces the seeds' magnitudes (docs/spec.md §4), through the profiles."""
 
 from __future__ import annotations
 

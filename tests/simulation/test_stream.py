@@ -12,8 +12,8 @@ from flowtwin.gcode.generator import PrintSpec, write_print
 from flowtwin.gcode.reader import iter_move_chunks
 from flowtwin.planner.klipper import plan_klipper
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
-from flowtwin.simulation import simulate, simulate_stream
-from flowtwin.simulation.windows import WindowPlanner
+from flowtwin.planner.windows import WindowPlanner
+from flowtwin.simulation import SimulationResult, StreamResult, simulate, simulate_stream
 
 # Whole-print figures are sums over ~1e5 moves of per-move values that agree to rounding:
 # 1e-9 relative leaves room for the summation order and the clock offsets of the windows
@@ -24,8 +24,6 @@ REL = 1e-9
 
 def _assert_same(whole: dict[str, object], stream: dict[str, object]) -> None:
     for key, val in whole.items():
-        if key in ("warnings", "net_filament_mm"):
-            continue
         got = stream[key]
         if isinstance(val, float):
             assert isinstance(got, float), key
@@ -63,6 +61,28 @@ def test_stream_equals_whole_simulation_on_generated_print(gen_gcode: Path) -> N
     total = whole.summary().commanded_volume_mm3
     _rows_same(whole.per_layer(), st.per_layer(), total)  # type: ignore[arg-type]
     _rows_same(whole.per_feature(), st.per_feature(), total)  # type: ignore[arg-type]
+    _worst_same(whole, st)
+
+
+def _worst_same(whole: SimulationResult, st: StreamResult) -> None:
+    """The streamed ranking of the worst moves is the whole print's: the same scores in the
+    same order, each row the whole table's move (moves whose scores agree to rounding may
+    swap places: prints repeat the same move many times)."""
+    everything = {r["move"]: r for r in whole.worst_moves("width", len(whole.metrics))}
+    everything.update({r["move"]: r for r in whole.worst_moves("force", len(whole.metrics))})
+    for by, count in (("width", 10), ("force", 20)):
+        a, b = whole.worst_moves(by, count), st.worst_moves(by, count)
+        assert len(a) == len(b)
+
+        def score(r: dict[str, float | int], by: str = by) -> float:
+            return (abs(float(r["width_mean_mm"]) - float(r["width_nominal_mm"]))
+                    if by == "width" else float(r["force_margin_n"]))
+
+        for ra, rb in zip(a, b, strict=True):
+            assert score(rb) == pytest.approx(score(ra), rel=1e-9), by
+            ref = everything[int(rb["move"])]
+            for key, val in ref.items():
+                assert rb[key] == pytest.approx(val, rel=1e-9, abs=1e-12), (by, key)
 
 
 @pytest.mark.corpus
@@ -76,6 +96,7 @@ def test_stream_equals_whole_with_klipper_smoothed_advance(corpus_dir: Path,
     assert st.sections > 3
     assert st.cuts_not_at_rest == 0 and st.unverified_moves == 0
     _assert_same(whole.summary().as_dict(), st.summary().as_dict())
+    _worst_same(whole, st)
 
 
 @pytest.mark.corpus
@@ -118,3 +139,36 @@ def test_stream_carries_marlin_linear_advance(corpus_dir: Path) -> None:
     st = simulate_stream(path, section_moves=20_000)
     assert st.sections > 3 and st.unverified_moves == 0
     _assert_same(whole.summary().as_dict(), st.summary().as_dict())
+
+
+@pytest.mark.corpus
+def test_cli_streams_large_files_with_the_same_output(corpus_dir: Path,
+                                                      monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    """Above the size threshold ``flowtwin simulate`` streams on its own and prints the same
+    JSON object (the same keys; figures to the stream's rounding)."""
+    import json
+
+    import flowtwin.planner.plan_stream
+    from flowtwin.cli.main import main
+
+    path = corpus_dir / "orcaslicer_2.3.0b2.gcode"
+
+    def run(*extra: str) -> dict[str, object]:
+        with pytest.raises(SystemExit) as exc:
+            main(["simulate", str(path), "--json", *extra])
+        assert exc.value.code == 0
+        return json.loads(capsys.readouterr().out)  # type: ignore[no-any-return]
+
+    whole = run("--no-fit")
+    whole.pop("verdict")  # the verdict (windowed figures, places) needs the whole tables
+    monkeypatch.setattr(flowtwin.planner.plan_stream, "STREAM_ABOVE_BYTES", 1024)
+    auto = run()
+    assert auto.keys() == whole.keys()
+    _assert_same(whole, auto)
+    assert "stream_sections" in run("--stream")  # asked for: with the stream's counts
+    # what streaming cannot give keeps the whole-table path
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", str(path), "--stream", "--series", "x.csv"])
+    assert exc.value.code == 2

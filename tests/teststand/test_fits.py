@@ -34,7 +34,7 @@ def test_pinch_law_exact_and_eq9() -> None:
     fit = fit_pinch_law(results)
     assert fit.k_s_n == pytest.approx(k_s, rel=1e-3)
     assert fit.k_inf_per_n == pytest.approx(k_inf, rel=1e-3)
-    # Eq. 9 with k_s = 96 %N, k_inf = 0.32 %/N: sqrt(3000) = 54.8 N (SPEC §3.1)
+    # Eq. 9 with k_s = 96 %N, k_inf = 0.32 %/N: sqrt(3000) = 54.8 N (docs/spec.md §3.1)
     assert fit.fp_min_n == pytest.approx(math.sqrt(3000.0), rel=1e-3)
     assert fit.fp_min_n == pytest.approx(float(min_pinch_force_n(fit.k_s_n, fit.k_inf_per_n)))
     # propagated error: numerical derivative of Eq. 9 against the analytic Jacobian

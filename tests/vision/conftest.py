@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from flowtwin.vision.result import Quality, VisionResult
+from flowtwin.vision.readings import Quality, VisionResult
 from flowtwin.vision.synth import MotionSeries, SceneSpec, SyntheticCamera, SyntheticFrame
 
 

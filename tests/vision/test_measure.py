@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from flowtwin.vision import Roi, RoiSet, gaussian_smooth, measure
-from flowtwin.vision.result import Quality
+from flowtwin.vision.readings import Quality
 from flowtwin.vision.synth import MotionSeries, SceneSpec, render_from_series, write_video
 
 from .conftest import render, truth_for

@@ -13,40 +13,45 @@ By default a local cluster of worker processes (one per CPU) runs the jobs; ``sc
 uses an existing dask cluster. See docs/batch.md.
 """
 
-from flowtwin.batch.api import GCODE_SUFFIXES, RunSummary, expand_inputs, run_batch, run_sweep
-from flowtwin.batch.cluster import (
-    DEFAULT_RETRIES,
-    ClusterError,
-    Progress,
-    RunStats,
-    dask_client,
-    default_workers,
-    run_jobs,
-)
-from flowtwin.batch.jobs import (
-    DEFAULT_ENGINE,
-    ENGINES,
-    Engine,
-    Job,
-    JobResult,
-    error_row,
-    evaluate,
-    flatten_summary,
-    machine_fingerprint,
-    row_identity,
-    run_job,
-)
-from flowtwin.batch.overrides import (
-    DEFAULT_SETUP,
-    MachineBuilder,
-    check_axes,
-    count_points,
-    grid_points,
-    load_base,
-    sample_points,
-)
-from flowtwin.batch.params import ALIASES, PARTS, Axis, describe_path, parse_axis, resolve_path
-from flowtwin.batch.store import ResultWriter, parts_dir, read_results
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from flowtwin.batch.api import GCODE_SUFFIXES, RunSummary, expand_inputs, run_batch, run_sweep
+    from flowtwin.batch.cluster import (
+        DEFAULT_RETRIES,
+        ClusterError,
+        Progress,
+        RunStats,
+        dask_client,
+        default_workers,
+        run_jobs,
+    )
+    from flowtwin.batch.jobs import (
+        DEFAULT_ENGINE,
+        ENGINES,
+        Engine,
+        Job,
+        JobResult,
+        error_row,
+        evaluate,
+        flatten_summary,
+        machine_fingerprint,
+        row_identity,
+        run_job,
+    )
+    from flowtwin.batch.overrides import (
+        DEFAULT_SETUP,
+        MachineBuilder,
+        check_axes,
+        count_points,
+        grid_points,
+        load_base,
+        sample_points,
+    )
+    from flowtwin.batch.params import ALIASES, PARTS, Axis, describe_path, parse_axis, resolve_path
+    from flowtwin.batch.store import ResultWriter, parts_dir, read_results
 
 __all__ = [
     "ALIASES",
@@ -89,3 +94,46 @@ __all__ = [
     "run_sweep",
     "sample_points",
 ]
+
+# names resolve on first use: `flowtwin batch --help` does not import dask or pyarrow
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "GCODE_SUFFIXES": "flowtwin.batch.api",
+    "RunSummary": "flowtwin.batch.api",
+    "expand_inputs": "flowtwin.batch.api",
+    "run_batch": "flowtwin.batch.api",
+    "run_sweep": "flowtwin.batch.api",
+    "DEFAULT_RETRIES": "flowtwin.batch.cluster",
+    "ClusterError": "flowtwin.batch.cluster",
+    "Progress": "flowtwin.batch.cluster",
+    "RunStats": "flowtwin.batch.cluster",
+    "dask_client": "flowtwin.batch.cluster",
+    "default_workers": "flowtwin.batch.cluster",
+    "run_jobs": "flowtwin.batch.cluster",
+    "DEFAULT_ENGINE": "flowtwin.batch.jobs",
+    "ENGINES": "flowtwin.batch.jobs",
+    "Engine": "flowtwin.batch.jobs",
+    "Job": "flowtwin.batch.jobs",
+    "JobResult": "flowtwin.batch.jobs",
+    "error_row": "flowtwin.batch.jobs",
+    "evaluate": "flowtwin.batch.jobs",
+    "flatten_summary": "flowtwin.batch.jobs",
+    "machine_fingerprint": "flowtwin.batch.jobs",
+    "row_identity": "flowtwin.batch.jobs",
+    "run_job": "flowtwin.batch.jobs",
+    "DEFAULT_SETUP": "flowtwin.batch.overrides",
+    "MachineBuilder": "flowtwin.batch.overrides",
+    "check_axes": "flowtwin.batch.overrides",
+    "count_points": "flowtwin.batch.overrides",
+    "grid_points": "flowtwin.batch.overrides",
+    "load_base": "flowtwin.batch.overrides",
+    "sample_points": "flowtwin.batch.overrides",
+    "ALIASES": "flowtwin.batch.params",
+    "PARTS": "flowtwin.batch.params",
+    "Axis": "flowtwin.batch.params",
+    "describe_path": "flowtwin.batch.params",
+    "parse_axis": "flowtwin.batch.params",
+    "resolve_path": "flowtwin.batch.params",
+    "ResultWriter": "flowtwin.batch.store",
+    "parts_dir": "flowtwin.batch.store",
+    "read_results": "flowtwin.batch.store",
+})

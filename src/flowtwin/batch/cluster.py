@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from flowtwin.atomic import atomic_write_text
 from flowtwin.batch.jobs import Cell, Job, JobResult, error_row, run_job
+from flowtwin.batch.options import DEFAULT_RETRIES
 from flowtwin.batch.store import ResultWriter
 from flowtwin.errors import FlowtwinError
 
@@ -47,9 +48,6 @@ __all__ = [
     "default_workers",
     "run_jobs",
 ]
-
-#: Extra attempts of a task that raised.
-DEFAULT_RETRIES = 2
 
 #: How often the result loop wakes up to apply the time-based flush, s.
 _POLL_S = 0.05

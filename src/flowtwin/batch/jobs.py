@@ -6,7 +6,7 @@ is lost. The model behind it is chosen by :data:`Engine`:
 
 * ``"simulate"`` (default) — :func:`flowtwin.simulation.simulate`, the whole-print twin
   (print time, commanded and delivered volume, width, force, grinding and ooze figures);
-* ``"plan"`` — :func:`flowtwin.planning.plan_gcode` only (print time, filament, moves,
+* ``"plan"`` — :func:`flowtwin.planner.plan_file.plan_gcode` only (print time, filament, moves,
   layers): faster, for time estimates.
 
 A row is flat: the job's identity (``index``, ``row_id``, ``file``, one column per swept
@@ -26,6 +26,7 @@ from typing import Literal
 
 import numpy as np
 
+from flowtwin.batch.options import DEFAULT_ENGINE, ENGINES, Engine
 from flowtwin.batch.params import ParamValue
 from flowtwin.errors import FlowtwinError
 from flowtwin.profiles.machine import Machine
@@ -45,15 +46,6 @@ __all__ = [
     "row_identity",
     "run_job",
 ]
-
-#: Which model computes a row.
-Engine = Literal["plan", "simulate"]
-
-#: Every engine, in the order the CLI lists them.
-ENGINES: tuple[Engine, ...] = ("simulate", "plan")
-
-#: The engine used when none is given.
-DEFAULT_ENGINE: Engine = "simulate"
 
 #: Why a row has no results: ``input`` = the G-code or profile was rejected (a
 #: FlowtwinError, deterministic); ``internal`` = the task raised another exception on every
@@ -209,18 +201,28 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
     ------
     FlowtwinError
         The G-code or the machine is rejected by the model.
-    """
-    if engine == "plan":
-        from flowtwin.planning import plan_gcode
 
-        planned = plan_gcode(source, printer=machine.printer)
+    Notes
+    -----
+    Files above :data:`flowtwin.planner.plan_stream.STREAM_ABOVE_BYTES` are read, planned and
+    simulated streamed (bounded memory; the same summary keys and figures).
+    """
+    from flowtwin.planner.plan_stream import should_stream
+
+    large = isinstance(source, str) and should_stream(source, printer=machine.printer)
+    if engine == "plan":
+        from flowtwin.planner.plan_file import plan_gcode
+        from flowtwin.planner.plan_stream import plan_stream
+
+        planned = (plan_stream(source, printer=machine.printer).run() if large
+                   else plan_gcode(source, printer=machine.printer))
         summary = planned.summary().as_dict()
         return summary, ({**summary, "per_layer": planned.per_layer()} if report else None)
     if engine == "simulate":
-        from flowtwin.simulation import simulate
+        from flowtwin.simulation import simulate, simulate_stream
 
-        simulated = simulate(source, machine=machine)
-        summary = simulated.summary().as_dict()
+        summary = (simulate_stream(source, machine=machine).aggregates.summary() if large
+                   else simulate(source, machine=machine).summary()).as_dict()
         return summary, (dict(summary) if report else None)
     raise FlowtwinError("unknown engine", field="engine", value=engine,
                         allowed=", ".join(ENGINES))

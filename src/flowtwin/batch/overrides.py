@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel
 
+from flowtwin.batch.options import DEFAULT_SETUP
 from flowtwin.batch.params import MAX_GRID_POINTS, PARTS, Axis, ParamValue, resolve_path
 from flowtwin.errors import ProfileError
 from flowtwin.profiles import machine as _machine_module
@@ -39,9 +40,6 @@ __all__ = [
     "point_overrides",
     "sample_points",
 ]
-
-#: Set-up used when none is given.
-DEFAULT_SETUP = "tronvoll2019"
 
 _REFS = ("printer", "drive", "hotend", "material", "filament")
 

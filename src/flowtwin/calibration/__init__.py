@@ -10,17 +10,24 @@ Quick start::
     check = verify_pattern(pattern, printer="generic-marlin")   # read back and plan
     assert check.ok                                             # test speeds reached
 
-Patterns (:mod:`~flowtwin.calibration.patterns`): K-factor lines, Ellis-style chevrons, a
+Patterns (:mod:`~flowtwin.calibration.patterns.catalog`): K-factor lines, Ellis-style chevrons, a
 PA tower, extrusion-multiplier blocks, a max-volumetric-speed ramp and a flow line, for
 every firmware of :mod:`flowtwin.firmware`, every bead from [001 Eq. 7]. Fits: the lag ``K``
 (dead time, gain) from widths along test lines by fitting the twin
-(:mod:`~flowtwin.calibration.lagfit`, :mod:`~flowtwin.calibration.kfit`) or from an image of
-a K-line pattern (:mod:`~flowtwin.calibration.kimage`, tested on images from
-:mod:`~flowtwin.calibration.render`), the slip law from test-stand records
-(:mod:`~flowtwin.calibration.slipfit`), the viscosity law from a temperature sweep
-(:mod:`~flowtwin.calibration.viscosity_fit`), strand shape from profile points [004]
-(:mod:`~flowtwin.calibration.strand_fit`), OrcaSlicer's adaptive pressure-advance table
-(:mod:`~flowtwin.calibration.adaptive_pa`). See docs/calibration.md.
+(:mod:`~flowtwin.calibration.fits.lagfit`, :mod:`~flowtwin.calibration.fits.kfit`) or from an
+image of a K-line pattern (:mod:`~flowtwin.calibration.image.kimage`, tested on images from
+:mod:`~flowtwin.calibration.image.twin_render`), the slip law from test-stand records
+(:mod:`~flowtwin.calibration.fits.slipfit`), the viscosity law from a temperature sweep
+(:mod:`~flowtwin.calibration.fits.viscosity_fit`), strand shape from profile points [004]
+(:mod:`~flowtwin.calibration.fits.strand_fit`), OrcaSlicer's adaptive pressure-advance table
+(:mod:`~flowtwin.calibration.tuning.adaptive_pa`), and the firmware's advance settings from the
+twin (:mod:`~flowtwin.calibration.tuning.advance_settings`). See docs/calibration.md.
+
+Layout: :mod:`~flowtwin.calibration.patterns` (test-pattern G-code),
+:mod:`~flowtwin.calibration.image` (measurement of photos and images),
+:mod:`~flowtwin.calibration.fits` (measurements to parameters),
+:mod:`~flowtwin.calibration.tuning` (firmware settings); ``csvdata`` and ``fragment`` read the
+measurement tables and write profile fragments; ``guide`` says what to measure.
 
 Lag from a measured width profile::
 
@@ -32,7 +39,17 @@ Lag from a measured width profile::
 
 from typing import TYPE_CHECKING, Any
 
-from flowtwin.calibration.adaptive_pa import (
+from flowtwin.calibration.csvdata import Column, Table, read_table, read_table_text
+from flowtwin.calibration.fragment import render_fragment, write_fragment
+from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern, pattern_params
+from flowtwin.calibration.patterns.pattern import (
+    PaSetting,
+    Pattern,
+    PrintSettings,
+    TestSegment,
+    write_pattern,
+)
+from flowtwin.calibration.tuning.adaptive_pa import (
     AdaptivePaTable,
     append_measurement,
     parse_orca_model,
@@ -40,46 +57,55 @@ from flowtwin.calibration.adaptive_pa import (
     table_from_measurements,
     write_orca_model,
 )
-from flowtwin.calibration.csvdata import Column, Table, read_table, read_table_text
-from flowtwin.calibration.fragment import render_fragment, write_fragment
-from flowtwin.calibration.pattern_base import (
-    PaSetting,
-    Pattern,
-    PrintSettings,
-    TestSegment,
-    write_pattern,
-)
-from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern, pattern_params
-from flowtwin.calibration.strand_fit import StrandCalibration, fit_strand
-from flowtwin.calibration.verify import PatternCheck, SegmentCheck, verify_pattern
-from flowtwin.calibration.viscosity_fit import (
-    ViscosityFit,
-    ViscositySweep,
-    apparent_viscosity_pa_s,
-    fit_viscosity_law,
-    sweep_from_table,
-)
 
-#: The fits that need the dynamics, OpenCV or the test stand load on first use, so that
-#: importing the package (and ``flowtwin --help``) stays fast.
+#: The fits that need the dynamics, scipy, OpenCV or the test stand load on first use, so
+#: that importing the package (and ``flowtwin calibrate --help``) stays fast.
 _LAZY = {
-    "fit_k": "kfit", "kline_for_machine": "kfit",
-    "KLineImageResult": "kimage", "LineReading": "kimage", "analyse_kline_image": "kimage",
-    "LagFit": "lagfit", "WidthProfile": "lagfit", "fit_lag": "lagfit",
-    "read_width_profiles": "lagfit",
-    "LagModel": "lagmodel", "LagParams": "lagmodel", "TestLine": "lagmodel",
-    "lag_model": "lagmodel",
-    "ImageConditions": "render", "RenderedImage": "render", "render_pattern_image": "render",
-    "SlipCalibration": "slipfit", "fit_slip_records": "slipfit",
+    "StrandCalibration": "fits.strand_fit", "fit_strand": "fits.strand_fit",
+    "ViscosityFit": "fits.viscosity_fit", "ViscositySweep": "fits.viscosity_fit",
+    "apparent_viscosity_pa_s": "fits.viscosity_fit", "fit_viscosity_law": "fits.viscosity_fit",
+    "sweep_from_table": "fits.viscosity_fit",
+    "PatternCheck": "patterns.verify", "SegmentCheck": "patterns.verify",
+    "verify_pattern": "patterns.verify",
+    "fit_k": "fits.kfit", "kline_for_machine": "fits.kfit",
+    "KLineImageResult": "image.kimage", "LineReading": "image.kimage",
+    "analyse_kline_image": "image.kimage",
+    "LagFit": "fits.lagfit", "WidthProfile": "fits.lagfit", "fit_lag": "fits.lagfit",
+    "read_width_profiles": "fits.lagfit",
+    "LagModel": "fits.lagmodel", "LagParams": "fits.lagmodel", "TestLine": "fits.lagmodel",
+    "lag_model": "fits.lagmodel",
+    "ImageConditions": "image.twin_render", "RenderedImage": "image.twin_render",
+    "render_pattern_image": "image.twin_render",
+    "SlipCalibration": "fits.slipfit", "fit_slip_records": "fits.slipfit",
+    "AdvanceFit": "tuning.advance_settings", "adaptive_pa_table": "tuning.advance_settings",
+    "best_pressure_advance": "tuning.advance_settings",
 }
 
 if TYPE_CHECKING:
-    from flowtwin.calibration.kfit import fit_k, kline_for_machine
-    from flowtwin.calibration.kimage import KLineImageResult, LineReading, analyse_kline_image
-    from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag, read_width_profiles
-    from flowtwin.calibration.lagmodel import LagModel, LagParams, TestLine, lag_model
-    from flowtwin.calibration.render import ImageConditions, RenderedImage, render_pattern_image
-    from flowtwin.calibration.slipfit import SlipCalibration, fit_slip_records
+    from flowtwin.calibration.fits.kfit import fit_k, kline_for_machine
+    from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag, read_width_profiles
+    from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, TestLine, lag_model
+    from flowtwin.calibration.fits.slipfit import SlipCalibration, fit_slip_records
+    from flowtwin.calibration.fits.strand_fit import StrandCalibration, fit_strand
+    from flowtwin.calibration.fits.viscosity_fit import (
+        ViscosityFit,
+        ViscositySweep,
+        apparent_viscosity_pa_s,
+        fit_viscosity_law,
+        sweep_from_table,
+    )
+    from flowtwin.calibration.image.kimage import KLineImageResult, LineReading, analyse_kline_image
+    from flowtwin.calibration.image.twin_render import (
+        ImageConditions,
+        RenderedImage,
+        render_pattern_image,
+    )
+    from flowtwin.calibration.patterns.verify import PatternCheck, SegmentCheck, verify_pattern
+    from flowtwin.calibration.tuning.advance_settings import (
+        AdvanceFit,
+        adaptive_pa_table,
+        best_pressure_advance,
+    )
 
 
 def __getattr__(name: str) -> Any:
@@ -94,6 +120,7 @@ def __getattr__(name: str) -> Any:
 __all__ = [
     "PATTERN_KINDS",
     "AdaptivePaTable",
+    "AdvanceFit",
     "Column",
     "ImageConditions",
     "KLineImageResult",
@@ -115,9 +142,11 @@ __all__ = [
     "ViscosityFit",
     "ViscositySweep",
     "WidthProfile",
+    "adaptive_pa_table",
     "analyse_kline_image",
     "apparent_viscosity_pa_s",
     "append_measurement",
+    "best_pressure_advance",
     "fit_k",
     "fit_lag",
     "fit_slip_records",

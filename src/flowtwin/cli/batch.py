@@ -15,35 +15,20 @@ import signal
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
-from typing import Annotated, cast
+from typing import TYPE_CHECKING, Annotated, cast
 
-import pyarrow as pa
 import typer
-from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    TaskID,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.progress import Progress as RichProgress
 
-from flowtwin.batch import (
-    DEFAULT_ENGINE,
-    DEFAULT_RETRIES,
-    DEFAULT_SETUP,
-    ENGINES,
-    Engine,
-    Progress,
-    RunSummary,
-    read_results,
-    run_batch,
-    run_sweep,
-)
+from flowtwin.batch.options import DEFAULT_ENGINE, DEFAULT_RETRIES, DEFAULT_SETUP, ENGINES, Engine
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.errors import FlowtwinError
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    from rich.progress import Progress as RichProgress
+    from rich.progress import TaskID
+
+    from flowtwin.batch import Progress, RunSummary
 
 __all__ = ["register"]
 
@@ -63,6 +48,15 @@ class _Bar:
     def start(self, total: int, skipped: int) -> None:
         if not self.enabled:
             return
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+        from rich.progress import Progress as RichProgress
+
         if skipped:
             err_console.print(f"resuming: {skipped} row(s) already done")
         self.progress = RichProgress(
@@ -144,6 +138,10 @@ def _print_rows(table: pa.Table, params: list[str], *, limit: int = 20) -> None:
 def _run(label: str, out: Path, progress: bool, json_out: bool,
          call: Callable[[Callable[[int, int], None], Callable[[Progress], None]], RunSummary],
          *, params: list[str] | None = None) -> None:
+    from rich.markup import escape
+
+    from flowtwin.batch import read_results
+
     bar = _Bar(label, enabled=progress)
     try:
         with _sigterm_as_interrupt():
@@ -232,6 +230,8 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, _JSON_OPT] = False,
     ) -> None:
         """Simulate many G-code files on one machine: one table row per file."""
+        from flowtwin.batch import run_batch
+
         chosen = _engine(engine)
         _run("batch", out, progress, json_out, lambda start, update: run_batch(
             files, out=out, profile=profile, engine=chosen, reports_dir=reports,
@@ -264,6 +264,8 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, _JSON_OPT] = False,
     ) -> None:
         """Simulate one G-code over a grid (or random sample) of profile parameters."""
+        from flowtwin.batch import run_sweep
+
         chosen = _engine(engine)
         _run("sweep", out, progress, json_out, lambda start, update: run_sweep(
             gcode, param, out=out, profile=profile, sample=sample, seed=seed, engine=chosen,

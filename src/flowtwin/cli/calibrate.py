@@ -12,12 +12,6 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 import typer
 
-from flowtwin.calibration.adaptive_pa import (
-    ADAPTIVE_PA_COLUMNS,
-    append_measurement,
-    table_from_measurements,
-    write_orca_model,
-)
 from flowtwin.calibration.csvdata import read_table
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.guide import (
@@ -28,32 +22,32 @@ from flowtwin.calibration.guide import (
     STRAND_HELP,
     VISCOSITY_HELP,
 )
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import PrintSettings
-from flowtwin.calibration.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
-from flowtwin.calibration.viscosity_fit import (
-    VISCOSITY_COLUMNS,
-    ViscosityLawName,
-    fit_viscosity_law,
-    sweep_from_table,
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings
+from flowtwin.calibration.tuning.adaptive_pa import (
+    ADAPTIVE_PA_COLUMNS,
+    append_measurement,
+    table_from_measurements,
+    write_orca_model,
 )
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.cli.calibrate_image import from_image_cmd
 from flowtwin.cli.calibrate_pattern import register_patterns
 from flowtwin.errors import CalibrationError
-from flowtwin.physics.strand import StrandModel
-from flowtwin.profiles.drive import DriveProfile
-from flowtwin.profiles.hotend import HotendProfile
 
 if TYPE_CHECKING:
-    from flowtwin.calibration.lagfit import LagFit
+    from flowtwin.calibration.fits.lagfit import LagFit
+    from flowtwin.calibration.fits.viscosity_fit import ViscosityLawName
+    from flowtwin.physics.strand import StrandModel
+    from flowtwin.profiles.drive import DriveProfile
+    from flowtwin.profiles.hotend import HotendProfile
 
 __all__ = ["register"]
 
 # ------------------------------------------------------------------------ helpers ---
 
 def _load_hotend(name: str) -> HotendProfile:
-    from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles import HotendProfile, load_builtin, load_profile
 
     if Path(name).suffix == ".toml" or os.sep in name:
         return load_profile(name, "hotend")
@@ -63,7 +57,7 @@ def _load_hotend(name: str) -> HotendProfile:
 
 
 def _load_drive(name: str) -> DriveProfile:
-    from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles import DriveProfile, load_builtin, load_profile
 
     if Path(name).suffix == ".toml" or os.sep in name:
         return load_profile(name, "drive")
@@ -92,6 +86,11 @@ def _fit_viscosity_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.fits.viscosity_fit import (
+        VISCOSITY_COLUMNS,
+        fit_viscosity_law,
+        sweep_from_table,
+    )
     from flowtwin.profiles import load_rollers
 
     table = read_table(data, VISCOSITY_COLUMNS, min_rows=3)
@@ -100,12 +99,13 @@ def _fit_viscosity_cmd(
     sweep = sweep_from_table(table, hotend=_load_hotend(hotend),
                              filament_diameter_mm=filament_diameter, drive=drive_profile,
                              roller=roller)
-    laws: dict[str, ViscosityLawName] = {"exponential": "exponential",
-                                         "arrhenius": "arrhenius", "wlf": "wlf"}
-    if law not in laws:
+    laws: dict[str, ViscosityLawName] = {
+        "exponential": "exponential", "arrhenius": "arrhenius", "wlf": "wlf"}
+    law_name = laws.get(law)
+    if law_name is None:
         raise CalibrationError("unknown viscosity law", field="--law", value=law,
                                allowed="exponential, arrhenius, wlf")
-    fit = fit_viscosity_law(sweep, law=laws[law], t_ref_c=t_ref, wlf_c2_k=wlf_c2)
+    fit = fit_viscosity_law(sweep, law=law_name, t_ref_c=t_ref, wlf_c2_k=wlf_c2)
     values = fit.profile_table()
     text = render_fragment("viscosity", values, stderr=fit.stderr, header=[
         f"flowtwin calibrate fit-viscosity: {law} law fitted to {data.name}",
@@ -143,16 +143,20 @@ def _fit_strand_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.fits.strand_fit import STRAND_COLUMNS, fit_strand, strand_points
+    from flowtwin.physics.strand import StrandModel
+
     models: dict[str, StrandModel | Literal["best"]] = {
         "best": "best", **{m.value: m for m in StrandModel}}
-    if model not in models:
+    strand_model = models.get(model)
+    if strand_model is None:
         raise CalibrationError("unknown strand model", field="--model", value=model,
                                allowed="best, tractrix, parabola, catenary")
     if not height_mm > 0:
         raise CalibrationError("nozzle height must be positive", field="--height-mm",
                                value=height_mm, allowed="> 0 mm")
     x, z = strand_points(read_table(data, STRAND_COLUMNS, min_rows=4))
-    cal = fit_strand(x, z, height_mm=height_mm, model=models[model])
+    cal = fit_strand(x, z, height_mm=height_mm, model=strand_model)
     errors = {**cal.stderr, "lag_mm": cal.lag_stderr_mm}
     text = render_fragment("strand", cal.profile_table(), stderr=errors, header=[
         f"flowtwin calibrate fit-strand: {cal.fit.model.value} [004] fitted to {data.name}",
@@ -303,8 +307,8 @@ def _fit_k_cmd(
         help="Add k_s,k_err_s,flow_mm3_s,accel_mm_s2 to this adaptive-pa file.")] = None,
     json_out: _Json = False,
 ) -> None:
-    from flowtwin.calibration.kfit import fit_k
-    from flowtwin.calibration.lagfit import read_width_profiles
+    from flowtwin.calibration.fits.kfit import fit_k
+    from flowtwin.calibration.fits.lagfit import read_width_profiles
 
     profiles = read_width_profiles(profile)
     settings, params = _kline_parts(k_la, k_la, 0.01, slow_speed, fast_speed, slow_length,
@@ -341,7 +345,7 @@ def _fit_slip_cmd(
     output: _Output = None,
     json_out: _Json = False,
 ) -> None:
-    from flowtwin.calibration.slipfit import fit_slip_records
+    from flowtwin.calibration.fits.slipfit import fit_slip_records
 
     cal = fit_slip_records(records, roller_id=roller)
     text = cal.fragment()

@@ -69,6 +69,7 @@ def from_image_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.fits.kfit import kline_for_machine, pattern_firmware
     from flowtwin.calibration.image.analyse import analyse_line_photo
     from flowtwin.calibration.image.annotate import write_annotated
     from flowtwin.calibration.image.layouts import (
@@ -76,9 +77,8 @@ def from_image_cmd(
         layout_settings,
         line_layout_pattern,
     )
-    from flowtwin.calibration.kfit import kline_for_machine, pattern_firmware
-    from flowtwin.calibration.kline import KLineParams
-    from flowtwin.calibration.pattern_base import PrintSettings
+    from flowtwin.calibration.patterns.kline import KLineParams
+    from flowtwin.calibration.patterns.pattern import PrintSettings
     from flowtwin.profiles.machine import load_machine
 
     if pattern == "chevron":

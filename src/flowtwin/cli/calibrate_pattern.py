@@ -2,7 +2,7 @@
 
 Every kind takes the shared print options (firmware, bead, temperatures, placement, the
 check) and only its own parameters; an option of another kind is a usage error. A thin
-layer over :func:`flowtwin.calibration.patterns.generate_pattern`.
+layer over :func:`flowtwin.calibration.patterns.catalog.generate_pattern`.
 """
 
 from __future__ import annotations
@@ -15,14 +15,13 @@ from typing import Annotated, Any
 
 import typer
 
-from flowtwin.calibration.chevron import ChevronParams
-from flowtwin.calibration.flow import FlowBlockParams, FlowLineParams, MaxFlowParams
 from flowtwin.calibration.guide import PATTERN_HELP, PATTERN_KIND_HELP
-from flowtwin.calibration.kline import KLineParams
-from flowtwin.calibration.pattern_base import PrintSettings, write_pattern
-from flowtwin.calibration.patterns import PATTERN_KINDS, generate_pattern
-from flowtwin.calibration.tower import TowerParams
-from flowtwin.calibration.verify import verify_pattern
+from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern
+from flowtwin.calibration.patterns.chevron import ChevronParams
+from flowtwin.calibration.patterns.flow_rate import FlowBlockParams, FlowLineParams, MaxFlowParams
+from flowtwin.calibration.patterns.kline import KLineParams
+from flowtwin.calibration.patterns.pattern import PrintSettings, write_pattern
+from flowtwin.calibration.patterns.tower import TowerParams
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.firmware import Firmware
 
@@ -186,6 +185,8 @@ def _write(kind: str, params: dict[str, Any], *, output: Path, firmware: str,
         bed_temp_c=bed_temp, fan_percent=fan, accel_mm_s2=accel,
         pa_smooth_time_s=pa_smooth_time, center_xy_mm=(center_x, center_y),
         bed_size_mm=(bed_x, bed_y), retract_mm=retract)
+    from flowtwin.calibration.patterns.verify import verify_pattern  # plans: numerical stack
+
     pattern = generate_pattern(kind, settings, params)
     result = verify_pattern(pattern, printer=printer) if check else None
     write_pattern(output, pattern)

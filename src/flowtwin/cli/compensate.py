@@ -1,35 +1,23 @@
 """``flowtwin compensate`` and ``flowtwin tune``: fix the G-code, or set the firmware.
 
 Thin layer over :func:`flowtwin.compensation.compensate`,
-:func:`flowtwin.compensation.best_pressure_advance` and
-:func:`flowtwin.compensation.adaptive_pa_table`.
+:func:`flowtwin.calibration.tuning.advance_settings.best_pressure_advance` and
+:func:`flowtwin.calibration.tuning.advance_settings.adaptive_pa_table`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from flowtwin.calibration.adaptive_pa import write_orca_model
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
-from flowtwin.compensation import (
-    AdvanceLaw,
-    AdvanceOptions,
-    CompensationReport,
-    GuardOptions,
-    PaceOptions,
-    RefineOptions,
-    SlipOptions,
-    TrajectoryOptions,
-    adaptive_pa_table,
-    best_pressure_advance,
-    compensate,
-)
-from flowtwin.compensation.nonlinear import NonlinearExtrusionFit, fit_nonlinear_extrusion
-from flowtwin.profiles.machine import load_machine
-from flowtwin.simulation import DEFAULT_MACHINE
+from flowtwin.defaults import DEFAULT_MACHINE
+
+if TYPE_CHECKING:
+    from flowtwin.calibration.tuning.nonlinear_extrusion import NonlinearExtrusionFit
+    from flowtwin.compensation import CompensationReport
 
 __all__ = ["nonlinear_settings", "register", "render_nonlinear", "render_report"]
 
@@ -142,9 +130,23 @@ def register(app: typer.Typer) -> None:
             "--max-flow", help="Guard: largest volumetric flow, mm³/s.")] = None,
         max_shift: Annotated[float, typer.Option(
             "--max-shift", help="Trajectory: largest path displacement, mm.")] = 0.5,
+        report_out: Annotated[Path | None, typer.Option(
+            "--report", help="Also write the before/after report: an .html file, or a folder "
+            "(report.html in it).")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Rewrite a G-code so the printer extrudes what it means (nothing without a flag)."""
+        from flowtwin.compensation import (
+            AdvanceLaw,
+            AdvanceOptions,
+            GuardOptions,
+            PaceOptions,
+            RefineOptions,
+            SlipOptions,
+            TrajectoryOptions,
+            compensate,
+        )
+
         adv = AdvanceOptions(law=AdvanceLaw(law), k_scale=k_scale,
                              refine=RefineOptions() if refine else None,
                              relief=relief and refine) if advance else None
@@ -155,10 +157,23 @@ def register(app: typer.Typer) -> None:
             trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None,
             pace=PaceOptions(min_speed_mm_s=pace_min_speed, max_slowdown=pace_max_slowdown)
             if pace else None)
+        written = None
+        if report_out is not None:
+            from flowtwin.report import write_comparison
+
+            target = report_out if report_out.suffix.lower() in (".html", ".htm") else \
+                report_out / "report.html"
+            target.parent.mkdir(parents=True, exist_ok=True)
+            written = write_comparison(report, target)
         if json_out:
-            print_json(report.as_dict())
+            out = report.as_dict()
+            if written is not None:
+                out["report"] = str(written)
+            print_json(out)
         else:
             render_report(report)
+            if written is not None:
+                console.print(f"wrote {written}")
 
     @app.command("tune")
     def tune_cmd(
@@ -189,6 +204,12 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
+        from flowtwin.calibration.tuning.adaptive_pa import write_orca_model
+        from flowtwin.calibration.tuning.advance_settings import (
+            adaptive_pa_table,
+            best_pressure_advance,
+        )
+
         fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
         out: dict[str, object] = {"best": fit.as_dict()}
         slip_fit = None
@@ -224,6 +245,9 @@ def register(app: typer.Typer) -> None:
 def nonlinear_settings(profile: str, klipper_config: Path | None,
                        firmware: str | None) -> NonlinearExtrusionFit:
     """The nonlinear-extrusion fit for the set-up's (or the given) firmware."""
+    from flowtwin.calibration.tuning.nonlinear_extrusion import fit_nonlinear_extrusion
+    from flowtwin.profiles.machine import load_machine
+
     m = load_machine(profile)
     fw = firmware or ("klipper" if klipper_config is not None else m.printer.firmware)
     return fit_nonlinear_extrusion(m, fw)

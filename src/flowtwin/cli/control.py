@@ -5,24 +5,23 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.live import Live
-from rich.table import Table
 
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
-from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
-from flowtwin.control.connect import open_printer
-from flowtwin.control.controllers import Limits, make_controller
-from flowtwin.control.credentials import DEFAULT_KEY_ENV, load_api_key
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import MeasurementSource, SyntheticSlipSource
-from flowtwin.control.printer import Factors, Printer
-from flowtwin.control.supervisor import LoopSettings, RunSummary, Status, run_control
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.transports.credentials import DEFAULT_KEY_ENV
 from flowtwin.errors import FlowtwinError
 from flowtwin.firmware import Channel, Firmware
+
+if TYPE_CHECKING:
+    from rich.table import Table
+
+    from flowtwin.control.loop.clock import Clock
+    from flowtwin.control.loop.measurement import MeasurementSource
+    from flowtwin.control.loop.supervisor import RunSummary, Status
+    from flowtwin.control.printer import Factors, Printer
+    from flowtwin.control.simulated.twin import TwinPrinter
 
 __all__ = ["register", "render_summary"]
 
@@ -165,6 +164,16 @@ def register(app: typer.Typer) -> None:
                             ] = False,
     ) -> None:
         """Run the slip control loop: measure, command M220/M221, restore 100 % at the end."""
+        from rich.live import Live
+
+        from flowtwin.control.connect import open_printer
+        from flowtwin.control.loop.clock import AcceleratedClock, RealClock, SimClock
+        from flowtwin.control.loop.controllers import Limits, make_controller
+        from flowtwin.control.loop.log import ControlLog
+        from flowtwin.control.loop.supervisor import LoopSettings, run_control
+        from flowtwin.control.simulated.twin import TwinPrinter
+        from flowtwin.control.transports.credentials import load_api_key
+
         _check_sources(synthetic, camera, video, twin_camera)
         if duration is not None and not (math.isfinite(duration) and duration > 0):
             raise FlowtwinError("duration must be positive", field="--duration",
@@ -193,7 +202,7 @@ def register(app: typer.Typer) -> None:
                               limits=Limits(min_pct, max_pct, rate_limit))
         stops: list[Callable[[], bool]] = []
         if isinstance(conn, TwinPrinter) and (twin_camera or gcode is not None):
-            from flowtwin.control.printjob import job_runner
+            from flowtwin.reproduce.greeff2017_loop import job_runner
 
             conn.job = job_runner(machine=machine, gcode=gcode,
                                   layers_per_set=layers_per_set, start_s=clock.now())
@@ -249,6 +258,8 @@ def register(app: typer.Typer) -> None:
 
 
 def _commanded(last: list[Status], channel: Channel) -> Factors:
+    from flowtwin.control.printer import Factors
+
     pct = last[-1].command_pct if last else 100.0
     if channel is Channel.SPEED:
         return Factors(pct, 100.0, "commanded")
@@ -261,6 +272,9 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
             stops: list[Callable[[], bool]], commanded: Callable[[], Factors]
             ) -> MeasurementSource:
     """The measurement source the options ask for (``stops`` gets its end condition)."""
+    from flowtwin.control.loop.measurement import SyntheticSlipSource
+    from flowtwin.control.simulated.twin import TwinPrinter
+
     if synthetic:
         factors = commanded
         if isinstance(conn, TwinPrinter):
@@ -271,7 +285,7 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
         return SyntheticSlipSource(clock, duration_s=duration or DEFAULT_DURATION_S,
                                    seed=seed, factors=factors)
     if camera is not None or video is not None:
-        from flowtwin.control.video import CameraSource, VideoSource
+        from flowtwin.control.loop.video import CameraSource, VideoSource
         from flowtwin.vision import build_config
 
         config = build_config(config_path=vision_config)
@@ -282,8 +296,8 @@ def _source(conn: Printer, clock: Clock, *, synthetic: bool, camera: str | None,
         assert camera is not None
         index: int | str = int(camera) if camera.isdigit() else camera
         return CameraSource(index, config, clock, window_frames=window_frames)
-    from flowtwin.control.printjob import PrintJobSettings
-    from flowtwin.control.twin_camera import TwinCameraSource, twin_scene
+    from flowtwin.control.simulated.camera import TwinCameraSource, twin_scene
+    from flowtwin.reproduce.greeff2017_loop import PrintJobSettings
 
     assert isinstance(conn, TwinPrinter) and conn.job is not None
     st = PrintJobSettings()  # the print-job test's camera: 320×256 px at 50 µm/px

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -13,9 +13,11 @@ from flowtwin.atomic import atomic_write_text
 from flowtwin.cli._common import console, print_json
 from flowtwin.cli.plan import render_plan
 from flowtwin.cli.simulate import render_simulation, run_simulation
-from flowtwin.gcode.generator import PrintSpec, write_print
-from flowtwin.planning import plan_gcode
-from flowtwin.simulation import DEFAULT_MACHINE, SimulationSummary
+from flowtwin.defaults import DEFAULT_MACHINE
+
+if TYPE_CHECKING:
+    from flowtwin.report.verdict import Verdict
+    from flowtwin.simulation import SimulationResult, SimulationSummary
 
 __all__ = ["DemoOutcome", "register", "run_demo"]
 
@@ -30,18 +32,24 @@ class DemoOutcome:
         The plan's ``--json`` object (its summary with the per-layer rows).
     simulation
         The simulation's whole-print figures.
+    verdict
+        What the twin says about the print (:class:`~flowtwin.report.verdict.Verdict`).
     outputs
         File name → path of every file written.
+    result
+        The simulation itself (for the tables printed on the console).
     """
 
     plan: dict[str, object]
     simulation: SimulationSummary
+    verdict: Verdict
     outputs: dict[str, str]
+    result: SimulationResult = field(repr=False, compare=False)
 
     def as_dict(self) -> dict[str, object]:
         """The ``demo --json`` object."""
         return {"plan": self.plan, "simulation": self.simulation.as_dict(),
-                "outputs": dict(self.outputs)}
+                "verdict": self.verdict.as_dict(), "outputs": dict(self.outputs)}
 
 
 def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bool = False
@@ -49,24 +57,26 @@ def run_demo(out_dir: Path, *, machine: str = DEFAULT_MACHINE, show_progress: bo
     """Generate the built-in print into ``out_dir``, plan and simulate it, write the report.
 
     Writes ``demo.gcode``, ``plan.json``, ``summary.json`` and ``report.html``; returns the
-    plan and simulation summaries with the written paths.
+    plan and simulation summaries, the verdict and the written paths.
     """
+    from flowtwin.gcode.generator import PrintSpec, write_print
+    from flowtwin.planner.plan_file import plan_gcode
+    from flowtwin.profiles import load_machine
+
     out_dir.mkdir(parents=True, exist_ok=True)
     gcode = out_dir / "demo.gcode"
     write_print(gcode, PrintSpec())
-    from flowtwin.profiles import load_machine
-
     plan = plan_gcode(gcode, printer=load_machine(machine).printer)
     plan_summary = plan.summary().as_dict()
     plan_summary["per_layer"] = plan.per_layer()
     atomic_write_text(out_dir / "plan.json",
                       json.dumps(plan_summary, indent=2, allow_nan=False, default=str) + "\n")
-    sim = run_simulation(str(gcode), machine=machine, klipper_config=None, out_dir=out_dir,
-                         series=None, pressure_advance=True, slicer_limits=False,
-                         show_progress=show_progress)
-    return DemoOutcome(plan_summary, sim.summary(),
+    sim, verdict = run_simulation(str(gcode), machine=machine, klipper_config=None,
+                                  out_dir=out_dir, series=None, pressure_advance=True,
+                                  slicer_limits=False, show_progress=show_progress)
+    return DemoOutcome(plan_summary, sim.summary(), verdict,
                        {name: str(out_dir / name) for name in
-                        ("demo.gcode", "plan.json", "summary.json", "report.html")})
+                        ("demo.gcode", "plan.json", "summary.json", "report.html")}, sim)
 
 
 def register(app: typer.Typer) -> None:
@@ -81,14 +91,13 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """Generate the built-in example print, plan and simulate it, write report.html."""
-        summary = run_demo(out, machine=profile, show_progress=not json_out)
+        outcome = run_demo(out, machine=profile, show_progress=not json_out)
         if json_out:
-            print_json(summary.as_dict())
+            print_json(outcome.as_dict())
             return
+        from flowtwin.planner.plan_file import plan_gcode
         from flowtwin.profiles import load_machine
 
         render_plan(plan_gcode(out / "demo.gcode", printer=load_machine(profile).printer))
-        from flowtwin.simulation import simulate
-
-        render_simulation(simulate(out / "demo.gcode", machine=profile))
-        console.print("\nwrote " + ", ".join(summary.outputs.values()))
+        render_simulation(outcome.result, outcome.verdict)
+        console.print("\nwrote " + ", ".join(outcome.outputs.values()))

@@ -8,12 +8,14 @@ the hot end), the reason that binds, and a table against temperature. ``--hotend
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 
 from flowtwin.errors import ProfileError
-from flowtwin.profiles.material import MaterialProfile
+
+if TYPE_CHECKING:
+    from flowtwin.profiles.material import MaterialProfile
 
 __all__ = ["limits_command", "register"]
 
@@ -104,6 +106,7 @@ def limits_command(
 
 def _material(ref: str) -> MaterialProfile:
     from flowtwin.profiles import load_builtin, load_profile
+    from flowtwin.profiles.material import MaterialProfile
 
     mat = load_profile(ref, "material") if ref.endswith(".toml") else load_builtin(
         ref, "material")

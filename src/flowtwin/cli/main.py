@@ -1,8 +1,11 @@
 """Entry point of the ``flowtwin`` command.
 
-Each command group lives in its own module with a ``register(app)`` function; this module
-only assembles them and turns :class:`~flowtwin.errors.FlowtwinError` into a one-line
-message on stderr and a non-zero exit status (never a traceback to a user).
+Each command group lives in its own module with a ``register(app)`` function. This module
+lists them in :data:`COMMANDS` (name, module, help line) and loads a module only when its
+command runs or shows its own help, so ``flowtwin --help`` and ``flowtwin plan ...`` import
+what they use and nothing else (no OpenCV, dask, matplotlib, ... for a plan). It turns
+:class:`~flowtwin.errors.FlowtwinError` into a one-line message on stderr and a non-zero
+exit status (never a traceback to a user).
 """
 
 from __future__ import annotations
@@ -12,36 +15,119 @@ import os
 import signal
 import sys
 import threading
-from typing import NoReturn, Protocol, cast
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Protocol, cast
 
 import typer
-from rich.console import Console
-from rich.markup import escape
+from typer.core import TyperGroup
 
+from flowtwin import __version__
 from flowtwin.errors import FlowtwinError, file_access_error
 
-__all__ = ["app", "main"]
+if TYPE_CHECKING:
+    from rich.console import Console
 
-#: Modules under ``flowtwin.cli`` that contribute commands (each has ``register(app)``).
-COMMAND_MODULES = ("plan", "simulate", "compensate", "demo", "batch", "profiles",
-                   "calibrate", "teststand", "reproduce", "control", "vision", "limits")
+__all__ = ["COMMANDS", "app", "build_app", "main"]
+
+#: Every command of ``flowtwin``: name -> (module under ``flowtwin.cli`` whose
+#: ``register(app)`` adds it, the line ``flowtwin --help`` shows for it). A module is imported
+#: only when one of its commands is run (or asked for its help); ``tests/cli`` checks that
+#: each line is the first paragraph of the command's own help.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "plan": ("plan", "Plan a G-code file as Klipper or Marlin would: time, filament, moves, "
+             "layers."),
+    "simulate": ("simulate", "Predict what a G-code really extrudes: flow, bead width, slip, "
+                 "force, grinding."),
+    "compensate": ("compensate", "Rewrite a G-code so the printer extrudes what it means "
+                   "(nothing without a flag)."),
+    "tune": ("compensate", "The firmware's pressure advance that best fits the machine, and "
+             "why."),
+    "demo": ("demo", "Generate the built-in example print, plan and simulate it, write "
+             "report.html."),
+    "batch": ("batch", "Simulate many G-code files on one machine: one table row per file."),
+    "sweep": ("batch", "Simulate one G-code over a grid (or random sample) of profile "
+              "parameters."),
+    "reproduce": ("reproduce", "Reproduce the quantitative claims of a seed paper (or all): "
+                  "table, figures, JSON."),
+    "control": ("control", "Run the slip control loop: measure, command M220/M221, restore "
+                "100 % at the end."),
+    "limits": ("limits", "Maximum volumetric flow (mm³/s) of a set-up, why, and against "
+               "temperature."),
+    "profiles": ("profiles", "Built-in and user profiles (printer, drive, hot end, material, "
+                 "filament, set-up)."),
+    "calibrate": ("calibrate", "Calibration: test patterns, fits of measurements, profile "
+                  "fragments, adaptive pressure-advance tables."),
+    "teststand": ("teststand", "Virtual filament-drive test stand [000 §3] and evaluation of "
+                  "test-stand records."),
+    "vision": ("vision", "Measure filament speed, gear speed, slip and width from a camera "
+               "[003]."),
+    "postprocess": ("postprocess", "Write firmware-exact times into a sliced G-code and check "
+                    "it with the twin."),
+}
+
+#: The command modules, each once, in the order of :data:`COMMANDS`.
+COMMAND_MODULES = tuple(dict.fromkeys(module for module, _ in COMMANDS.values()))
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
 
 
+class _Listed(typer.core.TyperCommand):
+    """A command known by name and help line only: what ``flowtwin --help`` lists."""
+
+    def __init__(self, name: str, module: str, help_line: str) -> None:
+        super().__init__(name=name, help=help_line, short_help=help_line)
+        self.module = module
+
+
+class LazyGroup(TyperGroup):
+    """The ``flowtwin`` group: lists :data:`COMMANDS` without importing them; a command's
+    module is imported when the command is resolved (to run it or show its help)."""
+
+    def __init__(self, **attrs: Any) -> None:
+        super().__init__(**attrs)
+        for name, (module, help_line) in COMMANDS.items():
+            self.commands.setdefault(name, _Listed(name, module, help_line))
+
+    def resolve_command(self, ctx: Any, args: list[str]) -> tuple[str | None, Any, list[str]]:
+        name, cmd, rest = super().resolve_command(ctx, args)
+        if isinstance(cmd, _Listed):
+            cmd = self.load(cmd.module)[cmd.name or ""]
+        return name, cmd, rest
+
+    def load(self, module_name: str) -> dict[str, Any]:
+        """Import ``flowtwin.cli.<module_name>`` and put its real commands in place."""
+        module = importlib.import_module(f"flowtwin.cli.{module_name}")
+        sub = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
+        module.register(sub)
+        group = typer.main.get_group(sub)
+        self.commands.update(group.commands)
+        return dict(group.commands)
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        print(f"flowtwin {__version__}")
+        raise typer.Exit()
+
+
+def _root(
+    version: Annotated[bool, typer.Option("--version", help="Print the version and exit.",
+                                          callback=_show_version, is_eager=True)] = False,
+) -> None:
+    """Digital twin of the extrusion system of a filament 3D printer."""
+
+
 def build_app() -> typer.Typer:
-    """Create the typer application with every command group registered."""
+    """The typer application: every command of :data:`COMMANDS`, loaded when used."""
     application = typer.Typer(
         name="flowtwin",
         help="Digital twin of the extrusion system of a filament 3D printer.",
+        cls=LazyGroup,
         no_args_is_help=True,
         add_completion=False,
         pretty_exceptions_enable=False,
     )
-    for name in COMMAND_MODULES:
-        module = importlib.import_module(f"flowtwin.cli.{name}")
-        module.register(application)
+    application.callback()(_root)
     return application
 
 
@@ -72,7 +158,6 @@ def _click_kind(exc: BaseException) -> str | None:
 def main(argv: list[str] | None = None) -> None:
     """Run the CLI; user errors exit 2 with a message, internal errors exit 3; Ctrl-C exits
     130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
-    err = Console(stderr=True, highlight=False)
     terminated: list[int] = []
 
     def terminate(signum: int, frame: object) -> None:
@@ -86,16 +171,16 @@ def main(argv: list[str] | None = None) -> None:
         # standalone_mode=False returns typer.Exit codes instead of exiting with them
         code = app(args=argv, standalone_mode=False)
     except FlowtwinError as exc:
-        err.print(f"[bold red]error:[/] {escape(str(exc))}", markup=True, soft_wrap=True)
+        _err().print(f"[bold red]error:[/] {_escape(str(exc))}", markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
     except OSError as exc:
         if exc.filename is None:  # not about a file the user named: a bug, reported below
-            _internal_error(err, exc)
-        err.print(f"[bold red]error:[/] {escape(str(file_access_error(exc, writing=None)))}",
-                  markup=True, soft_wrap=True)
+            _internal_error(exc)
+        _err().print(f"[bold red]error:[/] {_escape(str(file_access_error(exc, writing=None)))}",
+                     markup=True, soft_wrap=True)
         sys.exit(EXIT_USER_ERROR)
     except KeyboardInterrupt:
-        _interrupted(err, terminated)
+        _interrupted(terminated)
     except SystemExit:
         raise
     except Exception as exc:  # last line of defence for the user
@@ -105,27 +190,40 @@ def main(argv: list[str] | None = None) -> None:
             usage.show()
             sys.exit(usage.exit_code)
         if kind == "Abort":  # click's form of Ctrl-C (or of SIGTERM, through the handler)
-            _interrupted(err, terminated)
-        _internal_error(err, exc)
+            _interrupted(terminated)
+        _internal_error(exc)
     else:
         if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C or our SIGTERM)
-            _interrupted(err, terminated)
+            _interrupted(terminated)
         sys.exit(code if isinstance(code, int) else 0)
 
 
-def _interrupted(err: Console, terminated: list[int]) -> NoReturn:
+def _err() -> Console:
+    """The console for messages on stderr (rich is imported only when one is printed)."""
+    from rich.console import Console
+
+    return Console(stderr=True, highlight=False)
+
+
+def _interrupted(terminated: list[int]) -> NoReturn:
     """Ctrl-C: exit 130; ``SIGTERM``: exit 143 (nothing half-written either way)."""
     if terminated:
-        err.print("terminated")
+        _err().print("terminated")
         sys.exit(128 + signal.SIGTERM)
-    err.print("interrupted")
+    _err().print("interrupted")
     sys.exit(130)
 
 
-def _internal_error(err: Console, exc: BaseException) -> NoReturn:
+def _internal_error(exc: BaseException) -> NoReturn:
     """A bug: one line naming the exception (the traceback with ``FLOWTWIN_DEBUG=1``)."""
     if os.environ.get("FLOWTWIN_DEBUG"):
         raise exc
-    err.print(f"[bold red]internal error:[/] {type(exc).__name__}: {escape(str(exc))} "
-              "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
+    _err().print(f"[bold red]internal error:[/] {type(exc).__name__}: {_escape(str(exc))} "
+                 "(set FLOWTWIN_DEBUG=1 for the traceback and please report it)")
     sys.exit(EXIT_INTERNAL_ERROR)
+
+
+def _escape(text: str) -> str:
+    from rich.markup import escape
+
+    return escape(text)

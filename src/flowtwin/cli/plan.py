@@ -3,18 +3,24 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
-from flowtwin.planning import DEFAULT_PRINTER, PlanResult, plan_gcode
+from flowtwin.defaults import DEFAULT_PRINTER
+
+if TYPE_CHECKING:
+    from flowtwin.planner.plan_file import PlanResult
+    from flowtwin.planner.plan_stream import PlanStream
 
 __all__ = ["register", "render_plan"]
 
 
-def render_plan(result: PlanResult, *, layers: bool = True, max_layer_rows: int = 40) -> None:
-    """Print a plan's summary (and per-layer table) with rich."""
+def render_plan(result: PlanResult | PlanStream, *, layers: bool = True,
+                max_layer_rows: int = 40) -> None:
+    """Print a plan's summary (and per-layer table) with rich (a streamed plan: after it
+    ran)."""
     s = result.summary()
     rows: list[tuple[str, str]] = [
         ("file", s.file), ("printer", f"{s.printer} ({s.firmware})"),
@@ -45,7 +51,11 @@ def render_plan(result: PlanResult, *, layers: bool = True, max_layer_rows: int 
             ["layer", "z (mm)", "time", "filament (mm)", "moves"],
             [(r["layer"], f"{r['z_mm']:.3f}", fmt_duration(float(r["time_s"])),
               f"{r['filament_mm']:.2f}", r["moves"]) for r in shown]))
-    for w in (result.table.warnings + result.timeline.warnings)[:10]:
+    from flowtwin.planner.plan_file import PlanResult
+
+    warnings = (result.table.warnings + result.timeline.warnings
+                if isinstance(result, PlanResult) else result.warnings)
+    for w in warnings[:10]:
         err_console.print(f"[yellow]warning:[/] {w}")
 
 
@@ -68,11 +78,24 @@ def register(app: typer.Typer) -> None:
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
         layers: Annotated[bool, typer.Option("--layers/--no-layers",
                                              help="Show the per-layer table.")] = True,
+        stream: Annotated[bool | None, typer.Option(
+            "--stream/--no-stream", help="Read and plan in bounded memory (same figures; "
+            "default: for files over 32 MB).")] = None,
     ) -> None:
         """Plan a G-code file as Klipper or Marlin would: time, filament, moves, layers."""
+        from flowtwin.planner.plan_file import plan_gcode
+        from flowtwin.planner.plan_stream import plan_stream, should_stream
+
+        result: PlanResult | PlanStream
+        if stream is None:
+            stream = should_stream(str(gcode), printer=profile, klipper_config=klipper_config)
         with console.status("reading and planning…", spinner="dots") if not json_out else _null():
-            result = plan_gcode(str(gcode), printer=profile, klipper_config=klipper_config,
-                                use_slicer_limits=slicer_limits, strict=strict)
+            if stream:
+                result = plan_stream(str(gcode), printer=profile, klipper_config=klipper_config,
+                                     use_slicer_limits=slicer_limits, strict=strict).run()
+            else:
+                result = plan_gcode(str(gcode), printer=profile, klipper_config=klipper_config,
+                                    use_slicer_limits=slicer_limits, strict=strict)
         if json_out:
             out = result.summary().as_dict()
             out["per_layer"] = result.per_layer()

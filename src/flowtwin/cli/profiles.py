@@ -10,27 +10,18 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
-from pydantic import BaseModel
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from flowtwin.profiles import (
-    HotendProfile,
-    PrinterProfile,
-    Roller,
-    RollerTable,
-    SetupProfile,
-    kind_of,
-    library_entries,
-    load_builtin,
-    load_machine,
-    load_profile,
-)
-from flowtwin.profiles.toml_io import ProfileKind
+if TYPE_CHECKING:
+    from pydantic import BaseModel
+
+    from flowtwin.profiles import Roller
+    from flowtwin.profiles.toml_io import ProfileKind
 
 __all__ = ["profile_report", "register"]
 
@@ -60,6 +51,8 @@ def _roller_internal(roller: Roller) -> dict[str, Any]:
 
 def _load(name: str) -> tuple[BaseModel, str]:
     """A profile by built-in name or ``.toml`` path, and where it came from."""
+    from flowtwin.profiles import library_entries, load_builtin, load_profile
+
     if name.endswith(".toml") or Path(name).is_file():
         return load_profile(name), name
     entries = {e.name: e for e in library_entries()}
@@ -88,6 +81,16 @@ def profile_report(name: str) -> dict[str, Any]:
     ProfileError
         Unknown name, unreadable or invalid file, set-up whose parts do not fit.
     """
+    from flowtwin.profiles import (
+        HotendProfile,
+        PrinterProfile,
+        Roller,
+        RollerTable,
+        SetupProfile,
+        kind_of,
+        load_machine,
+    )
+
     profile, source = _load(name)
     kind: ProfileKind = kind_of(profile)
     report: dict[str, Any] = {
@@ -185,6 +188,8 @@ def list_command(
     json_output: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """List the built-in profiles: name, kind and a one-line description."""
+    from flowtwin.profiles import library_entries
+
     entries = library_entries()
     if json_output:
         typer.echo(json.dumps({"profiles": [

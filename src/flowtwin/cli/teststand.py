@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
@@ -19,18 +19,16 @@ from rich.table import Table
 from rich.text import Text
 
 from flowtwin.errors import ProfileError
-from flowtwin.profiles import DriveProfile, Roller, load_builtin, load_profile, load_rollers
-from flowtwin.teststand import (
+from flowtwin.teststand.model import (
     PAPER_PINCH_FORCES_N,
     PAPER_SPEEDS_MM_S,
-    DriveUnderTest,
     Instrument,
     Procedure,
     SlipLaw,
-    simulate_campaign,
-    write_records_csv,
 )
-from flowtwin.teststand.summary import analyse_file
+
+if TYPE_CHECKING:
+    from flowtwin.profiles import Roller
 
 __all__ = ["register", "resolve_roller", "simulate_report"]
 
@@ -71,6 +69,8 @@ def resolve_roller(roller: int | None, drive: str | None) -> Roller:
     ProfileError
         Neither or both given, an unknown roller number, or a bad drive profile.
     """
+    from flowtwin.profiles import DriveProfile, load_builtin, load_profile, load_rollers
+
     if (roller is None) == (drive is None):
         raise ProfileError("give exactly one of --roller (1-7) or --drive (profile)",
                            field="--roller/--drive", value=(roller, drive),
@@ -121,6 +121,8 @@ def simulate_report(out: Path, *, roller: Roller, law: SlipLaw, seed: int,
         ``file``, ``roller_id``, ``law``, ``seed``, ``records``, ``rows``, the grid and the
         instrument.
     """
+    from flowtwin.teststand import DriveUnderTest, simulate_campaign, write_records_csv
+
     inst = instrument or Instrument()
     drive = DriveUnderTest.from_roller(roller, law=law, k_p=k_p,
                                        max_force_scatter=max_force_scatter, roller_id=roller_id)
@@ -234,6 +236,8 @@ def analyse_command(
     json_output: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Evaluate test-stand records: Eq. 6, 8, 9 and the maximum-force fit of [000]."""
+    from flowtwin.teststand.summary import analyse_file
+
     summary = analyse_file(records, figures_dir=figures, compare=compare)
     if json_output:
         typer.echo(json.dumps(summary))

@@ -1,6 +1,6 @@
 """Compiled kernels of the refinement: the linear lag model, forward and adjoint.
 
-State ``x`` = filament compression in E grid units (SPEC §3.4 without slip):
+State ``x`` = filament compression in E grid units (docs/spec.md §3.4 without slip):
 ``dx/dt = u(t) − x/K`` with the input ``u = c·v(t)`` on a segment of constant
 acceleration (path speed ``v`` linear from ``v_a`` to ``v_b`` in ``T``, slope ``α``).
 Exactly::

@@ -1,7 +1,7 @@
 """What the filament column carries into a run start: the lag state through a gap.
 
 The melt lags the feed through ``K·Q̇ = v_in − Q`` [001 Eq. 15]; with the stored volume
-``x = K·Q`` (the column's compression ``Δl`` times the filament area, SPEC §3.4:
+``x = K·Q`` (the column's compression ``Δl`` times the filament area, docs/spec.md §3.4:
 ``dΔl/dt = v_in − Δl/K`` for ``Δl > 0``) the outflow is ``max(x, 0)/K`` — no backflow
 [001 Fig. 8]: a retraction takes ``x`` below zero, nothing flows until the push-back has
 filled it again. So a retraction *holds* the compression through a travel and a push-back
@@ -33,7 +33,7 @@ def lag_state_after(x0_mm3: float, volume_mm3: float, duration_s: float,
     """Stored volume after feeding ``volume_mm3`` evenly over ``duration_s``.
 
     Exact solution of ``ẋ = u − max(x, 0)/K`` with ``u = V/T`` ([001 Eq. 15] in the stored
-    volume ``x = K·Q``; no backflow [001 Fig. 8], SPEC §3.4): while ``x > 0``,
+    volume ``x = K·Q``; no backflow [001 Fig. 8], docs/spec.md §3.4): while ``x > 0``,
     ``x(t) = u·K + (x₀ − u·K)·exp(−t/K)``; while ``x ≤ 0`` nothing flows out and
     ``x(t) = x₀ + u·t``; the switch between the two is found in closed form
     (``t₀ = K·ln((x₀ − u·K)/(−u·K))`` for a retraction from a positive state, ``−x₀/u``

@@ -80,7 +80,7 @@ def guard_feeds(draft: Draft, cruise_mm_s: FloatArray, peak_force_n: FloatArray,
         Predicted peak feed force of every piece, N.
     steady_force_n
         Feed force the piece's intended flow needs once the pressure has settled,
-        ``F = K·v_E/k`` (SPEC §3.4), N — the twin's peak saturates at the limit where the
+        ``F = K·v_E/k`` (docs/spec.md §3.4), N — the twin's peak saturates at the limit where the
         drive grinds, so the larger of the two sets the slowdown.
     max_force_n
         The roller's maximum feed force during every piece, N (``inf``: unknown).

@@ -76,7 +76,7 @@ def extruder_limits(settings: KlipperSettings | MarlinSettings) -> ExtruderLimit
     Parameters
     ----------
     settings
-        The settings the planner used (:attr:`flowtwin.planning.PlanResult.settings`).
+        The settings the planner used (:attr:`flowtwin.planner.plan_file.PlanResult.settings`).
 
     Returns
     -------

@@ -29,6 +29,7 @@ import numpy.typing as npt
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.simulation import SimulationResult
+from flowtwin.simulation.windowed import windowed_flow
 
 __all__ = ["FlowFigures", "extruding_moves", "flow_figures", "window_peak"]
 
@@ -161,6 +162,8 @@ def window_peak(path_mm: npt.NDArray[np.float64], commanded_mm3: npt.NDArray[np.
     shorter than ``W`` is one window. ``W`` is one nozzle diameter: the melt leaves as a
     strand of that diameter and is pressed into the bead under the nozzle [001, 004], so an
     excess of volume shows on the part spread over at least that length of path.
+    (The computation is :func:`flowtwin.simulation.windowed.windowed_flow`'s, which also
+    gives the under-extrusion and where the worst windows are.)
 
     Parameters
     ----------
@@ -178,33 +181,5 @@ def window_peak(path_mm: npt.NDArray[np.float64], commanded_mm3: npt.NDArray[np.
     float
         The largest window flow error (fraction; 0 when nothing prints).
     """
-    idx = np.flatnonzero(printed)
-    if idx.size == 0:
-        return 0.0
-    length = np.asarray(path_mm, dtype=np.float64)[idx]
-    cmd = np.asarray(commanded_mm3, dtype=np.float64)[idx]
-    dlv = np.asarray(delivered_mm3, dtype=np.float64)[idx]
-    # stretches: runs of consecutive printed rows
-    new = np.concatenate(([True], np.diff(idx) != 1))
-    stretch = np.cumsum(new) - 1
-    first = np.flatnonzero(new)
-    last = np.append(first[1:], idx.size) - 1
-    g = np.concatenate(([0.0], np.cumsum(length)))       # position of every move end
-    c_cum = np.concatenate(([0.0], np.cumsum(cmd)))
-    d_cum = np.concatenate(([0.0], np.cumsum(dlv)))
-    lo = g[first][stretch]                                # stretch of every move: [lo, hi]
-    hi = g[last + 1][stretch]
-    w = float(window_mm)
-    starts = np.concatenate((g[:-1], g[1:] - w))          # window starts: a move's start
-    lo2 = np.concatenate((lo, lo))                        # at the left edge, or its end at
-    hi2 = np.concatenate((hi, hi))                        # the right edge
-    s0 = np.clip(starts, lo2, np.maximum(hi2 - w, lo2))
-    s1 = np.minimum(s0 + w, hi2)
-    # piecewise-linear cumulative volumes; positions stay within their own stretch, whose
-    # nodes are consecutive in g (a stretch boundary is a shared node)
-    den = np.interp(s1, g, c_cum) - np.interp(s0, g, c_cum)
-    num = np.interp(s1, g, d_cum) - np.interp(s0, g, d_cum)
-    ok = den > 0.0
-    if not np.any(ok):
-        return 0.0
-    return float(np.max(num[ok] / den[ok]) - 1.0)
+    return windowed_flow(path_mm, commanded_mm3, delivered_mm3, printed, window_mm=window_mm,
+                         spots=0).peak_over

@@ -26,8 +26,8 @@ from numba import njit
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode._columns import fill_columns
+from flowtwin.gcode.inputs import open_source
 from flowtwin.gcode.moves import MoveKind, MoveTable
-from flowtwin.gcode.source import open_source
 
 __all__ = ["MAX_E_DECIMALS", "MIN_E_DECIMALS", "OriginalFile", "read_original"]
 

@@ -8,13 +8,20 @@ that order). The figures of every advance pass are an :class:`AdvancePassSummary
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
 
 from flowtwin.compensation.bake import PassReport
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.metrics import FlowFigures
 from flowtwin.compensation.pace import PaceReport
 from flowtwin.compensation.trajectory import TrajectoryReport
+
+if TYPE_CHECKING:
+    from flowtwin.simulation import SimulationResult
 
 __all__ = ["AdvancePassSummary", "CompensationReport"]
 
@@ -133,6 +140,10 @@ class CompensationReport:
         Print time the pacing added (re-planned with and without it), s.
     pace
         Figures of the pacing stage, or ``None`` when it did not run.
+    original_result, compensated_result, piece_row
+        The two simulations and the original move of every compensated move (for the
+        before/after report, :func:`flowtwin.report.write_comparison`); not part of
+        :meth:`as_dict`.
     """
 
     source: str
@@ -163,6 +174,14 @@ class CompensationReport:
     paced_moves: tuple[int, ...] = ()
     pace_time_cost_s: float = 0.0
     pace: PaceReport | None = None
+    original_result: SimulationResult | None = field(default=None, repr=False, compare=False)
+    compensated_result: SimulationResult | None = field(default=None, repr=False,
+                                                        compare=False)
+    piece_row: npt.NDArray[np.int64] | None = field(default=None, repr=False, compare=False)
+
+    def _repr_html_(self) -> str:
+        from flowtwin.report.notebook import compensation_repr
+        return compensation_repr(self)
 
     def as_dict(self) -> dict[str, object]:
         """The figures as plain JSON-able values (the ``--json`` object)."""

@@ -318,7 +318,9 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
         advance=record.passes, trajectory=record.trajectory,
         lines_rewritten=lines_rewritten, warnings=tuple(warnings), seconds=seconds,
         lag_factor_changed_moves=int(changed_k.size), paced_moves=paced,
-        pace_time_cost_s=float(record.pace_cost_s), pace=record.pace)
+        pace_time_cost_s=float(record.pace_cost_s), pace=record.pace,
+        original_result=original, compensated_result=after_sim,
+        piece_row=np.asarray(draft.row, dtype=np.int64))
 
 
 def _lag_warning(original: SimulationResult, after: SimulationResult, draft: Draft,

@@ -32,7 +32,7 @@ from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import ReadOptions
 from flowtwin.planner.klipper_config import KlipperSettings
 from flowtwin.planner.marlin import MarlinSettings
-from flowtwin.planning import plan_table
+from flowtwin.planner.plan_file import plan_table
 from flowtwin.profiles.machine import Machine
 from flowtwin.simulation import SimulationResult, simulate, simulate_plan
 

@@ -1,53 +1,70 @@
 """Closed-loop slip control on a real or simulated printer [003 §2.3].
 
-Printer connections behind one small interface (:class:`Printer`): OctoPrint, Moonraker,
-a serial port (Marlin) and the twin; per-firmware command encoding; pure controllers
-(Greeff's, feed-forward, PI) with limits and rate limits; a supervisor that returns the
-printer to 100 % on every exit path. The twin prints G-code physically
-(:class:`PrintJob`, :class:`JobRunner`: slip from the machine's physics at the current
-temperature and multipliers). See ``docs/control.md``.
+Every printer connection implements one small interface (:class:`Printer`,
+:mod:`flowtwin.control.printer`; :func:`open_printer` opens one from a URL):
 
-Measurement sources built on :mod:`flowtwin.vision` (OpenCV) live in submodules so that
-importing the package stays light: :mod:`flowtwin.control.video` (``VideoSource``,
-``CameraSource``), :mod:`flowtwin.control.twin_camera` (``TwinCameraSource``) and the
-simulated print-job test [003 §3.3] :mod:`flowtwin.control.printjob`.
+* :mod:`flowtwin.control.transports` — the real printer hosts: OctoPrint, Moonraker
+  (Klipper), a serial port (Marlin), their network plumbing and API keys;
+* :mod:`flowtwin.control.simulated` — the twin as a printer: it prints G-code physically
+  (:class:`PrintJob`, :class:`JobRunner`, the extruder step: slip from the machine's
+  physics at the current temperature and multipliers) and films its drive;
+* :mod:`flowtwin.control.loop` — the control laws (Greeff's, feed-forward, PI, with limits
+  and rate limits), the measurement sources, the clocks, the log and the supervisor that
+  returns the printer to 100 % on every exit path.
+
+The firmware's command syntax comes from :mod:`flowtwin.firmware`. Measurement sources
+built on :mod:`flowtwin.vision` (OpenCV) are imported from their modules so that importing
+the package stays light: :mod:`flowtwin.control.loop.video` (``VideoSource``,
+``CameraSource``), :mod:`flowtwin.control.simulated.camera` (``TwinCameraSource``). The
+paper's print-job test [003 §3.3] that runs this loop is in :mod:`flowtwin.reproduce`
+(``greeff2017_loop``). See ``docs/control.md``.
 """
 
 from __future__ import annotations
 
-from flowtwin.control.clock import AcceleratedClock, Clock, RealClock, SimClock
-from flowtwin.control.connect import open_printer
-from flowtwin.control.controllers import (
-    FeedForwardController,
-    GreeffController,
-    Limits,
-    OpenLoopController,
-    PIController,
-    limit_command,
-    make_controller,
-)
-from flowtwin.control.credentials import ApiKey, load_api_key
-from flowtwin.control.extrusion import (
-    ExtruderState,
-    StepFlux,
-    StepParams,
-    step_extrusion,
-    step_params,
-)
-from flowtwin.control.job import PrintJob
-from flowtwin.control.log import ControlLog
-from flowtwin.control.measurement import (
-    Measurement,
-    MeasurementLost,
-    MeasurementSource,
-    SyntheticSlipSource,
-)
-from flowtwin.control.polygon import PolygonSpec, polygon_gcode
-from flowtwin.control.printer import CommandRejected, ConnectionLost, Factors, Printer, Response
-from flowtwin.control.supervisor import Fault, FaultKind, LoopSettings, RunSummary, run_control
-from flowtwin.control.twin import TwinPrinter
-from flowtwin.control.twinjob import JobHistory, JobRunner, JobTotals
-from flowtwin.firmware import Channel
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from flowtwin.control.connect import open_printer
+    from flowtwin.control.loop.clock import AcceleratedClock, Clock, RealClock, SimClock
+    from flowtwin.control.loop.controllers import (
+        FeedForwardController,
+        GreeffController,
+        Limits,
+        OpenLoopController,
+        PIController,
+        limit_command,
+        make_controller,
+    )
+    from flowtwin.control.loop.log import ControlLog
+    from flowtwin.control.loop.measurement import (
+        Measurement,
+        MeasurementLost,
+        MeasurementSource,
+        SyntheticSlipSource,
+    )
+    from flowtwin.control.loop.supervisor import (
+        Fault,
+        FaultKind,
+        LoopSettings,
+        RunSummary,
+        run_control,
+    )
+    from flowtwin.control.printer import CommandRejected, ConnectionLost, Factors, Printer, Response
+    from flowtwin.control.simulated.extruder import (
+        ExtruderState,
+        StepFlux,
+        StepParams,
+        step_extrusion,
+        step_params,
+    )
+    from flowtwin.control.simulated.job import PrintJob
+    from flowtwin.control.simulated.runner import JobHistory, JobRunner, JobTotals
+    from flowtwin.control.simulated.twin import TwinPrinter
+    from flowtwin.control.transports.credentials import ApiKey, load_api_key
+    from flowtwin.firmware import Channel
 
 __all__ = [
     "AcceleratedClock",
@@ -73,7 +90,6 @@ __all__ = [
     "MeasurementSource",
     "OpenLoopController",
     "PIController",
-    "PolygonSpec",
     "PrintJob",
     "Printer",
     "RealClock",
@@ -88,8 +104,51 @@ __all__ = [
     "load_api_key",
     "make_controller",
     "open_printer",
-    "polygon_gcode",
     "run_control",
     "step_extrusion",
     "step_params",
 ]
+
+# names resolve on first use (importing the package stays light)
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "open_printer": "flowtwin.control.connect",
+    "AcceleratedClock": "flowtwin.control.loop.clock",
+    "Clock": "flowtwin.control.loop.clock",
+    "RealClock": "flowtwin.control.loop.clock",
+    "SimClock": "flowtwin.control.loop.clock",
+    "FeedForwardController": "flowtwin.control.loop.controllers",
+    "GreeffController": "flowtwin.control.loop.controllers",
+    "Limits": "flowtwin.control.loop.controllers",
+    "OpenLoopController": "flowtwin.control.loop.controllers",
+    "PIController": "flowtwin.control.loop.controllers",
+    "limit_command": "flowtwin.control.loop.controllers",
+    "make_controller": "flowtwin.control.loop.controllers",
+    "ControlLog": "flowtwin.control.loop.log",
+    "Measurement": "flowtwin.control.loop.measurement",
+    "MeasurementLost": "flowtwin.control.loop.measurement",
+    "MeasurementSource": "flowtwin.control.loop.measurement",
+    "SyntheticSlipSource": "flowtwin.control.loop.measurement",
+    "Fault": "flowtwin.control.loop.supervisor",
+    "FaultKind": "flowtwin.control.loop.supervisor",
+    "LoopSettings": "flowtwin.control.loop.supervisor",
+    "RunSummary": "flowtwin.control.loop.supervisor",
+    "run_control": "flowtwin.control.loop.supervisor",
+    "CommandRejected": "flowtwin.control.printer",
+    "ConnectionLost": "flowtwin.control.printer",
+    "Factors": "flowtwin.control.printer",
+    "Printer": "flowtwin.control.printer",
+    "Response": "flowtwin.control.printer",
+    "ExtruderState": "flowtwin.control.simulated.extruder",
+    "StepFlux": "flowtwin.control.simulated.extruder",
+    "StepParams": "flowtwin.control.simulated.extruder",
+    "step_extrusion": "flowtwin.control.simulated.extruder",
+    "step_params": "flowtwin.control.simulated.extruder",
+    "PrintJob": "flowtwin.control.simulated.job",
+    "JobHistory": "flowtwin.control.simulated.runner",
+    "JobRunner": "flowtwin.control.simulated.runner",
+    "JobTotals": "flowtwin.control.simulated.runner",
+    "TwinPrinter": "flowtwin.control.simulated.twin",
+    "ApiKey": "flowtwin.control.transports.credentials",
+    "load_api_key": "flowtwin.control.transports.credentials",
+    "Channel": "flowtwin.firmware",
+})

@@ -12,20 +12,20 @@
 
 Only the host in the URL is ever contacted. User names or passwords in the URL are refused
 (a secret in a URL ends up in logs and shell history); keys come from
-:func:`~flowtwin.control.credentials.load_api_key`.
+:func:`~flowtwin.control.transports.credentials.load_api_key`.
 """
 
 from __future__ import annotations
 
 from urllib.parse import parse_qs, urlsplit
 
-from flowtwin.control.clock import Clock
-from flowtwin.control.credentials import ApiKey
-from flowtwin.control.marlin_serial import SerialPrinter
-from flowtwin.control.moonraker import MoonrakerPrinter
-from flowtwin.control.octoprint import OctoPrintPrinter
+from flowtwin.control.loop.clock import Clock
 from flowtwin.control.printer import Printer
-from flowtwin.control.twin import TwinPrinter
+from flowtwin.control.simulated.twin import TwinPrinter
+from flowtwin.control.transports.credentials import ApiKey
+from flowtwin.control.transports.marlin_serial import SerialPrinter
+from flowtwin.control.transports.moonraker import MoonrakerPrinter
+from flowtwin.control.transports.octoprint import OctoPrintPrinter
 from flowtwin.errors import ProfileError
 from flowtwin.firmware import Firmware
 

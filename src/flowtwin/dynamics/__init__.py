@@ -1,6 +1,6 @@
 """Extrusion dynamics: commanded feed, firmware pressure advance, and the lag/slip integrator.
 
-Flow (SPEC §3.4, §3.6)::
+Flow (docs/spec.md §3.4, §3.6)::
 
     MoveTable + Timeline ─► nominal_feed ─► apply_advance (the firmware's, flowtwin.firmware)
         ─► integrate (state Δl: lag [001], no backflow, slip [000], grinding) ─► DynamicsResult
@@ -16,16 +16,16 @@ from flowtwin.dynamics.advance import (
     apply_advance,
     printer_advance,
 )
-from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
-from flowtwin.dynamics.integrator import integrate
-from flowtwin.dynamics.params import ExtrusionParams, resolve_per_move
-from flowtwin.dynamics.predict import predict
-from flowtwin.dynamics.result import (
+from flowtwin.dynamics.extrusion_result import (
     MOVE_RESULT_DTYPE,
     SERIES_DTYPE,
     DynamicsResult,
     DynamicsSummary,
 )
+from flowtwin.dynamics.feed import CommandedFeed, nominal_feed
+from flowtwin.dynamics.integrator import integrate
+from flowtwin.dynamics.params import ExtrusionParams, resolve_per_move
+from flowtwin.dynamics.predict import predict
 from flowtwin.dynamics.thermal import TemperatureSchedule, move_temperatures, temperature_schedule
 
 __all__ = [

@@ -143,7 +143,7 @@ def add_row(tot: npt.NDArray[np.float64], buf: npt.NDArray[np.float64], row: int
         tot[T_SUM, A_FMAX] = buf[row, A_FMAX]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def finish_totals(tot: npt.NDArray[np.float64]) -> None:
     """Fold the compensation into the sums (``tot[T_SUM]`` becomes the totals)."""
     for q in (A_CMD, A_FED, A_OUT, A_SLIP, A_GRIND):
@@ -151,7 +151,7 @@ def finish_totals(tot: npt.NDArray[np.float64]) -> None:
         tot[T_COMP, q] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def finish_chunk(buf: npt.NDArray[np.float64], base: int, count: int, area: float,
                  move_de: npt.NDArray[np.float64], move_t0: npt.NDArray[np.float64],
                  move_t1: npt.NDArray[np.float64], cols: tuple[npt.NDArray[np.float64], ...],

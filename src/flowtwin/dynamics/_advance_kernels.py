@@ -38,7 +38,7 @@ __all__ = ["klipper_smooth", "marlin_eligible", "marlin_moves", "marlin_track",
            "merge_breakpoints"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def merge_breakpoints(b: npt.NDArray[np.float64], h: float, lo: float, hi: float
                       ) -> npt.NDArray[np.float64]:
     """Sorted unique union of ``b``, ``b + h``, ``b − h``, ``lo`` and ``hi`` within ``[lo, hi]``.
@@ -79,7 +79,7 @@ def merge_breakpoints(b: npt.NDArray[np.float64], h: float, lo: float, hi: float
     return out[:k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def marlin_eligible(de: npt.NDArray[np.float64], x: npt.NDArray[np.float64],
                     y: npt.NDArray[np.float64], z: npt.NDArray[np.float64], x0: float,
                     y0: float, z0: float, out: npt.NDArray[np.bool_]) -> None:
@@ -102,7 +102,7 @@ def marlin_eligible(de: npt.NDArray[np.float64], x: npt.NDArray[np.float64],
         pz = z[i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _seg_of(bt0: npt.NDArray[np.float64], x: float, j: int) -> int:
     """Index of the segment containing ``x`` (right-continuous), starting from guess ``j``."""
     nb = bt0.shape[0]
@@ -113,7 +113,7 @@ def _seg_of(bt0: npt.NDArray[np.float64], x: float, j: int) -> int:
     return j
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
                    bv0: npt.NDArray[np.float64], ba: npt.NDArray[np.float64],
                    be0: npt.NDArray[np.float64], bk: npt.NDArray[np.float64],
@@ -237,7 +237,7 @@ def klipper_smooth(bt0: npt.NDArray[np.float64], bdt: npt.NDArray[np.float64],
         out_e0[k] = pref + (w_plus + w_minus) * inv_h2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def marlin_track(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                  v0: npt.NDArray[np.float64], a: npt.NDArray[np.float64],
                  e0: npt.NDArray[np.float64], move: npt.NDArray[np.int64],
@@ -311,7 +311,7 @@ def marlin_track(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def marlin_moves(move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],
                  phase: npt.NDArray[np.int8], v0: npt.NDArray[np.float64],
                  a: npt.NDArray[np.float64], dt: npt.NDArray[np.float64], n: int,

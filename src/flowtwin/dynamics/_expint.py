@@ -16,7 +16,9 @@ with ``φ_k = φ_k(-T/K) = Σ_{i≥0} (-T/K)^i / (i+k)!`` (the φ-functions of e
 integrators, since ``∫_0^T e^{-(T-s)/K} s^j ds = j! T^{j+1} φ_{j+1}(-T/K)``). For
 ``T/K ≤ 2`` the φ's come from the series of φ5 and the stable backward recurrence
 ``φ_k = 1/k! + x φ_{k+1}``; beyond, from ``φ0 = e^x`` and ``φ_{k+1} = (φ_k - 1/k!)/x``
-(error growth ≤ Π(k+1)/|x| < 4). Both are exact to rounding: no internal step.
+(error growth ≤ Π(k+1)/|x| < 4). Both are exact to rounding: no internal step. This is
+the lag step of :mod:`flowtwin.physics.lag` (``lag_linear``) extended to cubic inputs and
+inlined for speed; ``tests/dynamics/test_lag_primitive.py`` holds it to that primitive.
 
 Gauss–Legendre collocation for the slip loop
 ---------------------------------------------
@@ -122,7 +124,7 @@ def _unowned(typingctx: Any, arr: Any) -> Any:  # pragma: no cover - compiled
 #: :func:`_unowned` as a numba intrinsic (typed for mypy as the identity on arrays).
 unowned = cast("Callable[[npt.NDArray[Any]], npt.NDArray[Any]]", intrinsic(_unowned))
 
-#: Regimes of the state equation (SPEC §3.4) on an interval of fixed sign of the feed.
+#: Regimes of the state equation (docs/spec.md §3.4) on an interval of fixed sign of the feed.
 FREE = 0   # Δl ≤ 0: column pulled back from the melt, no output, x' = α
 LAG = 1    # Δl > 0, constant coefficient: x' = α - x/K
 SLIP = 2   # Δl > 0, feeding forward with force-dependent slip: x' = α - (1/K + v s'/k) x
@@ -209,7 +211,7 @@ def collocation_table(max_stages: int = MAX_STAGES) -> npt.NDArray[np.float64]:
 TABLE = collocation_table()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def stages_for(z: float, min_stages: int) -> int:
     """Fewest stages (``>= min_stages``, ``<= MAX_STAGES``) whose error bound meets
     :data:`STAGE_TOL` at ``z = β·h`` (+ the velocity-law variation)."""
@@ -219,7 +221,7 @@ def stages_for(z: float, min_stages: int) -> int:
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def phi6(z: float) -> tuple[float, float, float, float, float, float]:
     """``(φ_0(-z), ..., φ_5(-z))`` for ``z ≥ 0``."""
     x = -z
@@ -252,31 +254,31 @@ def phi6(z: float) -> tuple[float, float, float, float, float, float]:
     return p0, p1, p2, p3, p4, p5
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def phi_fill(z: float, out: npt.NDArray[np.float64]) -> None:
     """``out[k] = φ_k(-z)`` for ``k = 0..5`` and ``z ≥ 0``."""
     out[0], out[1], out[2], out[3], out[4], out[5] = phi6(z)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def poly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """``c0 + c1 t + c2 t² + c3 t³``."""
     return c0 + t * (c1 + t * (c2 + t * c3))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def dpoly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """Derivative of :func:`poly4`."""
     return c1 + t * (2.0 * c2 + t * 3.0 * c3)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ipoly4(c0: float, c1: float, c2: float, c3: float, t: float) -> float:
     """``∫_0^t poly4 ds``."""
     return t * (c0 + t * (0.5 * c1 + t * (c2 / 3.0 + t * 0.25 * c3)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def shift4(c0: float, c1: float, c2: float, c3: float, s: float, scale: float
            ) -> tuple[float, float, float, float]:
     """Coefficients of ``scale · poly4(s + τ)`` in ``τ`` (Taylor shift)."""
@@ -284,7 +286,7 @@ def shift4(c0: float, c1: float, c2: float, c3: float, s: float, scale: float
             scale * (c2 + 3.0 * c3 * s), scale * c3)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lag4(x0: float, b0: float, b1: float, b2: float, b3: float, k_s: float, t: float
          ) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ) - x/K`` (module docstring)."""
@@ -298,7 +300,7 @@ def lag4(x0: float, b0: float, b1: float, b2: float, b3: float, k_s: float, t: f
     return xt, ix
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lag_step(x0: float, b: npt.NDArray[np.float64], k_s: float, t: float,
              phi: npt.NDArray[np.float64]) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ) - x/K``; also fills ``phi``."""
@@ -306,7 +308,7 @@ def lag_step(x0: float, b: npt.NDArray[np.float64], k_s: float, t: float,
     return lag4(x0, b[0], b[1], b[2], b[3], k_s, t)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def free4(x0: float, b0: float, b1: float, b2: float, b3: float, t: float
           ) -> tuple[float, float]:
     """Exact ``x(t)`` and ``∫_0^t x`` of ``x' = b(τ)`` (no output, Δl ≤ 0)."""
@@ -315,7 +317,7 @@ def free4(x0: float, b0: float, b1: float, b2: float, b3: float, t: float
     return xt, ix
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def slope_factor(v: float, sa: float, sb: float, sc: float) -> float:
     """Slip gradient ``s'(v) = a + b·exp(-c·v)`` (1/N) [000 Eq. 8]; ``b = 0`` gives Eq. 6."""
     if sb == 0.0:
@@ -323,7 +325,7 @@ def slope_factor(v: float, sa: float, sb: float, sc: float) -> float:
     return sa + sb * math.exp(-sc * v)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def colloc4(x0: float, c0: float, c1: float, c2: float, c3: float, tau0: float, h: float,
             alpha_scale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
             s: int, ws: npt.NDArray[np.float64]) -> tuple[float, float, float]:

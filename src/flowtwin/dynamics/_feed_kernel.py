@@ -30,7 +30,7 @@ def _phase_speeds(ph: npt.NDArray[np.void], i: int, a: float, c: float, d: float
     return length, v0 * r, vc * r, v1 * r
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_segments(ph: npt.NDArray[np.void], ts: npt.NDArray[np.float64],
                    te: npt.NDArray[np.float64], residue: float, lead_s: float,
                    tail_s: float) -> int:
@@ -45,7 +45,7 @@ def count_segments(ph: npt.NDArray[np.void], ts: npt.NDArray[np.float64],
     return cap
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build_segments(ph: npt.NDArray[np.void], ts: npt.NDArray[np.float64],
                    te: npt.NDArray[np.float64], de: npt.NDArray[np.float64], residue: float,
                    e_start: float, lead_s: float, tail_s: float, t0: npt.NDArray[np.float64],
@@ -137,12 +137,12 @@ BAD_OVERLAP = 2      # a move starts before the previous one ends
 BAD_NO_MOTION = 3    # de != 0 but no path length / duration
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _clamp(t: float, residue: float) -> float:
     return 0.0 if (t < 0.0 and t >= -residue) else t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def prepare_moves(ph: npt.NDArray[np.void], mv: npt.NDArray[np.void], tool: int,
                   all_tools: bool, residue: float, overlap_tol: float,
                   ts: npt.NDArray[np.float64], te: npt.NDArray[np.float64],

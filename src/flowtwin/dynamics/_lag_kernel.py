@@ -1,4 +1,4 @@
-"""Compiled integrator of the extrusion state equation (SPEC §3.4) over a commanded feed.
+"""Compiled integrator of the extrusion state equation (docs/spec.md §3.4) over a commanded feed.
 
 Private: called by :func:`flowtwin.dynamics.integrator.integrate`, which validates and
 casts everything first. One pass over the segments, O(number of segments + events).
@@ -91,7 +91,7 @@ _EV_THRESHOLD = 2  # force reached the maximum feed force
 _EV_RELEASE = 3    # force fell to the release level
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: float,
            out: float, slip: float, grind: float, gtime: float, time: float, xhi: float,
            xlo: float, k_s: float, kc: float) -> None:
@@ -114,7 +114,7 @@ def _flush(acc: npt.NDArray[np.float64], row: int, cmd: float, fwd: float, fed: 
         acc[row, A_QMIN] = xlo / k_s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _room(stops: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
     """``stops`` with room for ``rows`` rows (doubled and copied when too small)."""
     if stops.shape[0] >= rows:
@@ -133,7 +133,7 @@ def _step(values: npt.NDArray[np.float64], nmoves: int) -> int:
     return 0 if values.shape[0] == 1 else -1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate_kernel(t0: npt.NDArray[np.float64], dt: npt.NDArray[np.float64],
                      coef: npt.NDArray[np.float64], e0: npt.NDArray[np.float64],
                      move: npt.NDArray[np.int64], gap: npt.NDArray[np.bool_],

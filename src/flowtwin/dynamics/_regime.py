@@ -40,7 +40,7 @@ def constant_speed(c1: float, c2: float, c3: float) -> bool:
     return c1 == 0.0 and c2 == 0.0 and c3 == 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def advance(regime: int, x0: float, c0: float, c1: float, c2: float, c3: float, ta: float,
             tb: float, ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,
             stiffness: float, min_stages: int, ws: npt.NDArray[np.float64]
@@ -90,7 +90,7 @@ def advance(regime: int, x0: float, c0: float, c1: float, c2: float, c3: float, 
     return xe, ix, igx
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def slope(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float, x: float,
           ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float
           ) -> tuple[float, float]:
@@ -118,7 +118,7 @@ def slope(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float, x
     return y, ascale * dv - dbeta * x - beta * y
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def turn_x(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float,
            ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float) -> float:
     """``x`` at a turning point (``x' = 0``): ``α/β`` of the regime."""
@@ -128,7 +128,7 @@ def turn_x(regime: int, c0: float, c1: float, c2: float, c3: float, tau: float,
     return ascale * v / (1.0 / k_s + v * slope_factor(v, sa, sb, sc) / kc)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def event_root(which: int, regime: int, x0: float, c0: float, c1: float, c2: float, c3: float,
                ta: float, lo: float, hi: float, glo: float, ghi: float, level: float, tol: float,
                ascale: float, k_s: float, kc: float, sa: float, sb: float, sc: float,

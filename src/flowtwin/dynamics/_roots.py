@@ -18,7 +18,7 @@ from flowtwin.dynamics._expint import dpoly4, poly4
 __all__ = ["hermite_root", "speed_roots"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def speed_roots(c0: float, c1: float, c2: float, c3: float, t_len: float,
                 out: npt.NDArray[np.float64]) -> int:
     """Sign changes of the cubic ``v`` inside ``(0, t_len)``, sorted in ``out[:n]``;
@@ -98,7 +98,7 @@ def speed_roots(c0: float, c1: float, c2: float, c3: float, t_len: float,
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def hermite_root(lo: float, hi: float, ga: float, da: float, gb: float, db: float) -> float:
     """Root in ``(lo, hi)`` of the cubic Hermite interpolant of ``g`` (values ``ga``, ``gb``
     of opposite signs, slopes ``da``, ``db`` at the ends): the start of the Newton search

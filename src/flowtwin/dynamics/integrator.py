@@ -1,4 +1,4 @@
-"""Integrate the extrusion state equation over a commanded feed (SPEC §3.4).
+"""Integrate the extrusion state equation over a commanded feed (docs/spec.md §3.4).
 
 State ``Δl`` (mm of column compression) [001 Eq. 5]::
 
@@ -62,14 +62,14 @@ from flowtwin.dynamics._acc_kernel import (
 )
 from flowtwin.dynamics._expint import MAX_STAGES, WS_ROWS
 from flowtwin.dynamics._lag_kernel import integrate_kernel
-from flowtwin.dynamics.feed import CommandedFeed
-from flowtwin.dynamics.params import ExtrusionParams
-from flowtwin.dynamics.result import (
+from flowtwin.dynamics.extrusion_result import (
     MOVE_RESULT_DTYPE,
     SERIES_DTYPE,
     DynamicsResult,
     DynamicsSummary,
 )
+from flowtwin.dynamics.feed import CommandedFeed
+from flowtwin.dynamics.params import ExtrusionParams
 from flowtwin.errors import DataError, ProfileError
 
 __all__ = ["MAX_SERIES_SAMPLES", "integrate"]

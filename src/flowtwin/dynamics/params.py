@@ -100,7 +100,7 @@ def _check_range(arr: npt.NDArray[np.float64], *, name: str, lo: float, hi: floa
 
 @dataclass(frozen=True, slots=True)
 class ExtrusionParams:
-    """Per-move parameters of the state equation (SPEC §3.4), arrays of shape ``(n_moves,)``.
+    """Per-move parameters of the state equation (docs/spec.md §3.4), shape ``(n_moves,)``.
 
     Attributes
     ----------

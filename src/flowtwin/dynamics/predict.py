@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from flowtwin.dynamics.advance import AdvanceSettings, apply_advance
+from flowtwin.dynamics.extrusion_result import DynamicsResult
 from flowtwin.dynamics.feed import nominal_feed
 from flowtwin.dynamics.integrator import integrate
 from flowtwin.dynamics.params import ExtrusionParams
-from flowtwin.dynamics.result import DynamicsResult
 from flowtwin.gcode.moves import MoveTable
 from flowtwin.planner.timeline import Timeline
 

@@ -9,7 +9,7 @@
 * :mod:`~flowtwin.firmware.nonlinear`: nonlinear extrusion (``M592``): which firmware scales
   E with the extrusion speed, by which formula.
 
-Planning (:mod:`flowtwin.planning`), the dynamics' pressure advance, the calibration
+Planning (:mod:`flowtwin.planner.plan_file`), the dynamics' pressure advance, the calibration
 patterns, the twin's firmware settings and the closed loop all read the firmware from
 here. To add a firmware, see :mod:`flowtwin.firmware.kinds`.
 

@@ -18,6 +18,10 @@ K_TRAVEL, K_EXTRUDE, K_RETRACT, K_XY, K_Z, K_ARC, K_FW, K_RAPID = 1, 2, 4, 8, 16
 #: :func:`emit_arc` results other than a row count.
 ARC_BAD = -1   # no centre: neither I/J nor an R at least half the chord
 ARC_FULL = -2  # the row buffer cannot hold the segments
+ARC_HUGE = -3  # more segments than any printable arc has (a radius of kilometres)
+#: Segments of the longest arc accepted: a full circle of 0.5 m radius is 3 142 chords at
+#: Klipper's 1 mm resolution; more than this is a broken I/J/R, not a print.
+MAX_ARC_SEGMENTS = 100_000
 
 
 @njit(cache=True, inline="always")
@@ -64,14 +68,14 @@ def row_kind(dx: float, dy: float, dz: float, de: float, arc: bool, rapid: bool)
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,  # type: ignore[no-untyped-def]
              cw, has_ij, r_p_ij, r_q_ij, has_r, r_mm, klipper, arc_param, e_acc):
     """Write the chords of one arc into ``out`` from row ``n_out``.
 
     ``(r_p_ij, r_q_ij)`` is the radius vector ``(-I, -J)`` and ``r_mm`` the ``R`` word,
-    in mm. Returns the new row count, :data:`ARC_BAD` or :data:`ARC_FULL` (nothing
-    written).
+    in mm. Returns the new row count, :data:`ARC_BAD`, :data:`ARC_HUGE` or
+    :data:`ARC_FULL` (nothing written).
     """
     if has_ij:  # I, J: the radius vector is exactly (-I, -J)
         r_p = r_p_ij
@@ -119,16 +123,17 @@ def emit_arc(out, n_out, lineno, tool, x0, y0, z0, x1, y1, z1, de, feed, flow,  
     dz = z1 - z0
     length = math.sqrt(planar * planar + dz * dz)
     if klipper:
-        nseg = int(math.floor(length / arc_param))
+        count = math.floor(length / arc_param)
     else:
         tol = arc_param
         if radius > tol:
             step = 2.0 * math.acos(1.0 - tol / radius)
-            nseg = int(math.ceil(abs(sweep) / step))
+            count = math.ceil(abs(sweep) / step)
         else:
-            nseg = 1
-    if nseg < 1:
-        nseg = 1
+            count = 1.0
+    if not count <= MAX_ARC_SEGMENTS:  # also NaN and inf
+        return ARC_HUGE
+    nseg = max(int(count), 1)
     if n_out + nseg > out.shape[0]:
         return ARC_FULL
     theta_seg = sweep / nseg

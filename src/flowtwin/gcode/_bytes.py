@@ -22,7 +22,7 @@ for _k, _p in enumerate(_SKIP_COMMENTS):
     _SKIP_BYTES[_k, : len(_p)] = np.frombuffer(_p, dtype=np.uint8)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _skippable_comment(buf, i, eol):  # type: ignore[no-untyped-def]
     """True if the comment at ``buf[i]`` starts with one of :data:`_SKIP_COMMENTS`."""
     for k in range(_SKIP_LEN.shape[0]):
@@ -48,7 +48,7 @@ def _upper(c: int) -> int:
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _parse_number_long(buf, i, end):  # type: ignore[no-untyped-def]
     """:func:`_parse_number` for more than 18 digits (the mantissa leaves int64)."""
     neg = False

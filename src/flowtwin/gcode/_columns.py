@@ -15,7 +15,7 @@ from flowtwin.gcode._arc import K_EXTRUDE
 __all__ = ["fill_columns"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill(moves, f_ks, f_vals, feature, l_ks, l_vals, layer, by_markers, max_z, rises_z):  # type: ignore[no-untyped-def]
     n = moves.shape[0]
     jf = 0

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, emit, emit_arc, row_kind
+from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, ARC_HUGE, emit, emit_arc, row_kind
 from flowtwin.gcode._bytes import (
     MAX_ABS_VALUE,
     _is_word_end,
@@ -74,6 +74,7 @@ ERR_NUMBER = 1      # a letter not followed by a valid number
 ERR_CHECKSUM = 2    # '*' checksum does not match
 ERR_ARC = 3         # arc without centre / radius, or radius too small
 ERR_FEED = 4        # F <= 0 or not finite
+ERR_ARC_HUGE = 5    # an arc of more than MAX_ARC_SEGMENTS chords
 ERR_VALUE = 5       # non-finite or absurd coordinate
 
 # --- lines left to Python (column 4 of ``other``) -------------------------------------
@@ -102,7 +103,7 @@ def _record(other, n_other, lineno, start, eol, n_out, kind):  # type: ignore[no
     return n_other + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _record_numeric(other, vals, n_other, n_vals, lineno, start, eol, n_out, c0, code_num,  # type: ignore[no-untyped-def]
                     mask, val):
     _record(other, n_other, lineno, start, eol, n_out, OTHER_NUMERIC)
@@ -136,7 +137,7 @@ def _line_end(buf, k, size):  # type: ignore[no-untyped-def]
     return k, star
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
     """Whether the number after ``*`` is the XOR of every byte of the line before it."""
     csum, _k, ok = _parse_number(buf, star + 1, eol)
@@ -146,7 +147,7 @@ def _checksum_ok(buf, start, star, eol):  # type: ignore[no-untyped-def]
     return ok and int(csum) == x
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # type: ignore[no-untyped-def]
     """Scan ``buf`` from byte ``pos``.
 
@@ -403,9 +404,9 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
                              -(val[9] * unit) if mask & _J else 0.0,
                              (mask & _R) != 0, val[17] * unit,
                              state[S_ARC_MODE] == 0.0, state[S_ARC_PARAM], e_acc)
-            if n_new == ARC_BAD:
+            if n_new == ARC_BAD or n_new == ARC_HUGE:
                 state[S_ERR_LINE] = lineno
-                state[S_ERR_CODE] = ERR_ARC
+                state[S_ERR_CODE] = ERR_ARC if n_new == ARC_BAD else ERR_ARC_HUGE
                 state[S_LINE] = line
                 return ST_ERROR, start, n_out, n_other, n_vals
             if n_new == ARC_FULL:

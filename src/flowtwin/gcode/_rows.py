@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flowtwin.gcode import _kernel as K
+from flowtwin.gcode import _kernel as kernel
 from flowtwin.gcode.moves import MOVE_DTYPE
 
 __all__ = ["_Rows"]
@@ -29,8 +29,8 @@ class _Rows:
 
     @classmethod
     def make(cls, cap: int, cap_other: int) -> _Rows:
-        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, K.N_OTHER_COLS), np.int64),
-                   np.empty(2 * cap_other + K.MAX_WORDS))
+        return cls(np.empty(cap, MOVE_DTYPE), np.empty((cap_other, kernel.N_OTHER_COLS), np.int64),
+                   np.empty(2 * cap_other + kernel.MAX_WORDS))
 
     def grow_moves(self, need: int) -> None:
         cap = max(self.moves.shape[0] + self.moves.shape[0] // 4, self.n + need + 16)
@@ -41,11 +41,11 @@ class _Rows:
     def grow_other(self) -> None:
         if self.n_other + 1 > self.other.shape[0]:
             cap = 2 * self.other.shape[0] + 16
-            new = np.empty((cap, K.N_OTHER_COLS), np.int64)
+            new = np.empty((cap, kernel.N_OTHER_COLS), np.int64)
             new[: self.n_other] = self.other[: self.n_other]
             self.other = new
-        if self.n_vals + K.MAX_WORDS > self.vals.shape[0]:
-            vals = np.empty(2 * self.vals.shape[0] + K.MAX_WORDS)
+        if self.n_vals + kernel.MAX_WORDS > self.vals.shape[0]:
+            vals = np.empty(2 * self.vals.shape[0] + kernel.MAX_WORDS)
             vals[: self.n_vals] = self.vals[: self.n_vals]
             self.vals = vals
 

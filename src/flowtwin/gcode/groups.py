@@ -19,7 +19,7 @@ __all__ = ["compensated_add", "group_sums"]
 _MAX_SPAN = 1 << 16
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _key_range(key: npt.NDArray[np.integer]) -> tuple[int, int]:
     lo = key[0]
     hi = key[0]
@@ -32,7 +32,7 @@ def _key_range(key: npt.NDArray[np.integer]) -> tuple[int, int]:
     return int(lo), int(hi)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _count(key: npt.NDArray[np.integer], lo: int, counts: npt.NDArray[np.int64]) -> None:
     for i in range(key.shape[0]):
         counts[key[i] - lo] += 1
@@ -51,7 +51,7 @@ def compensated_add(s: npt.NDArray[np.float64], c: npt.NDArray[np.float64], b: i
     s[b] = t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sum(key: npt.NDArray[np.integer], lo: int, w: npt.NDArray[np.float64],
          out: npt.NDArray[np.float64]) -> None:
     """``out[k - lo] = Σ w[key == k]``, Neumaier-compensated."""

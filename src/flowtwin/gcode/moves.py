@@ -19,8 +19,6 @@ from enum import IntFlag
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.gcode.groups import group_sums
-
 __all__ = ["MOVE_DTYPE", "Event", "MoveKind", "MoveTable"]
 
 
@@ -127,6 +125,8 @@ class MoveTable:
         Firmware retractions (``G10``/``G11``) are motions of the extruder but not
         filament the G-code asks for, so they are not counted here.
         """
+        from flowtwin.gcode.groups import group_sums  # a numba kernel: loaded when used
+
         written = (self.moves["kind"] & MoveKind.FW_RETRACT) == 0
         tools, _, (sums,) = group_sums(self.moves["tool"], np.where(written, self.moves["de"], 0.0))
         return {int(t): float(v) for t, v in zip(tools.tolist(), sums.tolist(), strict=True)}

@@ -27,7 +27,8 @@ from typing import BinaryIO
 import numpy as np
 
 from flowtwin.errors import GcodeError
-from flowtwin.gcode import _kernel as K
+from flowtwin.gcode import _kernel as kernel
+from flowtwin.gcode._arc import MAX_ARC_SEGMENTS
 from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode._commands import (
     EVENT_CODES,
@@ -46,9 +47,9 @@ from flowtwin.gcode._commands import (
 )
 from flowtwin.gcode._rows import _Rows
 from flowtwin.gcode.bgcode.read import BgcodeText
+from flowtwin.gcode.inputs import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
-from flowtwin.gcode.source import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.words import parse_line
 
 __all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]
@@ -118,23 +119,23 @@ class _Reader:
         self.accumulate = accumulate
         self.rows: _Rows | None = None
         self._offset = 0
-        s = np.zeros(K.N_STATE)
-        s[K.S_X:K.S_Z + 1] = options.start_xyz
-        s[K.S_FEED] = 25.0  # 1500 mm/min until the file says otherwise
-        s[K.S_SPEED_FACTOR] = 1.0
-        s[K.S_FLOW] = 1.0
-        s[K.S_ABS_XYZ] = 1.0
-        s[K.S_ABS_E] = 1.0
-        s[K.S_UNIT] = 1.0
-        s[K.S_E_FACTOR] = 1.0
-        s[K.S_HOME_X:K.S_HOME_Z + 1] = options.home_xyz
+        s = np.zeros(kernel.N_STATE)
+        s[kernel.S_X:kernel.S_Z + 1] = options.start_xyz
+        s[kernel.S_FEED] = 25.0  # 1500 mm/min until the file says otherwise
+        s[kernel.S_SPEED_FACTOR] = 1.0
+        s[kernel.S_FLOW] = 1.0
+        s[kernel.S_ABS_XYZ] = 1.0
+        s[kernel.S_ABS_E] = 1.0
+        s[kernel.S_UNIT] = 1.0
+        s[kernel.S_E_FACTOR] = 1.0
+        s[kernel.S_HOME_X:kernel.S_HOME_Z + 1] = options.home_xyz
         if options.arc_segment_mm is not None:
-            s[K.S_ARC_MODE] = 0.0
-            s[K.S_ARC_PARAM] = options.arc_segment_mm
+            s[kernel.S_ARC_MODE] = 0.0
+            s[kernel.S_ARC_PARAM] = options.arc_segment_mm
         else:
-            s[K.S_ARC_MODE] = 1.0
-            s[K.S_ARC_PARAM] = options.arc_tolerance_mm
-        s[K.S_PLANE] = 17.0
+            s[kernel.S_ARC_MODE] = 1.0
+            s[kernel.S_ARC_PARAM] = options.arc_tolerance_mm
+        s[kernel.S_PLANE] = 17.0
         self.state = s
         self.retraction = options.firmware_retraction
         self.retracted = False
@@ -156,20 +157,21 @@ class _Reader:
 
     # -- errors ------------------------------------------------------------------------
     def _kernel_error(self, buf: bytes, pos: int) -> GcodeError:
-        line = int(self.state[K.S_ERR_LINE])
+        line = int(self.state[kernel.S_ERR_LINE])
         end = buf.find(b"\n", pos)
         text = buf[pos: end if end >= 0 else len(buf)].decode("utf-8", "replace").rstrip("\r")
-        code = int(self.state[K.S_ERR_CODE])
-        if code == K.ERR_CHECKSUM:
-            return GcodeError("checksum does not match the line", source=self.name,
-                              line=line, value=text,
-                              allowed="'*' followed by the XOR of all bytes before it")
-        if code == K.ERR_ARC:
-            return GcodeError("arc needs I/J (centre offset) or an R at least half the chord",
-                              source=self.name, line=line, value=text)
-        if code == K.ERR_FEED:
-            return GcodeError("feed rate must be positive", source=self.name, line=line,
-                              field="F", value=text, allowed="F > 0 (mm/min)")
+        code = int(self.state[kernel.S_ERR_CODE])
+        known = {kernel.ERR_CHECKSUM: ("checksum does not match the line", None,
+                                  "'*' followed by the XOR of all bytes before it"),
+                 kernel.ERR_ARC: ("arc needs I/J (centre offset) or an R at least half the chord",
+                             None, None),
+                 kernel.ERR_ARC_HUGE: ("arc too long: a broken I/J or R", None,
+                                  f"<= {MAX_ARC_SEGMENTS} segments"),
+                 kernel.ERR_FEED: ("feed rate must be positive", "F", "F > 0 (mm/min)")}
+        if code in known:
+            message, field_name, allowed = known[code]
+            return GcodeError(message, source=self.name, line=line, field=field_name,
+                              value=text, allowed=allowed)
         # a malformed number: let the exact parser name the word
         parse_line(text, source=self.name, line=line, numeric=frozenset("XYZEFIJRKPS"))
         return GcodeError("malformed word", source=self.name, line=line, value=text,
@@ -181,24 +183,24 @@ class _Reader:
         code, p = parsed.code, parsed.params
         s = self.state
         if code in ("G0", "G1", "G2", "G3"):
-            if code in ("G2", "G3") and s[K.S_PLANE] != 17.0:
-                raise GcodeError(f"arcs in the G{int(s[K.S_PLANE])} plane are not supported",
+            if code in ("G2", "G3") and s[kernel.S_PLANE] != 17.0:
+                raise GcodeError(f"arcs in the G{int(s[kernel.S_PLANE])} plane are not supported",
                                  source=self.name, line=line, value=text,
                                  allowed="G17 (XY plane) arcs")
             # malformed parameters of a move (kernel said so): name them
             parse_line(text, source=self.name, line=line, numeric=frozenset("XYZEFIJR"))
             raise GcodeError("malformed move", source=self.name, line=line, value=text)
         if code.startswith("T") and code[1:].isdigit():
-            s[K.S_TOOL] = float(code[1:])
+            s[kernel.S_TOOL] = float(code[1:])
             self._event(Event(self._offset + rows.n, line, code, p))
             return
         if code == "G28":
             axes = [a for a in "XYZ" if a in p]
             for axis in axes or ["X", "Y", "Z"]:
                 idx = "XYZ".index(axis)
-                s[K.S_X + idx] = s[K.S_HOME_X + idx]
+                s[kernel.S_X + idx] = s[kernel.S_HOME_X + idx]
         if code in ("G18", "G19"):
-            s[K.S_PLANE] = float(code[1:])
+            s[kernel.S_PLANE] = float(code[1:])
             return
         if code == "G10" and self.retraction is not None and not is_rrf_g10(p):
             if not self.retracted:
@@ -223,7 +225,7 @@ class _Reader:
         elif code == "M200":
             self._check_numeric(code, p, line, text)
             d = number_param(p, "D", self.options.filament_diameter_mm)
-            s[K.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0) if d > 0 else 1.0
+            s[kernel.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0) if d > 0 else 1.0
         elif code == "M220":
             value = p.get("S")
             if isinstance(value, float) and not value > 0:
@@ -232,11 +234,11 @@ class _Reader:
         elif code == "M221":
             value = p.get("S")
             tool = p.get("T")
-            if isinstance(value, float) and (tool is None or tool == s[K.S_TOOL]):
+            if isinstance(value, float) and (tool is None or tool == s[kernel.S_TOOL]):
                 if not value > 0:
                     raise GcodeError("M221 flow must be positive", source=self.name, line=line,
                                      field="S", value=value, allowed="S > 0 (%)")
-                s[K.S_FLOW] = value / 100.0
+                s[kernel.S_FLOW] = value / 100.0
             else:
                 self.warnings.append(f"{self.name}:{line}: '{text.strip()}' does not set the "
                                      "flow of the active tool; ignored")
@@ -255,27 +257,27 @@ class _Reader:
         r = self.retraction
         assert r is not None
         s = self.state
-        tool = int(s[K.S_TOOL])
-        x, y, z = float(s[K.S_X]), float(s[K.S_Y]), float(s[K.S_Z])
+        tool = int(s[kernel.S_TOOL])
+        x, y, z = float(s[kernel.S_X]), float(s[kernel.S_Y]), float(s[kernel.S_Z])
         base = int(MoveKind.FW_RETRACT)
         if retract:
             if r.length_mm > 0:
-                rows.add(line, tool, (x, y, z), -r.length_mm, r.speed_mm_s, float(s[K.S_FLOW]),
+                rows.add(line, tool, (x, y, z), -r.length_mm, r.speed_mm_s, float(s[kernel.S_FLOW]),
                          base | MoveKind.RETRACT, self.e_acc)
             if r.z_hop_mm > 0:
                 rows.add(line, tool, (x, y, z + r.z_hop_mm), 0.0, r.speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
-                s[K.S_Z] = z + r.z_hop_mm
+                         float(s[kernel.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
+                s[kernel.S_Z] = z + r.z_hop_mm
             self.retracted = True
         else:
             if r.z_hop_mm > 0:
                 rows.add(line, tool, (x, y, z - r.z_hop_mm), 0.0, r.unretract_speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
-                s[K.S_Z] = z - r.z_hop_mm
+                         float(s[kernel.S_FLOW]), base | MoveKind.TRAVEL | MoveKind.Z, self.e_acc)
+                s[kernel.S_Z] = z - r.z_hop_mm
             amount = r.length_mm + r.extra_unretract_mm
             if amount > 0:
-                rows.add(line, tool, (x, y, float(s[K.S_Z])), amount, r.unretract_speed_mm_s,
-                         float(s[K.S_FLOW]), base | MoveKind.EXTRUDE, self.e_acc)
+                rows.add(line, tool, (x, y, float(s[kernel.S_Z])), amount, r.unretract_speed_mm_s,
+                         float(s[kernel.S_FLOW]), base | MoveKind.EXTRUDE, self.e_acc)
             self.retracted = False
 
     # -- recorded lines ------------------------------------------------------------------
@@ -320,7 +322,7 @@ class _Reader:
         """Command name, parameter letters and category of a kernel-parsed command."""
         info = self._codes.get(key)
         if info is None:
-            code_id, mask = divmod(key, 1 << K.KEY_SHIFT)
+            code_id, mask = divmod(key, 1 << kernel.KEY_SHIFT)
             code = f"{chr(code_id // 1_000_000)}{code_id % 1_000_000}"
             letters = tuple(LETTERS[j] for j in range(26) if mask >> j & 1)
             if code in EVENT_CODES or (code.startswith("T") and code[1:].isdigit()):
@@ -341,7 +343,7 @@ class _Reader:
         codes = self._codes
         flat = rows.vals[:rows.n_vals].tolist()
         new, set_index, set_line, set_code, set_params = EVENT_SETTERS
-        numeric, comment, event_category = K.OTHER_NUMERIC, K.OTHER_COMMENT, IS_EVENT
+        numeric, comment, event_category = kernel.OTHER_NUMERIC, kernel.OTHER_COMMENT, IS_EVENT
         for lineno, start, end, move_index, kind, key, at in rows.other[:n].tolist():
             if kind == numeric:  # parsed by the kernel: no text to look at
                 code, letters, category = codes.get(key) or self._code_info(key)
@@ -390,7 +392,7 @@ class _Reader:
         arr = np.frombuffer(buf, dtype=np.uint8)
         zero = buf.find(b"\0")
         if zero >= 0:  # a NUL byte: binary data
-            line = int(self.state[K.S_LINE]) + buf.count(b"\n", 0, zero) + 1
+            line = int(self.state[kernel.S_LINE]) + buf.count(b"\n", 0, zero) + 1
             raise GcodeError("binary data (NUL byte) in G-code", source=self.name, line=line,
                              allowed="text G-code")
         # no counting pass over the bytes: the row buffer is sized from the rows per byte
@@ -407,26 +409,26 @@ class _Reader:
         self._offset = self.n_moves - start_n
         pos = 0
         while True:
-            status, pos, rows.n, rows.n_other, rows.n_vals = K.scan(
+            status, pos, rows.n, rows.n_other, rows.n_vals = kernel.scan(
                 arr, pos, self.state, rows.moves, rows.n, rows.other, rows.vals, rows.n_other,
                 rows.n_vals, self.e_acc)
-            if status == K.ST_DONE:
+            if status == kernel.ST_DONE:
                 break
-            if status == K.ST_MOVES_FULL:
+            if status == kernel.ST_MOVES_FULL:
                 rows.grow_moves(self._more_rows(len(buf) - pos, rows.n - start_n, pos))
-            elif status == K.ST_OTHER_FULL:
+            elif status == kernel.ST_OTHER_FULL:
                 rows.grow_other()
-            elif status == K.ST_ERROR:
+            elif status == kernel.ST_ERROR:
                 raise self._kernel_error(buf, pos)
             else:  # ST_PYTHON: this line is interpreted here, in order
                 # lines recorded so far come first
                 self._other_lines(buf, rows)
                 end = buf.find(b"\n", pos)
                 end = len(buf) if end < 0 else end
-                line = int(self.state[K.S_LINE]) + 1
+                line = int(self.state[kernel.S_LINE]) + 1
                 text = buf[pos:end].decode("utf-8", "replace").rstrip("\r")
                 self._python_line(text, line, rows)
-                self.state[K.S_LINE] = line
+                self.state[kernel.S_LINE] = line
                 pos = end + 1
         self._other_lines(buf, rows)
         self.last_byte_newline = buf.endswith(b"\n")
@@ -532,7 +534,7 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
                 stream.close()
         if last is None:
             last = _empty(reader)
-        n_lines = int(reader.state[K.S_LINE])
+        n_lines = int(reader.state[kernel.S_LINE])
         if not reader.last_byte_newline and n_lines:
             reader.warnings.append(f"{name}:{n_lines}: file does not end with a line break "
                                    "(truncated?)")

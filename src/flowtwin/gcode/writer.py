@@ -12,7 +12,7 @@ from __future__ import annotations
 import gzip
 import os
 import tempfile
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import BinaryIO
 
@@ -26,26 +26,6 @@ __all__ = ["Edit", "rewrite_gcode"]
 Edit = str | Sequence[str] | None
 
 _CHUNK = 8 * 1024 * 1024
-
-
-def _lines(stream: BinaryIO) -> Iterator[bytes]:
-    """Yield lines with their endings; the last may lack one."""
-    rest = b""
-    while True:
-        block = stream.read(_CHUNK)
-        if not block:
-            if rest:
-                yield rest
-            return
-        data = rest + block
-        start = 0
-        while True:
-            nl = data.find(b"\n", start)
-            if nl < 0:
-                break
-            yield data[start:nl + 1]
-            start = nl + 1
-        rest = data[start:]
 
 
 def _render(edit: Edit, original: bytes) -> bytes:
@@ -62,6 +42,46 @@ def _render(edit: Edit, original: bytes) -> bytes:
                              value=text)
     body = (ending or b"\n").join(t.encode("utf-8") for t in texts)
     return body + ending
+
+
+def _apply(stream: BinaryIO, sink: BinaryIO, edits: Mapping[int, Edit], name: str) -> int:
+    """Copy ``stream`` to ``sink`` with ``edits``; return how many lines they touched.
+
+    Untouched stretches are copied in bulk; only chunks holding an edited line are cut at
+    their line breaks.
+    """
+    import numpy as np
+
+    from flowtwin.gcode.inputs import line_chunks
+
+    todo = sorted(edits)
+    if todo and todo[0] < 1:
+        raise GcodeError("edit for a line the file does not have", source=name,
+                         line=todo[0], allowed="line numbers from 1")
+    ti = 0
+    first = 1   # number of the first line of the chunk
+    for chunk in line_chunks(stream, name, _CHUNK):
+        n = chunk.count(b"\n") + (0 if chunk.endswith(b"\n") else 1)
+        if ti >= len(todo) or todo[ti] >= first + n:
+            sink.write(chunk)
+            first += n
+            continue
+        nl = np.flatnonzero(np.frombuffer(chunk, dtype=np.uint8) == 10)
+        pos = 0
+        while ti < len(todo) and todo[ti] < first + n:
+            k = todo[ti] - first
+            a = int(nl[k - 1]) + 1 if k > 0 else 0
+            b = int(nl[k]) + 1 if k < nl.size else len(chunk)
+            sink.write(chunk[pos:a])
+            sink.write(_render(edits[todo[ti]], chunk[a:b]))
+            pos = b
+            ti += 1
+        sink.write(chunk[pos:])
+        first += n
+    if ti < len(todo):
+        raise GcodeError("edit for a line the file does not have", source=name,
+                         line=todo[ti], allowed=f"1..{first - 1}")
+    return ti
 
 
 def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike[str],
@@ -95,28 +115,16 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
         raw = open(src, "rb")
     except OSError as exc:
         raise GcodeError(f"cannot open G-code file: {exc.strerror}", source=src) from exc
-    touched = 0
-    last_line = 0
     try:
         if raw.peek(4)[:4] == b"GCDE":
             raw.close()
             return _rewrite_bgcode(src, Path(destination), edits)
         head = raw.peek(2)[:2] if hasattr(raw, "peek") else b""
-        stream: BinaryIO = gzip.GzipFile(fileobj=raw) if head == b"\x1f\x8b" else raw  # type: ignore[assignment]
         compress = head == b"\x1f\x8b"
+        stream: BinaryIO = gzip.GzipFile(fileobj=raw) if compress else raw  # type: ignore[assignment]
         with atomic_open(destination, "wb") as out:
             sink: BinaryIO = gzip.GzipFile(fileobj=out, mode="wb", mtime=0) if compress else out  # type: ignore[assignment]
-            for number, line in enumerate(_lines(stream), start=1):
-                last_line = number
-                if number in edits:
-                    sink.write(_render(edits[number], line))
-                    touched += 1
-                else:
-                    sink.write(line)
-            missing = sorted(n for n in edits if n > last_line or n < 1)
-            if missing:
-                raise GcodeError("edit for a line the file does not have", source=src,
-                                 line=missing[0], allowed=f"1..{last_line}")
+            touched = _apply(stream, sink, edits, str(src))
             if compress:
                 sink.close()
     finally:
@@ -125,28 +133,36 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
 
 
 def _rewrite_bgcode(src: Path, destination: Path, edits: Mapping[int, Edit]) -> int:
-    """Edit a ``.bgcode`` as text (in a temporary file), then store it as it was stored."""
+    """Edit a ``.bgcode`` as text, then store it as it was stored.
+
+    The edited text goes to an unnamed temporary file in the destination's folder (it
+    vanishes with the process, however it ends), which the encoder reads twice.
+    """
     from flowtwin.gcode.bgcode.read import read_bgcode_info
     from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+    from flowtwin.gcode.inputs import open_source
 
     with open(src, "rb") as fh:
         info = read_bgcode_info(fh, str(src))
     options = BgcodeOptions.like(info.compression, info.checksum, info.gcode_encoding)
-    with tempfile.TemporaryDirectory(dir=destination.parent) as tmp:
-        decoded, text = Path(tmp) / "decoded.gcode", Path(tmp) / "edited.gcode"
-        _decode(src, decoded)
-        touched = rewrite_gcode(decoded, text, edits)
-        text_to_bgcode(text, destination, options=options, file_metadata=info.file_metadata)
+    with tempfile.TemporaryFile(dir=destination.parent) as text:
+        stream, name = open_source(src)
+        try:
+            touched = _apply(stream, text, edits, name)  # type: ignore[arg-type]
+        finally:
+            stream.close()
+        text.flush()
+        by_fd = Path(f"/proc/self/fd/{text.fileno()}")
+        if by_fd.exists():
+            text_to_bgcode(by_fd, destination, options=options,
+                           file_metadata=info.file_metadata)
+            return touched
+        with tempfile.TemporaryDirectory(dir=destination.parent) as tmp:
+            named = Path(tmp) / "edited.gcode"
+            text.seek(0)
+            with open(named, "wb") as out:
+                while block := text.read(_CHUNK):
+                    out.write(block)
+            text_to_bgcode(named, destination, options=options,
+                           file_metadata=info.file_metadata)
     return touched
-
-
-def _decode(src: Path, text: Path) -> None:
-    from flowtwin.gcode.source import open_source
-
-    stream, _ = open_source(src)
-    try:
-        with open(text, "wb") as out:
-            while block := stream.read(_CHUNK):
-                out.write(block)
-    finally:
-        stream.close()

@@ -1,4 +1,4 @@
-"""Documented default physics constants (SPEC §4), to be copied into the TOML profiles.
+"""Documented default physics constants (docs/spec.md §4), to be copied into the TOML profiles.
 
 The seeds give the drive (roller #3, [000]), the filament (PLA 4043D, 1.752 mm,
 1.25 g/cm³ [000, 001]), the nozzle (0.4 mm, 0.6 mm land [001]) and Tronvoll's and Greeff's

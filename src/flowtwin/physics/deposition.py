@@ -7,10 +7,10 @@ Slicers model the bead as a rectangle with semicircular ends (Slic3r "flow math"
 It is ill-defined for ``w < h`` [001 Fig. 12] — the bead is then not squeezed onto the bed
 and its shape is uncertain [001 §Results] — so every width is returned with a flag.
 Inverting for the width at output flow ``Q`` and print speed ``v``:
-``w = Q/(h·v) + (1 − π/4)·h`` (SPEC §3.5).
+``w = Q/(h·v) + (1 − π/4)·h`` (docs/spec.md §3.5).
 
 Flow while the nozzle stands still is a *blob*; flow during a travel (no extrusion
-commanded) is *ooze* (SPEC §3.5). :func:`classify_deposit` labels samples and
+commanded) is *ooze* (docs/spec.md §3.5). :func:`classify_deposit` labels samples and
 :func:`deposit_volumes_mm3` totals their volumes.
 """
 
@@ -76,7 +76,7 @@ class BeadWidth(NamedTuple):
 
 def bead_width_mm(q_out_mm3_s: npt.ArrayLike, height_mm: npt.ArrayLike,
                   speed_mm_s: npt.ArrayLike) -> BeadWidth:
-    """Predicted width ``w = Q/(h·v) + (1 − π/4)·h`` (inverse of [001 Eq. 7]; SPEC §3.5).
+    """Predicted width ``w = Q/(h·v) + (1 − π/4)·h`` (inverse of [001 Eq. 7]; docs/spec.md §3.5).
 
     Parameters
     ----------
@@ -140,7 +140,7 @@ class Deposit(IntEnum):
 
 def classify_deposit(xy_speed_mm_s: npt.ArrayLike, extruding: npt.ArrayLike, *,
                      min_speed_mm_s: float = 1e-6) -> npt.NDArray[np.int8]:
-    """Label each sample :class:`Deposit` ``BEAD``, ``OOZE`` or ``BLOB`` (SPEC §3.5).
+    """Label each sample :class:`Deposit` ``BEAD``, ``OOZE`` or ``BLOB`` (docs/spec.md §3.5).
 
     Parameters
     ----------
@@ -179,7 +179,7 @@ class DepositVolumes(NamedTuple):
 
 def deposit_volumes_mm3(q_out_mm3_s: npt.ArrayLike, dt_s: npt.ArrayLike,
                         deposit: npt.ArrayLike) -> DepositVolumes:
-    """Sum ``Q_out·Δt`` per :class:`Deposit` class (SPEC §3.5: account for ooze and blobs).
+    """Sum ``Q_out·Δt`` per :class:`Deposit` class (docs/spec.md §3.5: account for ooze and blobs).
 
     Parameters
     ----------

@@ -271,7 +271,7 @@ def steady_state_slip(nominal_feed_force_n: npt.ArrayLike,
     """Steady slip when the feed force is proportional to the delivered flow.
 
     In steady extrusion the feed force is ``F_f = F_0·(1 − s)``, where ``F_0`` is the force
-    the nominal feed velocity ``ω·r`` would need (pressure ∝ flow, SPEC §3.3–3.4). Inserting
+    the nominal feed velocity ``ω·r`` would need (pressure ∝ flow, docs/spec.md §3.3–3.4). Inserting
     this into Eq. 6 of [000], ``s = k_p + s'·F_0·(1 − s)``, gives
 
     ``s = (k_p + s'·F_0)/(1 + s'·F_0)``.
@@ -297,7 +297,7 @@ def steady_state_slip(nominal_feed_force_n: npt.ArrayLike,
 
 def feed_velocity_mm_s(print_speed_mm_s: npt.ArrayLike, bead_area_mm2: npt.ArrayLike,
                        filament_area_mm2: npt.ArrayLike) -> FloatArray:
-    """Feed velocity of the filament for a bead, ``v_fil = A_bead·v_print/A_fil`` (SPEC §3.1).
+    """Feed velocity for a bead, ``v_fil = A_bead·v_print/A_fil`` (docs/spec.md §3.1).
 
     Mass conservation at constant density, the exact form behind [000 Eq. 2].
 

@@ -1,6 +1,6 @@
 """Heat transfer in the melt zone: melt temperature at the nozzle against flow (beyond the seeds).
 
-The seeds treat the melt as being at the set temperature (SPEC §3.9). Here the filament
+The seeds treat the melt as being at the set temperature (docs/spec.md §3.9). Here the filament
 (radius ``R``) enters the heated length ``L`` of the hot end at ``T_in`` and moves through
 it as a plug at ``v = Q/(πR²)``; the wall is at the set temperature ``T_w``. With radial
 conduction only (axial conduction is negligible at the Péclet numbers of FFF) each slice
@@ -157,7 +157,7 @@ def bulk_temperature_fraction(fourier: npt.ArrayLike) -> FloatArray:
     return flat_out.reshape(fo.shape)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _theta_scalar(fo: float) -> float:
     if fo == math.inf:
         return 0.0
@@ -173,7 +173,7 @@ def _theta_scalar(fo: float) -> float:
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _theta_kernel(fo: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
     for i in range(fo.shape[0]):
         out[i] = _theta_scalar(fo[i])

@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.physics._checks import require_positive
+from flowtwin.physics._melt_history_kernel import breakpoints, mean_temperatures
 from flowtwin.physics.melt import bulk_temperature_fraction
 
 __all__ = ["MeltState", "fill_time_for_temperature_s", "melt_temperature_history"]
@@ -143,9 +144,12 @@ def melt_temperature_history(q_mm3_s: FloatArray, start_s: FloatArray, duration_
     v_start = base + np.concatenate(([0.0], np.cumsum(vol)[:-1])) if vol.size else vol
     v_end = v_start + vol
     # breakpoints of 𝒱(t): the prior ones, then every feeding move's start and end
-    feeding = vol > 0.0
-    bt = np.concatenate((prior_t, np.column_stack((t0[feeding], (t0 + dur)[feeding])).ravel()))
-    bv = np.concatenate((prior_v, np.column_stack((v_start[feeding], v_end[feeding])).ravel()))
+    bt, bv = breakpoints(np.asarray(prior_t, dtype=np.float64),
+                         np.asarray(prior_v, dtype=np.float64), t0, dur, v_start, v_end, vol)
+    wall = np.asarray(wall_c, dtype=np.float64)
+    mean = np.empty(t0.shape[0])
+    mean_temperatures(t0, dur, v_start, v_end, wall, bt, bv, zone, fill, float(inlet_c), a, r,
+                      mean)
 
     def entry_time(v_out: FloatArray) -> FloatArray:
         """Entry time of the slice at cumulative volume ``v_out − V`` (fill: ``fill``)."""
@@ -169,11 +173,6 @@ def melt_temperature_history(q_mm3_s: FloatArray, start_s: FloatArray, duration_
                       np.inf)
         return wall - (wall - inlet_c) * bulk_temperature_fraction(fo)
 
-    wall = np.asarray(wall_c, dtype=np.float64)
-    t_start = temperature(t0, v_start, wall)
-    t_mid = temperature(t0 + 0.5 * dur, 0.5 * (v_start + v_end), wall)
-    t_end = temperature(t0 + dur, v_end, wall)
-    mean = (t_start + 4.0 * t_mid + t_end) / 6.0
     # keep the breakpoints that cover the last zone volume (and one before it)
     total = float(v_end[-1]) if v_end.size else base
     keep = np.searchsorted(bv, total - zone, side="right") - 1 if bv.size else 0

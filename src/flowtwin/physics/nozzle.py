@@ -2,7 +2,7 @@
 
 The melt is Newtonian (PLA shows little shear thinning [001]); every term is linear in the
 volume flow ``Q``, so the hot end is one hydraulic resistance ``R_hyd = ΔP/Q`` (MPa·s/mm³)
-and the feed force on the filament is ``F = ΔP·A_in`` (SPEC §3.3). Terms, inlet to outlet:
+and the feed force on the filament is ``F = ΔP·A_in`` (docs/spec.md §3.3). Terms, inlet to outlet:
 
 1. **Cone** from the bore radius ``R_1`` to the capillary radius ``r`` at half angle ``α``
    (beyond the seeds). Applying Hagen–Poiseuille locally, ``dP/dz = 8μQ/(π·r(z)⁴)`` with
@@ -274,7 +274,7 @@ def hydraulic_resistance_mpa_s_per_mm3(visc_mpa_s: npt.ArrayLike, *,
 
 
 def feed_force_n(dp_mpa: npt.ArrayLike, filament_area_mm2: npt.ArrayLike) -> FloatArray:
-    """Feed force the melt pressure puts on the filament, ``F = ΔP·A_in`` (SPEC §3.3), N.
+    """Feed force the melt pressure puts on the filament, ``F = ΔP·A_in`` (docs/spec.md §3.3), N.
 
     Parameters
     ----------

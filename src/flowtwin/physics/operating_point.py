@@ -2,7 +2,7 @@
 
 Small compositions of the pure models for a :class:`~flowtwin.physics.defaults.SetupConstants`
 (viscosity → resistance → lag factor; resistance → feed force → steady slip), used to
-check the defaults against the seeds (SPEC §4) and to derive them
+check the defaults against the seeds (docs/spec.md §4) and to derive them
 (:func:`derive_tronvoll_calibration`). The dynamics engine uses the pure functions
 directly with profile values.
 """
@@ -16,7 +16,7 @@ import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
 from flowtwin.errors import CalibrationError
-from flowtwin.physics.column import compliance_mm_per_n
+from flowtwin.physics.compliance import compliance_mm_per_n
 from flowtwin.physics.defaults import HotendConstants, SetupConstants
 from flowtwin.physics.drive import (
     is_grinding,
@@ -67,7 +67,7 @@ def setup_viscosity_mpa_s(setup: SetupConstants, temp_c: float | None = None) ->
 def setup_resistance_mpa_s_per_mm3(setup: SetupConstants, *,
                                    layer_height_mm: npt.ArrayLike | None,
                                    temp_c: float | None = None) -> FloatArray:
-    """Hot-end resistance: cone + capillary + tip back-pressure (SPEC §3.3).
+    """Hot-end resistance: cone + capillary + tip back-pressure (docs/spec.md §3.3).
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def setup_compliance_mm_per_n(setup: SetupConstants) -> float:
 
 def setup_lag_factor_s(setup: SetupConstants, *, layer_height_mm: npt.ArrayLike | None,
                        temp_c: float | None = None) -> FloatArray:
-    """Lag factor ``K = k·R_hyd·A²`` of the set-up (SPEC §3.4).
+    """Lag factor ``K = k·R_hyd·A²`` of the set-up (docs/spec.md §3.4).
 
     Parameters
     ----------
@@ -234,7 +234,7 @@ def derive_tronvoll_calibration(setup: SetupConstants, *,
     setup
         Tronvoll's set-up (its ``λ_bp`` and ``E_hot`` are ignored and re-derived).
     reference_height_mm
-        Layer height that anchors the level of ``K``, mm (0.2 in SPEC §4).
+        Layer height that anchors the level of ``K``, mm (0.2 in docs/spec.md §4).
 
     Returns
     -------

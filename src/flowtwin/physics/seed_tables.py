@@ -2,11 +2,11 @@
 
 Used by :mod:`flowtwin.physics.defaults` and by the tests that check the physics functions
 against their sources. Parameters keep the paper's units and say so in their names
-(``k_s_pct_n`` in %·N, ``k_inf_pct_per_n`` in %/N; SPEC §2); divide by 100 for fractions.
+(``k_s_pct_n`` in %·N, ``k_inf_pct_per_n`` in %/N; docs/spec.md §2); divide by 100 for fractions.
 
 Table 3 of [000] prints the pinch-force law as ``k_s/F_p`` and the unit of ``k_∞`` as
 "%N"; Eq. 6 and the text give ``k_s/F_p²`` and %/N, which is what the numbers satisfy
-(Eq. 9 reproduces the ``F_p,min`` column within 2 % except roller #3, SPEC §3.1).
+(Eq. 9 reproduces the ``F_p,min`` column within 2 % except roller #3, docs/spec.md §3.1).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Unit conversions and small geometric helpers used by the physics models (SPEC §2).
+"""Unit conversions and small geometric helpers used by the physics models (docs/spec.md §2).
 
 Internal units are mm, s, N, MPa (= N/mm²), MPa·s and °C. Slip is a fraction internally;
 the seeds give slip parameters in percent (``k_s`` in %·N, ``k_∞`` in %/N [000 Table 3]),

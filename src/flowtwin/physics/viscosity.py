@@ -2,12 +2,12 @@
 
 * Exponential law ``μ(T) = μ0·exp(−b·T)``, T in °C — the model of [002] ("the most common
   model ... can be applied without large errors to our extrusion condition").
-* Arrhenius ``μ(T) = μ_ref·exp(E_a/R·(1/T_K − 1/T_ref,K))`` (beyond the seeds, SPEC §3.3).
+* Arrhenius ``μ(T) = μ_ref·exp(E_a/R·(1/T_K − 1/T_ref,K))`` (beyond the seeds, docs/spec.md §3.3).
 * Williams–Landel–Ferry ``log10(μ/μ_ref) = −C1·(T − T_ref)/(C2 + T − T_ref)`` (beyond the
   seeds); with ``T_ref = T_g`` the "universal" constants are ``C1 = 17.44``,
   ``C2 = 51.6 K``.
 
-The functions take and return Pa·s, the unit of profiles and reports (SPEC §2); convert
+The functions take and return Pa·s, the unit of profiles and reports (docs/spec.md §2); convert
 with :func:`flowtwin.physics.units.pa_s_to_mpa_s` before the nozzle models. The helpers
 ``*_from_two_points`` derive a law from two (temperature, viscosity) pairs such as the
 200–1000 Pa·s at 220–190 °C that [001] quotes for PLA.

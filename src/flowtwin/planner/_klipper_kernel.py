@@ -70,7 +70,7 @@ NO_TIME = -1.0e300
 _T, _MIN_RESTART, _STEP_GEN, _KFD, _NEED_PRIME, _JFLUSH, _HEAD, _TAIL = range(8)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _set_junction(m, start_v2, cruise_v2, end_v2, move_d, accel, out_v, out_t):  # type: ignore[no-untyped-def]
     half_inv_accel = 0.5 / accel[m]
     accel_d = (cruise_v2 - start_v2) * half_inv_accel
@@ -87,7 +87,7 @@ def _set_junction(m, start_v2, cruise_v2, end_v2, move_d, accel, out_v, out_t): 
     out_t[m, 2] = decel_d / ((end_v + cruise_v) * 0.5)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _flush(lazy, st, qbuf, move_d, accel, delta_v2, smooth_delta_v2, max_cruise_v2,  # type: ignore[no-untyped-def]
            max_start_v2, max_smoothed_v2, out_v, out_t, dl_m, dl_s, dl_e):
     """Klipper ``LookAheadQueue.flush``; returns how many queued moves are final."""
@@ -151,7 +151,7 @@ def _flush(lazy, st, qbuf, move_d, accel, delta_v2, smooth_delta_v2, max_cruise_
     return flush_count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _process(lazy, st, qbuf, move_d, accel, delta_v2, smooth_delta_v2, max_cruise_v2,  # type: ignore[no-untyped-def]
              max_start_v2, max_smoothed_v2, out_v, out_t, dl_m, dl_s, dl_e, t_start, gap):
     """Klipper ``ToolHead._process_lookahead``: plan, then put final moves on the clock."""
@@ -176,7 +176,7 @@ def _process(lazy, st, qbuf, move_d, accel, delta_v2, smooth_delta_v2, max_cruis
     st[_HEAD] = head + count
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def run_toolhead(move_d, ux, uy, uz, er, is_kin, valid, max_cruise_v2, accel,  # type: ignore[no-untyped-def]
                  smooth_delta_v2, jdev, icv, min_move_t, op_pos, op_code, op_val, kfd0,
                  lazy, out_v, out_t, t_start, gap, op_time, op_gap):
@@ -337,7 +337,7 @@ def _home(px, py, pz, hm, home):  # type: ignore[no-untyped-def]
     return px, py, pz
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def move_starts(x, y, z, start, home_mask, home, sx, sy, sz, length):  # type: ignore[no-untyped-def]
     """Start position and XYZ length of every move (Klipper ``Move.__init__``).
 
@@ -366,7 +366,7 @@ def move_starts(x, y, z, start, home_mask, home, sx, sy, sz, length):  # type: i
             pz = z[k]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def move_limits(x, y, z, de, feed, start, home_mask, home, seg, seg_tab, ex_tab,  # type: ignore[no-untyped-def]
                 z_vel, z_accel, pmin, pmax, cap_v, cap_a, move_d, ux, uy, uz, er, is_kin,
                 valid, max_cruise_v2, accel, smooth_delta_v2, jdev, icv, min_move_t, err):

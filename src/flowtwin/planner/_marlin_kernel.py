@@ -85,7 +85,7 @@ def _acos_neg_franklin(cos_theta: float) -> float:
     return 0.5 * math.pi + neg * asinx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def junction_deviation_sqr(prev_unit: npt.NDArray[np.float64],
                            unit: npt.NDArray[np.float64], accel: float,
                            amax: npt.NDArray[np.float64], jd_mm: float, length_mm: float,
@@ -131,7 +131,7 @@ def junction_deviation_sqr(prev_unit: npt.NDArray[np.float64],
     return v2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def junction_classic_legacy(prev_speed: npt.NDArray[np.float64],
                             speed: npt.NDArray[np.float64], prev_nominal: float,
                             nominal: float, prev_safe: float, safe: float,
@@ -171,7 +171,7 @@ def junction_classic_legacy(prev_speed: npt.NDArray[np.float64],
     return vj
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def junction_classic_reworked(prev_speed: npt.NDArray[np.float64],
                               speed: npt.NDArray[np.float64], prev_nominal: float,
                               nominal: float, jerk: npt.NDArray[np.float64]) -> float:
@@ -200,7 +200,7 @@ def junction_classic_reworked(prev_speed: npt.NDArray[np.float64],
     return vj * factor
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
                 state: npt.NDArray[np.int32], params: npt.NDArray[np.float64],
                 stop_before: npt.NDArray[np.bool_], dwell_before: npt.NDArray[np.float64],

@@ -45,7 +45,7 @@ import numpy.typing as npt
 
 from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
-from flowtwin.planner import _klipper_kernel as K
+from flowtwin.planner import _klipper_kernel as kernel
 from flowtwin.planner.kinematics.base import Kinematics, MoveGeometry, MoveLimits
 from flowtwin.planner.klipper_config import (
     SDS_CHECK_TIME_S,
@@ -183,13 +183,13 @@ def _walk_events(table: MoveTable, settings: KlipperSettings) -> _Walk:
             mcr = mcr if r is None else r
         elif code == "G4":
             p = _float_param(ev, "P", src, minval=0.0)
-            ops.add(pos, key, K.OP_DWELL, (p or 0.0) / 1000.0, f"G4 line {ev.line}")
+            ops.add(pos, key, kernel.OP_DWELL, (p or 0.0) / 1000.0, f"G4 line {ev.line}")
             continue
         elif code == "M400":
-            ops.add(pos, key, K.OP_WAIT, reason=f"M400 line {ev.line}")
+            ops.add(pos, key, kernel.OP_WAIT, reason=f"M400 line {ev.line}")
             continue
         elif code == "G28":
-            ops.add(pos, key, K.OP_HOME, reason=f"G28 line {ev.line}")
+            ops.add(pos, key, kernel.OP_HOME, reason=f"G28 line {ev.line}")
             named = sum(1 << a for a in range(3) if "XYZ"[a] in ev.params)
             homed = kin.homed_axes(named)
             if named and homed != named:
@@ -202,9 +202,9 @@ def _walk_events(table: MoveTable, settings: KlipperSettings) -> _Walk:
                 note(f"{code} E treated as a no-op", ev.line)
                 continue
             why = f"{code} line {ev.line}"
-            ops.add(pos, key, K.OP_SG_FLUSH, reason=why)
-            ops.add(pos, key, K.OP_DWELL, DISABLE_STALL_TIME_S, why)
-            ops.add(pos, key, K.OP_DWELL, DISABLE_STALL_TIME_S, why)
+            ops.add(pos, key, kernel.OP_SG_FLUSH, reason=why)
+            ops.add(pos, key, kernel.OP_DWELL, DISABLE_STALL_TIME_S, why)
+            ops.add(pos, key, kernel.OP_DWELL, DISABLE_STALL_TIME_S, why)
             continue
         elif tool is not None:
             if tool >= settings.extruder_count:
@@ -240,14 +240,14 @@ def _walk_events(table: MoveTable, settings: KlipperSettings) -> _Walk:
             if (pa[index][1] if pa[index][0] else 0.0) != (old[1] if old[0] else 0.0):
                 # new smoothing window: toolhead.note_step_generation_scan_time()
                 why = f"SET_PRESSURE_ADVANCE line {ev.line}"
-                ops.add(pos, key, K.OP_SG_FLUSH, reason=why)
-                ops.add(pos, key, K.OP_SET_KFD, _kin_flush_delay(pa, settings), why)
-                ops.add(pos, key, K.OP_LAST_MOVE_TIME, reason=why)
+                ops.add(pos, key, kernel.OP_SG_FLUSH, reason=why)
+                ops.add(pos, key, kernel.OP_SET_KFD, _kin_flush_delay(pa, settings), why)
+                ops.add(pos, key, kernel.OP_LAST_MOVE_TIME, reason=why)
             continue
         if new_ext >= 0:
             if new_ext == active:
                 continue
-            ops.add(pos, key, K.OP_SG_FLUSH, reason=f"tool change line {ev.line}")
+            ops.add(pos, key, kernel.OP_SG_FLUSH, reason=f"tool change line {ev.line}")
             active = new_ext
             if reset_from is not None:
                 w.flow_reset.append((reset_from, pos))
@@ -266,20 +266,20 @@ def _limit_error(err: npt.NDArray[np.float64], lines: npt.NDArray[np.int32],
     """The error Klipper raises for the move :func:`_klipper_kernel.move_limits` flagged."""
     code, k, value, allowed = int(err[0]), int(err[1]), float(err[2]), float(err[3])
     line = int(lines[k])
-    if code == K.ERR_SPEED:
+    if code == kernel.ERR_SPEED:
         return GcodeError("move without a positive speed", source=source, line=line,
                           field="F", value=value, allowed="> 0 mm/min")
-    if K.ERR_RANGE_X <= code <= K.ERR_RANGE_X + 2:
-        axis = "XYZ"[code - K.ERR_RANGE_X]
+    if kernel.ERR_RANGE_X <= code <= kernel.ERR_RANGE_X + 2:
+        axis = "XYZ"[code - kernel.ERR_RANGE_X]
         return GcodeError(f"Move out of range: {axis} beyond [stepper_{axis.lower()}] "
                           "position_min/position_max", source=source, line=line, field=axis,
                           value=value, allowed=f"{'<=' if value > allowed else '>='} "
                           f"{allowed:g} mm")
-    if code == K.ERR_EXTRUDE_ONLY:
+    if code == kernel.ERR_EXTRUDE_ONLY:
         return GcodeError("Extrude only move too long (see max_extrude_only_distance)",
                           source=source, line=line, field="E", value=value,
                           allowed=f"<= {allowed:g} mm of filament")
-    if code == K.ERR_CROSS_SECTION:
+    if code == kernel.ERR_CROSS_SECTION:
         return GcodeError("Move exceeds maximum extrusion (see max_extrude_cross_section)",
                           source=source, line=line, field="E", value=value,
                           allowed=f"<= {allowed:g} mm of filament per mm of path")
@@ -312,12 +312,12 @@ def _kinematics_limits(kin: Kinematics, x: npt.NDArray[np.float64], y: npt.NDArr
     if type(kin).limit_moves is Kinematics.limit_moves or not n:
         return MoveLimits()
     sx, sy, sz, length = (np.empty(n) for _ in range(4))
-    K.move_starts(x, y, z, start_xyz, home_mask, home, sx, sy, sz, length)
+    kernel.move_starts(x, y, z, start_xyz, home_mask, home, sx, sy, sz, length)
     start = np.column_stack((sx, sy, sz))
-    kinematic = length >= K.MIN_KINEMATIC_D
+    kinematic = length >= kernel.MIN_KINEMATIC_D
     end = np.where(kinematic[:, None], np.column_stack((x, y, z)), start)
     geom = MoveGeometry(start=start, end=end, kinematic=kinematic, length=length,
-                        speed=np.minimum(feed, seg_tab[seg, K.SEG_VEL]))
+                        speed=np.minimum(feed, seg_tab[seg, kernel.SEG_VEL]))
     return kin.limit_moves(geom)
 
 
@@ -371,7 +371,7 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
     stop_op: dict[int, int] = {}
     for line in stops:
         stop_op[line] = len(ops.code)
-        ops.add(int(np.searchsorted(lines, line, side="right")), 2 * line + 1, K.OP_WAIT,
+        ops.add(int(np.searchsorted(lines, line, side="right")), 2 * line + 1, kernel.OP_WAIT,
                 reason=f"stop after line {line}")
 
     # -- per-move settings and limits ------------------------------------------------------
@@ -379,11 +379,11 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
            ).astype(np.int64)
     rows = np.array(w.rows, dtype=np.float64).reshape(-1, 5)
     seg_tab = np.empty((rows.shape[0], 5))
-    seg_tab[:, K.SEG_VEL] = rows[:, 0]
-    seg_tab[:, K.SEG_ACCEL] = rows[:, 1]
-    seg_tab[:, K.SEG_ACCEL_TO_DECEL] = rows[:, 1] * (1.0 - rows[:, 3])
-    seg_tab[:, K.SEG_JD] = rows[:, 2] ** 2 * (math.sqrt(2.0) - 1.0) / rows[:, 1]
-    seg_tab[:, K.SEG_EXT] = rows[:, 4]
+    seg_tab[:, kernel.SEG_VEL] = rows[:, 0]
+    seg_tab[:, kernel.SEG_ACCEL] = rows[:, 1]
+    seg_tab[:, kernel.SEG_ACCEL_TO_DECEL] = rows[:, 1] * (1.0 - rows[:, 3])
+    seg_tab[:, kernel.SEG_JD] = rows[:, 2] ** 2 * (math.sqrt(2.0) - 1.0) / rows[:, 1]
+    seg_tab[:, kernel.SEG_EXT] = rows[:, 4]
     ex_tab = np.array([[x.max_extrude_only_velocity, x.max_extrude_only_accel,
                         x.max_extrude_only_distance, x.max_extrude_ratio,
                         x.nozzle_diameter * x.max_extrude_ratio,
@@ -407,7 +407,7 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
     start = np.asarray(table.start_xyze[:3], dtype=np.float64)
     home = np.asarray(kin.home_position, dtype=np.float64)
     caps = _kinematics_limits(kin, x, y, z, start, w.home_mask, home, feed, seg_tab, seg)
-    K.move_limits(
+    kernel.move_limits(
         x, y, z, de, feed, start, w.home_mask, home, seg, seg_tab, ex_tab,
         kin.max_z_velocity, kin.max_z_accel, np.asarray(kin.box_min, dtype=np.float64),
         np.asarray(kin.box_max, dtype=np.float64),
@@ -415,10 +415,10 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
         move_d, ux, uy, uz, er, is_kin, valid, max_cruise_v2, accel, smooth_delta_v2, jdev,
         icv, min_move_t, err)
     refused = caps.refused
-    if refused is not None and (err[0] == K.ERR_NONE or refused.index < int(err[1])):
+    if refused is not None and (err[0] == kernel.ERR_NONE or refused.index < int(err[1])):
         raise GcodeError(refused.message, source=src, line=int(lines[refused.index]),
                          field="XYZ", value=refused.value, allowed=refused.allowed)
-    if err[0] != K.ERR_NONE:
+    if err[0] != kernel.ERR_NONE:
         raise _limit_error(err, lines, src)
     stalled = np.flatnonzero(valid & ~((max_cruise_v2 > 0.0) & (accel > 0.0)))
     if stalled.size:   # a limit so small that its square underflows: Klipper divides by 0
@@ -447,7 +447,7 @@ def plan_klipper(table: MoveTable, settings: KlipperSettings, *,
     op_gap = np.zeros(order.shape[0])
     kfd0 = _kin_flush_delay([(x.pressure_advance, x.pressure_advance_smooth_time)
                              for x in settings.extruders], settings)
-    total = K.run_toolhead(
+    total = kernel.run_toolhead(
         move_d, ux, uy, uz, er, is_kin, valid, max_cruise_v2, accel, smooth_delta_v2, jdev,
         icv, min_move_t, op_pos, op_code, op_val, kfd0, lazy_flush, out_v, out_t, t_start,
         gap, op_time, op_gap)

@@ -38,7 +38,7 @@ import numpy as np
 
 from flowtwin.errors import GcodeError, ProfileError
 from flowtwin.gcode.moves import Event, MoveTable
-from flowtwin.planner import _marlin_kernel as K
+from flowtwin.planner import _marlin_kernel as kernel
 from flowtwin.planner.marlin_delta import SEGMENTED_KEY, MarlinDelta, tower_distances
 from flowtwin.planner.timeline import PHASE_DTYPE, Timeline
 
@@ -212,18 +212,18 @@ class MarlinSettings:
 
     def param_row(self) -> list[float]:
         """The G-code-settable values as one row of the kernel's parameter table."""
-        row = [0.0] * K.N_PARAMS
-        row[K.P_VMAX:K.P_VMAX + 4] = self.max_feedrate_mm_s
-        row[K.P_AMAX:K.P_AMAX + 4] = self.max_acceleration_mm_s2
-        row[K.P_ACCEL_P] = self.print_accel_mm_s2
-        row[K.P_ACCEL_R] = self.retract_accel_mm_s2
-        row[K.P_ACCEL_T] = self.travel_accel_mm_s2
-        row[K.P_JERK:K.P_JERK + 4] = self.jerk_mm_s
-        row[K.P_JD] = self.junction_deviation_mm or 0.0
-        row[K.P_MIN_FEED] = self.min_feedrate_mm_s
-        row[K.P_MIN_TRAVEL] = self.min_travel_feedrate_mm_s
-        row[K.P_MIN_SEG_T] = self.min_segment_time_s
-        row[K.P_LA_K] = self.linear_advance_k
+        row = [0.0] * kernel.N_PARAMS
+        row[kernel.P_VMAX:kernel.P_VMAX + 4] = self.max_feedrate_mm_s
+        row[kernel.P_AMAX:kernel.P_AMAX + 4] = self.max_acceleration_mm_s2
+        row[kernel.P_ACCEL_P] = self.print_accel_mm_s2
+        row[kernel.P_ACCEL_R] = self.retract_accel_mm_s2
+        row[kernel.P_ACCEL_T] = self.travel_accel_mm_s2
+        row[kernel.P_JERK:kernel.P_JERK + 4] = self.jerk_mm_s
+        row[kernel.P_JD] = self.junction_deviation_mm or 0.0
+        row[kernel.P_MIN_FEED] = self.min_feedrate_mm_s
+        row[kernel.P_MIN_TRAVEL] = self.min_travel_feedrate_mm_s
+        row[kernel.P_MIN_SEG_T] = self.min_segment_time_s
+        row[kernel.P_LA_K] = self.linear_advance_k
         return row
 
     def _with_row(self, row: Sequence[float]) -> MarlinSettings:
@@ -231,13 +231,13 @@ class MarlinSettings:
         def vec(c: int) -> Vec4:
             return (row[c], row[c + 1], row[c + 2], row[c + 3])
         return replace(
-            self, max_feedrate_mm_s=vec(K.P_VMAX), max_acceleration_mm_s2=vec(K.P_AMAX),
-            print_accel_mm_s2=row[K.P_ACCEL_P], retract_accel_mm_s2=row[K.P_ACCEL_R],
-            travel_accel_mm_s2=row[K.P_ACCEL_T], jerk_mm_s=vec(K.P_JERK),
-            junction_deviation_mm=None if self.classic_jerk else row[K.P_JD],
-            min_feedrate_mm_s=row[K.P_MIN_FEED],
-            min_travel_feedrate_mm_s=row[K.P_MIN_TRAVEL],
-            min_segment_time_s=row[K.P_MIN_SEG_T], linear_advance_k=row[K.P_LA_K])
+            self, max_feedrate_mm_s=vec(kernel.P_VMAX), max_acceleration_mm_s2=vec(kernel.P_AMAX),
+            print_accel_mm_s2=row[kernel.P_ACCEL_P], retract_accel_mm_s2=row[kernel.P_ACCEL_R],
+            travel_accel_mm_s2=row[kernel.P_ACCEL_T], jerk_mm_s=vec(kernel.P_JERK),
+            junction_deviation_mm=None if self.classic_jerk else row[kernel.P_JD],
+            min_feedrate_mm_s=row[kernel.P_MIN_FEED],
+            min_travel_feedrate_mm_s=row[kernel.P_MIN_TRAVEL],
+            min_segment_time_s=row[kernel.P_MIN_SEG_T], linear_advance_k=row[kernel.P_LA_K])
 
 
 _INF = float("inf")
@@ -297,30 +297,30 @@ def _apply_event(row: list[float], ev: Event, build: MarlinSettings, source: str
     """
     code = ev.code
     if code == "M201":
-        _set_axes(row, K.P_AMAX, ev, source, positive=True)
+        _set_axes(row, kernel.P_AMAX, ev, source, positive=True)
         return "M201 F/S (XY frequency limit) not modelled" if (
             "F" in ev.params or "S" in ev.params) else None
     if code == "M203":
-        _set_axes(row, K.P_VMAX, ev, source, positive=True)
+        _set_axes(row, kernel.P_VMAX, ev, source, positive=True)
         return None
     if code == "M204":
         legacy = _number(ev, "S", source, positive=True)
         if legacy is not None:
-            row[K.P_ACCEL_P] = row[K.P_ACCEL_T] = legacy
-        _set(row, K.P_ACCEL_P, ev, "P", source, positive=True)
-        _set(row, K.P_ACCEL_R, ev, "R", source, positive=True)
-        _set(row, K.P_ACCEL_T, ev, "T", source, positive=True)
+            row[kernel.P_ACCEL_P] = row[kernel.P_ACCEL_T] = legacy
+        _set(row, kernel.P_ACCEL_P, ev, "P", source, positive=True)
+        _set(row, kernel.P_ACCEL_R, ev, "R", source, positive=True)
+        _set(row, kernel.P_ACCEL_T, ev, "T", source, positive=True)
         return None
     if code == "M205":
-        _set(row, K.P_MIN_FEED, ev, "S", source, positive=False)
-        _set(row, K.P_MIN_TRAVEL, ev, "T", source, positive=False)
-        _set(row, K.P_MIN_SEG_T, ev, "B", source, positive=False, scale=1e-6)
+        _set(row, kernel.P_MIN_FEED, ev, "S", source, positive=False)
+        _set(row, kernel.P_MIN_TRAVEL, ev, "T", source, positive=False)
+        _set(row, kernel.P_MIN_SEG_T, ev, "B", source, positive=False, scale=1e-6)
         has_jerk = any(k in ev.params for k in "XYZE")
         if build.classic_jerk:
-            _set_axes(row, K.P_JERK, ev, source, positive=False)
+            _set_axes(row, kernel.P_JERK, ev, source, positive=False)
             return "M205 J ignored: firmware built with CLASSIC_JERK" if (
                 "J" in ev.params) else None
-        _set(row, K.P_JD, ev, "J", source, positive=True)
+        _set(row, kernel.P_JD, ev, "J", source, positive=True)
         return "M205 X/Y/Z/E ignored: firmware uses junction deviation" if has_jerk else None
     if code == "M900":
         if not build.lin_advance:
@@ -329,7 +329,7 @@ def _apply_event(row: list[float], ev: Event, build: MarlinSettings, source: str
         if k is not None and k > 10.0:
             return "M900 K out of range (0-10) ignored"
         if k is not None:
-            row[K.P_LA_K] = k
+            row[kernel.P_LA_K] = k
         return None
     return None
 
@@ -522,7 +522,7 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
             if note is not None:
                 notes.setdefault(note, []).append(ev.line)
             if row != rows[-1]:
-                if row[K.P_LA_K] != rows[-1][K.P_LA_K]:
+                if row[kernel.P_LA_K] != rows[-1][kernel.P_LA_K]:
                     stop_before[mi] = True    # M900 K change: planner.synchronize()
                 rows.append(row)
                 change_at.append(mi)
@@ -544,7 +544,7 @@ def plan_marlin(table: MoveTable, settings: MarlinSettings, *,
         state = (np.searchsorted(starts, np.arange(n), side="right") - 1).astype(np.int32)
     params = np.array(rows, dtype=np.float64)
     phases = np.zeros(n, dtype=PHASE_DTYPE)
-    total, bad = K.plan_kernel(
+    total, bad = kernel.plan_kernel(
         moves, np.asarray(table.start_xyze[:3], dtype=np.float64), state, params,
         stop_before, dwell_before, not settings.classic_jerk,
         settings.jerk_variant is JerkVariant.LEGACY, settings.jd_small_segments,

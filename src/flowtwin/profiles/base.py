@@ -1,12 +1,12 @@
 """Common base of every profile model: frozen, strict, unknown keys forbidden.
 
-Profiles are plain validated data (SPEC §5): they are read from TOML once, checked against
+Profiles are plain validated data (docs/spec.md §5): they are read from TOML once, checked against
 declared bounds, and then passed around explicitly. Every numeric field carries its unit in
 its name (``_mm``, ``_mm_s``, ``_mm_s2``, ``_n``, ``_mpa``, ``_c``, ``_s``) and declares its
 allowed range with ``Field(gt=..., le=...)`` so a validation error can say what is allowed.
 
 Paper parameters keep the paper's units and are named by them (``k_s_pct_N``,
-``k_inf_pct_per_N``, SPEC §2); the models expose internal-unit properties next to them.
+``k_inf_pct_per_N``, docs/spec.md §2); the models expose internal-unit properties next to them.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ class BowdenTube(ProfileModel):
     """A guide tube between a remote drive and the hot end (off by default).
 
     Its compliance (tube stretch under the feed force) and clearance take-up are a model
-    beyond the seeds (SPEC §3.2); this table only holds the geometry and the modulus.
+    beyond the seeds (docs/spec.md §3.2); this table only holds the geometry and the modulus.
     """
 
     length_mm: float = Field(gt=0.0, le=5000.0, description="Tube length, mm.")

@@ -3,12 +3,13 @@
 The viscosity law is a discriminated union on the key ``law``:
 
 * ``exponential`` — ``μ(T) = μ0·exp(−b·T)`` [002] (T in °C);
-* ``arrhenius`` — ``μ(T) = μ_ref·exp(E_a/R·(1/T_K − 1/T_ref,K))`` (beyond the seeds, SPEC §3.3);
+* ``arrhenius`` — ``μ(T) = μ_ref·exp(E_a/R·(1/T_K − 1/T_ref,K))`` (beyond the seeds,
+  docs/spec.md §3.3);
 * ``wlf`` — ``log10(μ/μ_ref) = −C1·(T − T_ref)/(C2 + T − T_ref)`` (beyond the seeds).
 
 Each law carries the temperature range it is valid for; this module only holds the
 parameters (the functions that evaluate the laws live in :mod:`flowtwin.physics`).
-Profiles give viscosity in Pa·s (SPEC §2); :attr:`ExponentialViscosity.mu0_mpa_s` and
+Profiles give viscosity in Pa·s (docs/spec.md §2); :attr:`ExponentialViscosity.mu0_mpa_s` and
 friends convert to the internal MPa·s.
 """
 
@@ -29,7 +30,7 @@ __all__ = [
     "WlfViscosity",
 ]
 
-#: 1 Pa·s = 1e-6 MPa·s (SPEC §2).
+#: 1 Pa·s = 1e-6 MPa·s (docs/spec.md §2).
 PA_S_TO_MPA_S = 1e-6
 
 

@@ -1,7 +1,7 @@
 """Drive rollers of [000] (Nienhaus, Spiehl, Dörsam 2021): geometry, slip parameters, fits.
 
 The data file ``flowtwin/data/rollers.toml`` keeps the paper's numbers in the paper's units,
-named by unit (SPEC §2):
+named by unit (docs/spec.md §2):
 
 * Table 2 geometry: outer diameter, chordal pitch, flank angle, each with its tolerance;
 * Table 3: ``F_p,min`` as tabulated (``fp_min_tabulated_N``), ``k_s`` in %·N
@@ -27,7 +27,7 @@ These names are a stable interface for :mod:`flowtwin.physics`.
 Slip model [000 Eq. 6]: ``s = k_p + (k_s/F_p² + k_∞)·F_f``; velocity law at
 ``F_p`` = 80–130 N [000 Eq. 8]: ``s' = a + b·exp(−c·v_fil)``.
 
-Data check surfaced, not hidden (SPEC §3.1): Table 3 gives ``F_p,min = 77 N`` for roller
+Data check surfaced, not hidden (docs/spec.md §3.1): Table 3 gives ``F_p,min = 77 N`` for roller
 #3, but Eq. 9 with its own ``k_s = 96.0 %·N`` and ``k_∞ = 0.32 %/N`` gives 54.8 N; every
 other row agrees with Eq. 9 within 2 %. :meth:`Roller.fp_min_discrepancy` reports it.
 """
@@ -53,7 +53,7 @@ __all__ = [
 
 #: Relative agreement between tabulated F_p,min and Eq. 9 regarded as consistent. Table 3
 #: rounds F_p,min to whole newtons and k_∞ to 0.01 %/N (3–5 % relative for k_∞ ≈ 0.2–0.6,
-#: i.e. 1.5–2.5 % on its square root); 2 % is the agreement SPEC §3.1 states for rows ≠ #3.
+#: i.e. 1.5–2.5 % on its square root); 2 % is the agreement docs/spec.md §3.1 states for rows ≠ #3.
 FP_MIN_REL_TOLERANCE = 0.02
 
 

@@ -1,5 +1,25 @@
-"""Reports of simulations: self-contained HTML with plots and tables."""
+"""Reports of simulations and compensations: the verdict, a toolpath viewer, plots, tables.
 
-from flowtwin.report.html import write_report
+* :func:`build_verdict` — what a simulation says, in plain words and units
+  (:class:`Verdict`), shared by the HTML report and ``flowtwin simulate``;
+* :func:`write_report` / :func:`report_html` — the self-contained HTML report of a
+  simulation; :func:`write_comparison` / :func:`comparison_html` — before and after
+  ``compensate``;
+* in Jupyter, a :class:`~flowtwin.simulation.SimulationResult` and a
+  :class:`~flowtwin.compensation.CompensationReport` display their report themselves.
 
-__all__ = ["write_report"]
+See ``docs/report.md``.
+"""
+
+from flowtwin.report.html import (
+    comparison_html,
+    report_html,
+    source_text,
+    write_comparison,
+    write_report,
+)
+from flowtwin.report.spots import result_windowed
+from flowtwin.report.verdict import Verdict, build_verdict
+
+__all__ = ["Verdict", "build_verdict", "comparison_html", "report_html", "result_windowed",
+           "source_text", "write_comparison", "write_report"]

@@ -3,7 +3,7 @@
 The twin printer prints Greeff's 40-sided polygon (68 mm, 33 layers of 0.3 mm,
 230/190/230 °C) with the greeff2017 machine's physics, the twin camera films the drive,
 the vision pipeline measures slip, Greeff's controller sets ``M220``
-(:func:`flowtwin.control.printjob.compare_print_jobs`). The same print runs with the loop
+(:func:`flowtwin.reproduce.greeff2017_loop.compare_print_jobs`). The same print runs with the loop
 off and on; the rows compare deposited mass and slip as the paper does.
 
 The comparison is the most expensive computation of the reproduction (two simulated
@@ -25,23 +25,23 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from flowtwin.control.printjob import (
+from flowtwin.reproduce.claims import Claim, Outcome, rounded
+from flowtwin.reproduce.context import ReproContext
+from flowtwin.reproduce.figures import FigureSpec
+from flowtwin.reproduce.greeff2017_loop import (
     PAPER_MASS_GAIN,
     PrintJobComparison,
     PrintJobRun,
     PrintJobSettings,
     compare_print_jobs,
 )
-from flowtwin.reproduce.claims import Claim, Outcome, rounded
-from flowtwin.reproduce.context import ReproContext
-from flowtwin.reproduce.figures import FigureSpec
 from flowtwin.teststand.figures import new_figure
 
 __all__ = ["CLAIMS", "PRINT_JOB_FIGURE", "notes", "print_job", "print_job_figure",
            "set_slip", "set_speed_pct"]
 
 PAPER = "greeff2017"
-_ENGINE = "flowtwin.control.printjob.compare_print_jobs"
+_ENGINE = "flowtwin.reproduce.greeff2017_loop.compare_print_jobs"
 #: [003 §3.3]: mass difference control-on minus control-off, g.
 PAPER_MASS_DIFFERENCE_G = 0.198
 

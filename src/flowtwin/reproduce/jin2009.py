@@ -1,7 +1,7 @@
 """[004] Jin, Zhang, Wang, Zhu 2009: strand shape and nozzle trajectory — claims and figures.
 
 Strand curves and fits from :mod:`flowtwin.physics.strand`, nozzle trajectories from
-:mod:`flowtwin.physics.trajectory` and the clamped spline of Eqs. 20–21 from
+:mod:`flowtwin.physics.nozzle_path` and the clamped spline of Eqs. 20–21 from
 :mod:`flowtwin.physics.spline`; the paper's simulation values ``H = 0.012``, ``L = 0.06``
 (mm) [004 Fig. 7].
 """
@@ -15,6 +15,13 @@ from matplotlib.figure import Figure
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
+from flowtwin.physics.nozzle_path import (
+    NozzleTrajectory,
+    circle_nozzle_phase_rad,
+    circle_nozzle_radius_mm,
+    nozzle_positions_mm,
+    nozzle_trajectory_for_graph_road,
+)
 from flowtwin.physics.spline import clamped_spline
 from flowtwin.physics.strand import (
     StrandModel,
@@ -22,13 +29,6 @@ from flowtwin.physics.strand import (
     parabola_z_mm,
     tractrix_x_mm,
     tractrix_z_mm,
-)
-from flowtwin.physics.trajectory import (
-    NozzleTrajectory,
-    circle_nozzle_phase_rad,
-    circle_nozzle_radius_mm,
-    nozzle_positions_mm,
-    nozzle_trajectory_for_graph_road,
 )
 from flowtwin.reproduce.claims import Claim, Outcome, rounded
 from flowtwin.reproduce.context import ReproContext
@@ -44,7 +44,7 @@ H_MM, L_MM = 0.012, 0.06
 R_CIRCLE_MM = 1.0
 #: Nodes of the polynomial road y = x⁴ + x³ + x² + x on [0, 1] (Fig. 7c; range not given).
 X_NODES = np.linspace(0.0, 1.0, 11)
-_ENGINE = "flowtwin.physics.trajectory"
+_ENGINE = "flowtwin.physics.nozzle_path"
 
 
 def _poly(x: np.ndarray) -> np.ndarray:

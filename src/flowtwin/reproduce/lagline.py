@@ -15,7 +15,8 @@ discrete form [001 Eq. 13] ``ΔD_n = K_LA·(ΔD0_n/Δt − ΔD0_(n−1)/Δt) + �
 (:func:`discrete_advance_feed`). The extruder's response is computed by
 :func:`flowtwin.dynamics.integrate` — the project's exact integrator of the lag with no
 backflow [001 Eq. 10, Fig. 8]. :func:`linear_lag_response` is the *uncorrected* lag of
-[001 Fig. 7] (negative output allowed), in closed form, for comparison with Fig. 8.
+[001 Fig. 7] (negative output allowed), the exact lag step of :mod:`flowtwin.physics.lag`
+on each segment, for comparison with Fig. 8.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from flowtwin.dynamics import ExtrusionParams, integrate
 from flowtwin.dynamics.feed import PHASE_ACCEL, PHASE_CRUISE, PHASE_DECEL, CommandedFeed
 from flowtwin.errors import DataError
 from flowtwin.physics.deposition import bead_area_mm2
+from flowtwin.physics.lag import lag_linear
 from flowtwin.physics.units import circle_area_mm2
 
 __all__ = [
@@ -285,9 +287,9 @@ def respond(feed: CommandedFeed, lag_s: float, *, nominal: FloatArray | None = N
 def linear_lag_response(feed: CommandedFeed, lag_s: float, t_s: npt.ArrayLike) -> FloatArray:
     """Uncorrected lag ``v_in = K·dv*/dt + v*`` [001 Eq. 10] (no no-backflow clamp), closed form.
 
-    On a segment with ``v_in = c0 + c1·τ`` the compression is
-    ``x(τ) = K·(c0 + c1·(τ − K)) + (x_0 − K·(c0 − c1·K))·e^(−τ/K)``; the output is
-    ``v* = x/K``, negative when the column is pulled back [001 Fig. 7].
+    On each segment ``v_in = c0 + c1·τ`` the compression is the exact lag step
+    :func:`flowtwin.physics.lag.lag_linear` (backflow allowed); the output is ``v* = x/K``,
+    negative when the column is pulled back [001 Fig. 7].
 
     Parameters
     ----------
@@ -307,16 +309,16 @@ def linear_lag_response(feed: CommandedFeed, lag_s: float, t_s: npt.ArrayLike) -
         raise DataError("the lag factor must be > 0", field="lag_s", value=lag_s,
                         allowed="> 0 s")
     k = lag_s
-    c0, c1 = feed.coef[:, 0], feed.coef[:, 1]
-    x_start = np.zeros(feed.n_segments)
+    c0, c1 = feed.coef[:, 0].tolist(), feed.coef[:, 1].tolist()
+    dt = feed.dt_s.tolist()
+    x_start = [0.0] * feed.n_segments
     x = 0.0
     for i in range(feed.n_segments):
         x_start[i] = x
-        tau = feed.dt_s[i]
-        x = k * (c0[i] + c1[i] * (tau - k)) + (x - k * (c0[i] - c1[i] * k)) * math.exp(-tau / k)
+        x = lag_linear(x, c0[i], c1[i], dt[i], k)[0]
     t = np.asarray(t_s, dtype=np.float64)
     seg = np.clip(np.searchsorted(feed.t0_s, t, side="right") - 1, 0, feed.n_segments - 1)
-    tau = t - feed.t0_s[seg]
-    xs = k * (c0[seg] + c1[seg] * (tau - k)) + (
-        x_start[seg] - k * (c0[seg] - c1[seg] * k)) * np.exp(-tau / k)
-    return np.asarray(xs / k)
+    tau = np.maximum(t - feed.t0_s[seg], 0.0)
+    xs = [lag_linear(x_start[i], c0[i], c1[i], ts, k)[0]
+          for i, ts in zip(seg.tolist(), tau.ravel().tolist(), strict=True)]
+    return np.asarray(xs, dtype=np.float64).reshape(t.shape) / k

@@ -1,4 +1,4 @@
-"""Melt capacity of hot ends against public maximum-flow figures (beyond the seeds, SPEC §3.9).
+"""Melt capacity of hot ends against public maximum-flow figures (docs/spec.md §3.9).
 
 Not a seed paper: published measurements of hot-end makers and testers, split into a fit
 set (one figure: the E3D V6, which fixes ``MELT_LENGTH_FACTOR``) and a check set (every

@@ -43,7 +43,7 @@ _ANCHOR = RowKind.ANCHOR
 _STAND = "flowtwin.teststand (virtual stand + fits)"
 _TOOTHED = (1, 2, 3, 5, 6, 7)  # the plain roller #4 has no teeth [000 Table 2]
 #: Eq. 9 agreement regarded as consistent: Table 3 rounds F_p,min to whole newtons and
-#: k_inf to 0.01 %/N (1.5-2.5 % on the square root); SPEC §3.1 states 2 % for rows != #3.
+#: k_inf to 0.01 %/N (1.5-2.5 % on the square root); docs/spec.md §3.1 states 2 % for rows != #3.
 _FPMIN_REL = 0.02
 
 
@@ -69,8 +69,8 @@ def _fp_min_3_discrepancy(ctx: ReproContext) -> Outcome:
     rel = (tab - eq9) / eq9
     return Outcome(tab, round(eq9, 2), "a data check: passes when Eq. 9 disagrees with the "
                    f"printed value by more than {100 * _FPMIN_REL:g} %", abs(rel) > _FPMIN_REL,
-                   f"printed 77 N is {100 * rel:+.1f} % off Eq. 9 (SPEC §3.1); the other six "
-                   "rows agree within 2 %")
+                   f"printed 77 N is {100 * rel:+.1f} % off Eq. 9 (docs/spec.md §3.1); the "
+                   "other six rows agree within 2 %")
 
 
 def _fp_min_3_explained(ctx: ReproContext) -> Outcome:

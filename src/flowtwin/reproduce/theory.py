@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from flowtwin.dynamics import DynamicsResult, ExtrusionParams, integrate
 from flowtwin.dynamics.feed import PHASE_CRUISE, CommandedFeed
-from flowtwin.physics.column import compliance_mm_per_n
+from flowtwin.physics.compliance import compliance_mm_per_n
 from flowtwin.physics.defaults import TRONVOLL_MK25
 from flowtwin.physics.lag import lag_factor_s
 from flowtwin.physics.operating_point import (
@@ -241,7 +241,7 @@ def notes(ctx: ReproContext) -> list[str]:
         f"{s.material.e_rt_mpa:g} MPa and l_hot = {s.hotend.l_hot_mm:g} mm at E_hot = "
         f"{s.material.e_hot_mpa:g} MPa it is {100 * cold / (cold + hot):.0f} % of the "
         "compliance; the time-constant row uses the hot term only, as [002] does, and the "
-        "defaults keep both (SPEC §3.2).",
+        "defaults keep both (docs/spec.md §3.2).",
         f"Temperature sensitivity [002 μ(T) = μ0·exp(−bT)]: with the defaults, μ(205 °C)/"
         f"μ(215 °C) = {float(mu[0] / mu[1]):.2f}, and the time constant scales with μ.",
     ]

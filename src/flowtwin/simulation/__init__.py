@@ -1,7 +1,7 @@
 """Whole-print prediction: G-code + machine → what the printer really extrudes.
 
 ``simulate(gcode, machine)`` reads and plans the file as the firmware would
-(:mod:`flowtwin.planning`), derives the per-move physics from the machine's profiles
+(:mod:`flowtwin.planner.plan_file`), derives the per-move physics from the machine's profiles
 (:mod:`flowtwin.simulation.parameters`), integrates the extrusion state equation with the
 firmware's pressure advance (:mod:`flowtwin.dynamics`) and applies the bead model
 (:mod:`flowtwin.simulation.result`). ``simulate_stream`` does the same chunk by chunk in

@@ -11,7 +11,7 @@ from numba import njit
 __all__ = ["bead_metrics"]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def bead_metrics(x: npt.NDArray[np.float64], y: npt.NDArray[np.float64], x0: float,
                  y0: float, kind: npt.NDArray[np.uint8], extrude_bit: int,
                  cmd: npt.NDArray[np.float64], out: npt.NDArray[np.float64],

@@ -1,30 +1,40 @@
 """Whole-print figures accumulated section by section (for :mod:`.stream`).
 
-Every figure of :meth:`SimulationResult.summary`, :meth:`~SimulationResult.per_layer` and
-:meth:`~SimulationResult.per_feature` is a sum, a count, a maximum or a minimum over moves
-(the RMS flow error is ``sqrt(Σ w·e² / Σ w)``), so it can be accumulated over sections and
-gives the same number as the whole table, up to the order of summation.
+Every figure of :meth:`SimulationResult.summary`, :meth:`~SimulationResult.per_layer`,
+:meth:`~SimulationResult.per_feature` and :meth:`~SimulationResult.worst_moves` is a sum, a
+count, a maximum, a minimum or a ranking over moves (the RMS flow error is
+``sqrt(Σ w·e² / Σ w)``), so it can be accumulated over consecutive sections. The sums use
+the compiled passes of the whole-table result (:mod:`._summary_kernel`: compensated sums,
+carried from section to section), so the streamed figures equal the whole table's to the
+bit wherever the per-move results do; the worst moves are the whole print's ranking (ties
+to the earlier move, as a stable sort).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
 from flowtwin.dynamics import DynamicsResult
-from flowtwin.gcode.moves import MoveKind
+from flowtwin.errors import DataError
+from flowtwin.simulation import _summary_kernel as sk
 from flowtwin.simulation.parameters import MoveParameters
+from flowtwin.simulation.result import _PRINTING_BITS, GroupTotals
 from flowtwin.simulation.summary import SimulationSummary
 
-__all__ = ["Aggregates"]
+__all__ = ["WORST_KEPT", "Aggregates"]
 
-# per-group columns
-_TIME, _CMD, _DELIV, _WE2, _W, _WORST, _FMAX, _GRIND, _OOZE = range(9)
-_NCOL = 9
 _MAX_WARNINGS = 200
+#: Warnings that count moves or commands of a section: "N what[ (first: …)]" and
+#: "what ignored Nx: why" (a whole print has one of each, with the summed count).
+_COUNTED = re.compile(r"^(?P<n>\d+) (?P<what>.+?)(?: \(first: .*\))?$", re.S)
+_IGNORED = re.compile(r"^(?P<what>.+ ignored )(?P<n>\d+)x: .*$", re.S)
+#: Worst moves kept for each ranking (``worst_moves(count <= WORST_KEPT)``).
+WORST_KEPT = 20
 
 
 def _ratio(a: float, b: float) -> float:
@@ -33,6 +43,12 @@ def _ratio(a: float, b: float) -> float:
 
 def _share(part: float, whole: float) -> float:
     return part / whole if whole > 0 else 0.0
+
+
+def _new_totals() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    s = np.zeros(sk.N_TOTALS)
+    s[sk.T_MARGIN_MIN] = math.inf
+    return s, np.zeros(sk.N_TOTALS)
 
 
 @dataclass(slots=True)
@@ -47,158 +63,133 @@ class Aggregates:
     features: list[str] = field(default_factory=list)
     moves: int = 0
     total_time_s: float = 0.0
-    dwell_s: float = 0.0
-    cmd: float = 0.0
-    delivered: float = 0.0
-    in_beads: float = 0.0
-    we2: float = 0.0
-    w: float = 0.0
-    peak_over: float = 0.0
-    peak_under: float = 0.0
-    worst_width: float = 0.0
-    slip_loss: float = 0.0
-    fed_forward: float = 0.0
-    max_force: float = 0.0
-    min_margin: float = math.inf
-    grinding_events: int = 0
-    grinding_moves: int = 0
-    last_grinding: bool = False
-    ooze: float = 0.0
-    narrow: int = 0
     over_flow_limit: int = 0
     max_layer: int = -1
-    net_filament: dict[int, float] = field(default_factory=dict)
+    net_filament_mm: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     _warned: set[str] = field(default_factory=set)
-    groups: dict[str, dict[int, npt.NDArray[np.float64]]] = field(
-        default_factory=lambda: {"layer": {}, "feature": {}})
+    _counts: dict[str, tuple[int, str]] = field(default_factory=dict)
+    _s: npt.NDArray[np.float64] = field(default_factory=lambda: _new_totals()[0])
+    _c: npt.NDArray[np.float64] = field(default_factory=lambda: _new_totals()[1])
+    _grinding: bool = False
+    _layers: GroupTotals = field(default_factory=GroupTotals)
+    _features: GroupTotals = field(default_factory=GroupTotals)
+    # (score, move, row) of the worst moves so far, best first
+    _worst: dict[str, list[tuple[float, int, dict[str, float | int]]]] = field(
+        default_factory=lambda: {"width": [], "force": []})
 
     def note_warnings(self, items: list[str] | tuple[str, ...]) -> None:
-        """Keep warnings once each (at most 200)."""
+        """Keep warnings once each (at most 200); a counted warning (``"N moves …"``,
+        ``"… ignored Nx: …"``) of every section adds to one warning of the whole print,
+        worded as the whole table words it (its count summed, its first occurrence)."""
         for w in items:
+            counted = _COUNTED.match(w) or _IGNORED.match(w)
+            if counted is not None:
+                key = counted["what"]
+                if key in self._counts:
+                    n, first = self._counts[key]
+                    self._counts[key] = (n + int(counted["n"]), first)
+                    continue
+                self._counts[key] = (int(counted["n"]), w)
+                w = key  # its place in the list; worded when the summary is made
             if w not in self._warned and len(self.warnings) < _MAX_WARNINGS:
                 self._warned.add(w)
                 self.warnings.append(w)
 
-    def add_time(self, dwells: list[tuple[int, float, str]], end_s: float | None) -> None:
-        """Dwells of a section; ``end_s``: the end of the print (last section)."""
-        self.dwell_s += float(sum(d[1] for d in dwells))
+    def warning_texts(self) -> list[str]:
+        """The warnings, counted ones with their whole-print counts."""
+        out = []
+        for w in self.warnings:
+            if w in self._counts:
+                n, first = self._counts[w]
+                counted = _COUNTED.match(first) or _IGNORED.match(first)
+                assert counted is not None
+                w = first[:counted.start("n")] + str(n) + first[counted.end("n"):]
+            out.append(w)
+        return out
+
+    def add_time(self, end_s: float | None) -> None:
+        """``end_s``: the end of the print (last section)."""
         if end_s is not None:
             self.total_time_s = end_s
 
     def add(self, moves: npt.NDArray[np.void], dyn: DynamicsResult,
-            metrics: npt.NDArray[np.void], params: MoveParameters, *, first: bool) -> None:
-        """Accumulate one simulated section."""
-        del first
+            metrics: npt.NDArray[np.void], params: MoveParameters) -> None:
+        """Accumulate one simulated section (the moves after those added before)."""
         if params.over_flow_limit is not None:
             self.over_flow_limit += int(np.count_nonzero(params.over_flow_limit))
         d = dyn.moves
         kind = moves["kind"]
-        cmd = d["cmd_mm3"]
-        ext = ((kind & MoveKind.EXTRUDE) != 0) & ((kind & MoveKind.XY) != 0) & (cmd > 0)
-        err = metrics["flow_error"]
-        out_all = d["out_mm3"] + d["stop_out_mm3"]
+        self._grinding = bool(sk.add_totals(
+            self._s, self._c, self._grinding, kind, _PRINTING_BITS, d["cmd_mm3"], d["out_mm3"],
+            d["stop_out_mm3"], d["fed_cmd_mm3"], d["slip_loss_mm3"], d["ooze_mm3"],
+            d["peak_force_n"], d["grinding"], metrics["flow_error"], metrics["width_mean_mm"],
+            metrics["width_nominal_mm"], metrics["force_margin_n"], metrics["narrow"]))
+        if len(moves):
+            self.max_layer = max(self.max_layer, int(moves["layer"].max()))
+        self._layers.add(moves["layer"], kind, d, metrics)
+        self._features.add(moves["feature"], kind, d, metrics)
+        self._rank(moves, d, metrics)
         self.moves += len(moves)
-        self.cmd += float(np.sum(cmd))
-        self.delivered += float(np.sum(out_all))
-        self.in_beads += float(np.sum(d["out_mm3"][ext]))
-        self.we2 += float(np.sum(cmd[ext] * err[ext] * err[ext]))
-        self.w += float(np.sum(cmd[ext]))
-        self.peak_over = max(self.peak_over, float(np.max(err[ext], initial=0.0)))
-        self.peak_under = max(self.peak_under, float(-np.min(err[ext], initial=0.0)))
-        dev = np.abs(metrics["width_mean_mm"] - metrics["width_nominal_mm"])
-        self.worst_width = max(self.worst_width, float(np.max(dev[ext], initial=0.0)))
-        self.slip_loss += float(np.sum(d["slip_loss_mm3"]))
-        self.fed_forward += float(np.sum(np.maximum(d["fed_cmd_mm3"], 0.0)))
-        self.max_force = max(self.max_force, float(np.max(d["peak_force_n"], initial=0.0)))
-        margin = metrics["force_margin_n"]
-        fin = margin[np.isfinite(margin)]
-        if fin.size:
-            self.min_margin = min(self.min_margin, float(np.min(fin)))
-        g = d["grinding"].astype(np.int8)
-        prev = np.int8(1 if self.last_grinding else 0)
-        self.grinding_events += int(np.count_nonzero(np.diff(np.concatenate(([prev], g))) == 1))
-        if g.size:
-            self.last_grinding = bool(g[-1])
-        self.grinding_moves += int(np.count_nonzero(g))
-        self.ooze += float(np.sum(d["ooze_mm3"]))
-        self.narrow += int(np.count_nonzero(metrics["narrow"] & ext))
-        layer = moves["layer"].astype(np.int64)
-        if layer.size:
-            self.max_layer = max(self.max_layer, int(layer.max()))
-        written = (kind & MoveKind.FW_RETRACT) == 0
-        tools = moves["tool"]
-        for tool in np.unique(tools).tolist():
-            sel = written & (tools == tool)
-            self.net_filament[int(tool)] = (self.net_filament.get(int(tool), 0.0)
-                                            + float(np.sum(moves["de"][sel])))
-        cols = np.zeros((len(moves), _NCOL))
-        cols[:, _TIME] = d["duration_s"]
-        cols[:, _CMD] = cmd
-        cols[:, _DELIV] = out_all
-        cols[:, _WE2] = np.where(ext, cmd * err * err, 0.0)
-        cols[:, _W] = np.where(ext, cmd, 0.0)
-        cols[:, _WORST] = np.where(ext, dev, 0.0)
-        cols[:, _FMAX] = d["peak_force_n"]
-        cols[:, _GRIND] = d["grinding"]
-        cols[:, _OOZE] = d["ooze_mm3"]
-        for name, key in (("layer", layer), ("feature", moves["feature"].astype(np.int64))):
-            self._group(self.groups[name], key, cols)
 
-    @staticmethod
-    def _group(table: dict[int, npt.NDArray[np.float64]], key: npt.NDArray[np.int64],
-               cols: npt.NDArray[np.float64]) -> None:
-        keys, inv = np.unique(key, return_inverse=True)
-        sums = np.zeros((keys.size, _NCOL))
-        for c in (_TIME, _CMD, _DELIV, _WE2, _W, _GRIND, _OOZE):
-            sums[:, c] = np.bincount(inv, weights=cols[:, c], minlength=keys.size)
-        for c in (_WORST, _FMAX):
-            mx = np.zeros(keys.size)
-            np.maximum.at(mx, inv, cols[:, c])
-            sums[:, c] = mx
-        for k, row in zip(keys.tolist(), sums, strict=True):
-            acc = table.get(k)
-            if acc is None:
-                table[k] = row.copy()
-                continue
-            for c in (_TIME, _CMD, _DELIV, _WE2, _W, _GRIND, _OOZE):
-                acc[c] += row[c]
-            acc[_WORST] = max(acc[_WORST], row[_WORST])
-            acc[_FMAX] = max(acc[_FMAX], row[_FMAX])
+    def _rank(self, moves: npt.NDArray[np.void], d: npt.NDArray[np.void],
+              met: npt.NDArray[np.void]) -> None:
+        """Merge this section's worst moves into the whole print's ranking."""
+        cmd = d["cmd_mm3"]
+        ext = ((moves["kind"] & _PRINTING_BITS) == _PRINTING_BITS) & (cmd > 0.0)
+        dev = np.abs(met["width_mean_mm"] - met["width_nominal_mm"])
+        margin = met["force_margin_n"]
+        for by, cand, score in (
+                ("width", np.flatnonzero(ext), -dev),
+                ("force", np.flatnonzero(np.isfinite(margin)), margin)):
+            if cand.size > WORST_KEPT:
+                part = np.argpartition(score[cand], WORST_KEPT - 1)[:WORST_KEPT]
+                # ties at the cut: keep the earliest moves, as the stable sort does
+                cut = np.max(score[cand][part])
+                cand = np.union1d(cand[score[cand] < cut], cand[score[cand] == cut])
+            kept = self._worst[by]
+            for i in cand.tolist():
+                kept.append((float(score[i]), self.moves + i, {
+                    "move": self.moves + i, "line": int(moves["line"][i]),
+                    "layer": int(moves["layer"][i]),
+                    "width_nominal_mm": float(met["width_nominal_mm"][i]),
+                    "width_mean_mm": float(met["width_mean_mm"][i]),
+                    "flow_error": float(met["flow_error"][i]),
+                    "peak_force_n": float(d["peak_force_n"][i]),
+                    "force_margin_n": float(met["force_margin_n"][i])}))
+            kept.sort(key=lambda e: (e[0], e[1]))
+            del kept[WORST_KEPT:]
 
+    # -- results ----------------------------------------------------------------------------
     def summary(self) -> SimulationSummary:
         """The figures of ``SimulationResult.summary()``."""
+        t = sk.fold_totals(self._s, self._c)
+        w = float(t[sk.T_RMS_W])
         return SimulationSummary(
             file=self.file, machine=self.machine, printer=self.printer,
             firmware=self.firmware, pressure_advance=self.advance,
             total_time_s=self.total_time_s, moves=self.moves, layers=self.max_layer + 1,
-            commanded_volume_mm3=self.cmd, delivered_volume_mm3=self.delivered,
-            delivered_in_beads_mm3=self.in_beads,
-            volume_error=_ratio(self.delivered, self.cmd),
-            rms_flow_error=math.sqrt(self.we2 / self.w) if self.w > 0 else 0.0,
-            peak_overextrusion=self.peak_over, peak_underextrusion=self.peak_under,
-            worst_width_error_mm=self.worst_width,
-            mean_slip=_share(self.slip_loss, self.fed_forward),
-            max_feed_force_n=self.max_force,
-            min_force_margin_n=None if math.isinf(self.min_margin) else self.min_margin,
-            grinding_events=self.grinding_events, grinding_moves=self.grinding_moves,
-            ooze_volume_mm3=self.ooze, narrow_beads=self.narrow,
+            commanded_volume_mm3=float(t[sk.T_CMD]),
+            delivered_volume_mm3=float(t[sk.T_DELIVERED]),
+            delivered_in_beads_mm3=float(t[sk.T_EXT_OUT]),
+            volume_error=_ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
+            rms_flow_error=math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
+            peak_overextrusion=float(t[sk.T_OVER]),
+            peak_underextrusion=float(t[sk.T_UNDER]),
+            worst_width_error_mm=float(t[sk.T_WIDTH_DEV]),
+            mean_slip=_share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
+            max_feed_force_n=float(t[sk.T_FORCE_MAX]),
+            min_force_margin_n=float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
+            grinding_events=int(t[sk.T_GRIND_EVENTS]),
+            grinding_moves=int(t[sk.T_GRIND_MOVES]),
+            ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
             moves_over_flow_limit=self.over_flow_limit,
-            net_filament_mm={str(k): v for k, v in sorted(self.net_filament.items())},
-            warnings=tuple(self.warnings))
+            net_filament_mm=dict(self.net_filament_mm),
+            warnings=tuple(self.warning_texts()))
 
     def rows(self, name: str) -> list[dict[str, float | int]]:
-        """Per-group rows as ``SimulationResult._grouped`` makes them."""
-        out: list[dict[str, float | int]] = []
-        for k in sorted(self.groups[name]):
-            a = self.groups[name][k]
-            out.append({name: int(k), "time_s": float(a[_TIME]),
-                        "commanded_mm3": float(a[_CMD]), "delivered_mm3": float(a[_DELIV]),
-                        "rms_flow_error": math.sqrt(a[_WE2] / a[_W]) if a[_W] > 0 else 0.0,
-                        "worst_width_error_mm": float(a[_WORST]),
-                        "max_feed_force_n": float(a[_FMAX]),
-                        "grinding_moves": int(a[_GRIND]), "ooze_mm3": float(a[_OOZE])})
-        return out
+        """Per-layer (``"layer"``) or per-feature (``"feature"``, indices) rows."""
+        return (self._layers if name == "layer" else self._features).rows(name)
 
     def feature_rows(self) -> list[dict[str, float | int | str]]:
         """Per-feature rows with the feature names."""
@@ -208,3 +199,14 @@ class Aggregates:
             name = self.features[k] if 0 <= k < len(self.features) else "unknown"
             rows.append({**r, "feature": name})
         return rows
+
+    def worst_moves(self, by: str = "width", count: int = 10) -> list[dict[str, float | int]]:
+        """The ``count`` worst extruding moves by width error or smallest force margin, as
+        ``SimulationResult.worst_moves`` ranks them (``count <= WORST_KEPT``)."""
+        if by not in self._worst:
+            raise DataError("unknown ranking", field="by", value=by, allowed="width, force")
+        if count > WORST_KEPT:
+            raise DataError("a streamed simulation keeps fewer worst moves", field="count",
+                            value=count, allowed=f"<= {WORST_KEPT}")
+        return [dict(row) for _s, _i, row in self._worst[by][:count]]
+

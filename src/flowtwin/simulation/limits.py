@@ -19,6 +19,7 @@ hot-end makers and testers measure; ``layer_height_mm`` adds the tip back-pressu
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -339,6 +340,16 @@ def flow_limit(machine: Machine, *, temperature_c: float | None = None,
                      melt_model=model is not None)
 
 
+@functools.lru_cache(maxsize=1024)
+def _limit_mm3_s(machine: Machine, temperature_c: float, layer_height_mm: float | None
+                 ) -> float:
+    """:func:`flow_limit`'s flow at one temperature and layer height, remembered: a pure
+    function of its arguments (``Machine`` is frozen and hashable), asked again for every
+    section of a streamed print."""
+    return flow_limit(machine, temperature_c=temperature_c,
+                      layer_height_mm=layer_height_mm).max_volumetric_flow_mm3_s
+
+
 def flow_limit_table(machine: Machine, temperatures_c: Sequence[float], *,
                      layer_height_mm: float | None = None, melt: bool = True
                      ) -> list[FlowLimit]:
@@ -403,13 +414,12 @@ def flow_flags(machine: Machine, flow_mm3_s: npt.NDArray[np.float64],
     if np.any(ok):
         # one limit per (temperature, layer height): few distinct pairs in a print
         h_key = np.nan_to_num(heights, nan=-1.0)
-        key = temps * 1000.0 + h_key
-        first = np.unique(key[ok], return_index=True)[1]
-        idx = np.flatnonzero(ok)[first]
-        for t, h in zip(temps[idx].tolist(), h_key[idx].tolist(), strict=True):
-            sel = ok & (temps == t) & (h_key == h)
-            limit[sel] = flow_limit(machine, temperature_c=float(t),
-                                    layer_height_mm=None if h < 0.0 else float(h)
-                                    ).max_volumetric_flow_mm3_s
+        rows = np.flatnonzero(ok)
+        _, first, inverse = np.unique(temps[rows] * 1000.0 + h_key[rows], return_index=True,
+                                      return_inverse=True)
+        values = np.array([_limit_mm3_s(machine, t, None if h < 0.0 else h) for t, h in
+                           zip(temps[rows[first]].tolist(), h_key[rows[first]].tolist(),
+                               strict=True)])
+        limit[rows] = values[inverse]
     over = ok & (np.asarray(flow_mm3_s) > np.where(np.isnan(limit), np.inf, limit))
     return FlowFlags(limit_mm3_s=limit, over=over)

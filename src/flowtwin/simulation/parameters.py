@@ -3,7 +3,7 @@
 For every move: nozzle temperature (from ``M104``/``M109``, with the hot end's heater lag)
 → viscosity by the material's law [002] → hydraulic resistance of cone, capillary and the
 layer-height dependent back-pressure under the tip [002, 001 Eq. 4] → lag factor
-``K = k·R_hyd·A²`` (SPEC §3.4) with the column compliance ``k`` [002, 001 Eq. 2]; the slip
+``K = k·R_hyd·A²`` (docs/spec.md §3.4) with the column compliance ``k`` [002, 001 Eq. 2]; the slip
 law of the drive's roller at its pinch force [000 Eqs. 6, 8] and its maximum feed force
 [000 Figs. 4–8].
 """
@@ -19,7 +19,7 @@ from numba import njit
 
 from flowtwin.dynamics import ExtrusionParams, move_temperatures
 from flowtwin.gcode.moves import MoveKind, MoveTable
-from flowtwin.physics.column import bowden_compliance_mm_per_n, compliance_mm_per_n
+from flowtwin.physics.compliance import bowden_compliance_mm_per_n, compliance_mm_per_n
 from flowtwin.physics.lag import lag_factor_s
 from flowtwin.physics.melt_history import MeltState
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
@@ -165,7 +165,7 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
     return out, n_thin
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
                  kind: npt.NDArray[np.uint8], extrude: int, n_layers: int
                  ) -> npt.NDArray[np.float64]:
@@ -181,7 +181,7 @@ def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
     return top
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _spread_heights(layer: npt.NDArray[np.int32], kind: npt.NDArray[np.uint8], extrude: int,
                     h_layer: npt.NDArray[np.float64], thin: npt.NDArray[np.bool_],
                     default_mm: float, out: npt.NDArray[np.float64]) -> int:
@@ -410,7 +410,7 @@ def _melt_temperatures(machine: Machine, table: MoveTable, timeline: Timeline,
 
 @dataclass(frozen=True, slots=True)
 class OperatingPoint:
-    """Steady extrusion of one machine at one feed (SPEC §3.3–3.4).
+    """Steady extrusion of one machine at one feed (docs/spec.md §3.3–3.4).
 
     Attributes
     ----------

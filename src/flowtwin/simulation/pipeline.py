@@ -6,10 +6,11 @@ import os
 from collections.abc import Callable
 from typing import BinaryIO
 
+from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.dynamics import AdvanceSettings, predict, printer_advance
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Firmware
-from flowtwin.planning import PlanResult, plan_gcode
+from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.parameters import move_parameters
@@ -17,9 +18,6 @@ from flowtwin.simulation.result import SimulationResult, deposition_metrics
 
 __all__ = ["DEFAULT_MACHINE", "simulate", "simulate_plan"]
 
-#: The set-up used when none is given: SPEC §4's reference (roller #3 at 80 N, E3D V6 0.4,
-#: PLA 4043D 1.75 mm at 215 °C) on Tronvoll's Prusa i3 MK2.5 [001].
-DEFAULT_MACHINE = "tronvoll2019"
 
 Progress = Callable[[str], None]
 
@@ -84,7 +82,7 @@ def simulate_plan(plan: PlanResult, *, machine: Machine,
     """Predict what a read and planned G-code extrudes on ``machine``.
 
     The part of :func:`simulate` after reading and planning: for a move table made in
-    memory (compensation's drafts) and planned with :func:`flowtwin.planning.plan_table`.
+    memory (compensation's drafts) and planned with :func:`flowtwin.planner.plan_file.plan_table`.
 
     Parameters
     ----------
@@ -123,4 +121,5 @@ def simulate_plan(plan: PlanResult, *, machine: Machine,
     metrics = deposition_metrics(plan, dyn, params)
     warnings = [*params.warnings, *dyn.warnings]
     return SimulationResult(plan=plan, machine_name=m.name, parameters=params, dynamics=dyn,
-                            metrics=metrics, advance=label, warnings=warnings)
+                            metrics=metrics, advance=label, warnings=warnings,
+                            nozzle_diameter_mm=float(m.hotend.nozzle_diameter_mm))

@@ -14,13 +14,13 @@ from flowtwin.atomic import atomic_open
 from flowtwin.dynamics import DynamicsResult
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind
-from flowtwin.planning import PlanResult
+from flowtwin.planner.plan_file import PlanResult
 from flowtwin.simulation import _summary_kernel as sk
 from flowtwin.simulation._deposit_kernel import bead_metrics
 from flowtwin.simulation.parameters import MoveParameters
 from flowtwin.simulation.summary import SimulationSummary
 
-__all__ = ["METRIC_DTYPE", "SimulationResult"]
+__all__ = ["METRIC_DTYPE", "GroupTotals", "SimulationResult"]
 
 #: Deposition metrics per move (widths in mm; NaN where the move lays no bead).
 METRIC_DTYPE = np.dtype([
@@ -45,7 +45,7 @@ class SimulationResult:
     Attributes
     ----------
     plan
-        The read and planned G-code (:class:`~flowtwin.planning.PlanResult`).
+        The read and planned G-code (:class:`~flowtwin.planner.plan_file.PlanResult`).
     machine_name
         Name of the set-up.
     parameters
@@ -58,6 +58,9 @@ class SimulationResult:
         Pressure advance the prediction includes (e.g. ``"klipper K=0.04 s"`` or ``"off"``).
     warnings
         Everything the user must know (extrapolations, ignored commands).
+    nozzle_diameter_mm
+        Nozzle diameter of the simulated hot end, mm (the window of the flow figures a
+        user can act on, :mod:`flowtwin.simulation.windowed`); ``nan``: unknown.
     """
 
     plan: PlanResult
@@ -67,6 +70,12 @@ class SimulationResult:
     metrics: npt.NDArray[np.void]
     advance: str
     warnings: list[str] = field(default_factory=list)
+    nozzle_diameter_mm: float = math.nan
+
+    def _repr_html_(self) -> str:
+        """The report (verdict, toolpath viewer, plots) in a notebook cell."""
+        from flowtwin.report.notebook import simulation_repr
+        return simulation_repr(self)
 
     # ---- aggregates -----------------------------------------------------------------------
     def _extruding(self) -> npt.NDArray[np.bool_]:
@@ -75,14 +84,6 @@ class SimulationResult:
         sk.extruding_mask(self.plan.table.moves["kind"], self.dynamics.moves["cmd_mm3"],
                        _PRINTING_BITS, out)
         return out
-
-    def _rms(self, sel: npt.NDArray[np.bool_]) -> float:
-        """Volume-weighted RMS of the per-move flow error over ``sel``."""
-        w = self.dynamics.moves["cmd_mm3"][sel]
-        err = self.metrics["flow_error"][sel]
-        if w.size == 0 or float(w.sum()) <= 0.0:
-            return 0.0
-        return float(np.sqrt(np.sum(w * err * err) / np.sum(w)))
 
     def summary(self) -> SimulationSummary:
         """Whole-print figures (:class:`~flowtwin.simulation.summary.SimulationSummary`)."""
@@ -132,24 +133,9 @@ class SimulationResult:
         return out
 
     def _grouped(self, key: npt.NDArray[np.int64], name: str) -> list[dict[str, float | int]]:
-        d = self.dynamics.moves
-        ext = self._extruding()
-        dev = np.abs(self.metrics["width_mean_mm"] - self.metrics["width_nominal_mm"])
-        rows: list[dict[str, float | int]] = []
-        for k in np.unique(key).tolist():
-            sel = key == k
-            rows.append({
-                name: int(k),
-                "time_s": float(np.sum(d["duration_s"][sel])),
-                "commanded_mm3": float(np.sum(d["cmd_mm3"][sel])),
-                "delivered_mm3": float(np.sum(d["out_mm3"][sel] + d["stop_out_mm3"][sel])),
-                "rms_flow_error": self._rms(sel & ext),
-                "worst_width_error_mm": float(np.max(dev[sel & ext], initial=0.0)),
-                "max_feed_force_n": float(np.max(d["peak_force_n"][sel], initial=0.0)),
-                "grinding_moves": int(np.count_nonzero(d["grinding"][sel])),
-                "ooze_mm3": float(np.sum(d["ooze_mm3"][sel])),
-            })
-        return rows
+        groups = GroupTotals()
+        groups.add(key, self.plan.table.moves["kind"], self.dynamics.moves, self.metrics)
+        return groups.rows(name)
 
     def worst_moves(self, by: str = "width", count: int = 10) -> list[dict[str, float | int]]:
         """The ``count`` worst extruding moves by width error (``"width"``) or by the
@@ -202,6 +188,65 @@ class SimulationResult:
             raise DataError("unknown series format", field="path", value=str(out),
                             allowed=".parquet or .csv")
         return out
+
+
+class GroupTotals:
+    """Per-layer or per-feature sums of simulated moves, added in move order (one
+    compiled pass per call, :func:`~flowtwin.simulation._summary_kernel.add_groups`);
+    consecutive calls give the rows of one call on all the moves, to the bit."""
+
+    def __init__(self) -> None:
+        self.lo = 0
+        self.acc = np.zeros((0, sk.N_GROUP))
+        self.comp = np.zeros((0, sk.N_GROUP))
+        self.count = np.zeros(0, np.int64)
+
+    def add(self, key: npt.NDArray[np.integer], kind: npt.NDArray[np.uint8],
+            dyn: npt.NDArray[np.void], metrics: npt.NDArray[np.void]) -> None:
+        """Add moves: their group ``key``, ``kind``, dynamics rows and metrics rows."""
+        if key.shape[0] == 0:
+            return
+        lo, hi = int(key.min()), int(key.max())
+        if self.count.shape[0] == 0:
+            self.lo = lo
+            self._resize(lo, hi)
+        elif lo < self.lo or hi >= self.lo + self.count.shape[0]:
+            self._resize(min(lo, self.lo), max(hi, self.lo + self.count.shape[0] - 1))
+        sk.add_groups(key, self.lo, self.acc, self.comp, self.count, kind, _PRINTING_BITS,
+                      dyn["duration_s"], dyn["cmd_mm3"], dyn["out_mm3"], dyn["stop_out_mm3"],
+                      dyn["ooze_mm3"], dyn["peak_force_n"], dyn["grinding"],
+                      metrics["flow_error"], metrics["width_mean_mm"],
+                      metrics["width_nominal_mm"])
+
+    def _resize(self, lo: int, hi: int) -> None:
+        size = hi - lo + 1
+        acc, comp, count = np.zeros((size, sk.N_GROUP)), np.zeros((size, sk.N_GROUP)), \
+            np.zeros(size, np.int64)
+        k = self.lo - lo
+        n = self.count.shape[0]
+        acc[k:k + n], comp[k:k + n], count[k:k + n] = self.acc, self.comp, self.count
+        self.lo, self.acc, self.comp, self.count = lo, acc, comp, count
+
+    def rows(self, name: str) -> list[dict[str, float | int]]:
+        """One row per group with moves: ``name`` (the key), time (s), commanded and
+        delivered volume (mm³), volume-weighted RMS flow error, worst width error (mm),
+        largest feed force (N), grinding moves, ooze (mm³)."""
+        a = sk.fold_groups(self.acc, self.comp)
+        rows: list[dict[str, float | int]] = []
+        for g in np.flatnonzero(self.count).tolist():
+            w = float(a[g, sk.G_W])
+            rows.append({
+                name: self.lo + g,
+                "time_s": float(a[g, sk.G_TIME]),
+                "commanded_mm3": float(a[g, sk.G_CMD]),
+                "delivered_mm3": float(a[g, sk.G_DELIV]),
+                "rms_flow_error": math.sqrt(float(a[g, sk.G_WEE]) / w) if w > 0.0 else 0.0,
+                "worst_width_error_mm": float(a[g, sk.G_WORST]),
+                "max_feed_force_n": float(a[g, sk.G_FMAX]),
+                "grinding_moves": int(a[g, sk.G_GRIND]),
+                "ooze_mm3": float(a[g, sk.G_OOZE]),
+            })
+        return rows
 
 
 def _share(part: float, whole: float) -> float:

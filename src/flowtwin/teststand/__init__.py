@@ -1,6 +1,6 @@
 """Virtual filament-drive test stand and the evaluation of test-stand records [000 §3–4].
 
-SPEC §3.8. The stand runs the measurement procedure of Nienhaus et al. [000 §3] on a drive
+docs/spec.md §3.8. The stand runs the measurement procedure of Nienhaus et al. [000 §3] on a drive
 model (:mod:`~flowtwin.teststand.model`, :mod:`~flowtwin.teststand.simulate`) and writes
 records in a CSV schema a real stand can also produce (:mod:`~flowtwin.teststand.records`,
 docs/teststand.md). The evaluation (:mod:`~flowtwin.teststand.analysis`,
@@ -23,47 +23,52 @@ Quick start::
         print(check.name, check.published, check.recovered, check.passed)
 """
 
-from flowtwin.teststand.analysis import (
-    RecordResult,
-    SlipRegression,
-    analyse_record,
-    analyse_records,
-    loading_phase,
-    slip_regression,
-)
-from flowtwin.teststand.fits import (
-    MaxForceFit,
-    PinchLawFit,
-    VelocityLawFit,
-    fit_max_feed_force,
-    fit_pinch_law,
-    fit_velocity_law,
-    r_squared_histogram,
-)
-from flowtwin.teststand.model import (
-    PAPER_PINCH_FORCES_N,
-    PAPER_SPEEDS_MM_S,
-    DriveUnderTest,
-    Instrument,
-    Procedure,
-    SlipLaw,
-)
-from flowtwin.teststand.records import (
-    COLUMNS,
-    SCHEMA_VERSION,
-    ColumnSpec,
-    Record,
-    RecordKey,
-    read_records_csv,
-    write_records_csv,
-)
-from flowtwin.teststand.report import (
-    CampaignAnalysis,
-    ParameterCheck,
-    analyse_campaign,
-    compare_with_roller,
-)
-from flowtwin.teststand.simulate import simulate_campaign, simulate_record
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from flowtwin.teststand.analysis import (
+        RecordResult,
+        SlipRegression,
+        analyse_record,
+        analyse_records,
+        loading_phase,
+        slip_regression,
+    )
+    from flowtwin.teststand.fits import (
+        MaxForceFit,
+        PinchLawFit,
+        VelocityLawFit,
+        fit_max_feed_force,
+        fit_pinch_law,
+        fit_velocity_law,
+        r_squared_histogram,
+    )
+    from flowtwin.teststand.model import (
+        PAPER_PINCH_FORCES_N,
+        PAPER_SPEEDS_MM_S,
+        DriveUnderTest,
+        Instrument,
+        Procedure,
+        SlipLaw,
+    )
+    from flowtwin.teststand.records import (
+        COLUMNS,
+        SCHEMA_VERSION,
+        ColumnSpec,
+        Record,
+        RecordKey,
+        read_records_csv,
+        write_records_csv,
+    )
+    from flowtwin.teststand.report import (
+        CampaignAnalysis,
+        ParameterCheck,
+        analyse_campaign,
+        compare_with_roller,
+    )
+    from flowtwin.teststand.simulate import simulate_campaign, simulate_record
 
 __all__ = [
     "COLUMNS",
@@ -99,3 +104,39 @@ __all__ = [
     "slip_regression",
     "write_records_csv",
 ]
+
+# names resolve on first use (importing the package stays light)
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "RecordResult": "flowtwin.teststand.analysis",
+    "SlipRegression": "flowtwin.teststand.analysis",
+    "analyse_record": "flowtwin.teststand.analysis",
+    "analyse_records": "flowtwin.teststand.analysis",
+    "loading_phase": "flowtwin.teststand.analysis",
+    "slip_regression": "flowtwin.teststand.analysis",
+    "MaxForceFit": "flowtwin.teststand.fits",
+    "PinchLawFit": "flowtwin.teststand.fits",
+    "VelocityLawFit": "flowtwin.teststand.fits",
+    "fit_max_feed_force": "flowtwin.teststand.fits",
+    "fit_pinch_law": "flowtwin.teststand.fits",
+    "fit_velocity_law": "flowtwin.teststand.fits",
+    "r_squared_histogram": "flowtwin.teststand.fits",
+    "PAPER_PINCH_FORCES_N": "flowtwin.teststand.model",
+    "PAPER_SPEEDS_MM_S": "flowtwin.teststand.model",
+    "DriveUnderTest": "flowtwin.teststand.model",
+    "Instrument": "flowtwin.teststand.model",
+    "Procedure": "flowtwin.teststand.model",
+    "SlipLaw": "flowtwin.teststand.model",
+    "COLUMNS": "flowtwin.teststand.records",
+    "SCHEMA_VERSION": "flowtwin.teststand.records",
+    "ColumnSpec": "flowtwin.teststand.records",
+    "Record": "flowtwin.teststand.records",
+    "RecordKey": "flowtwin.teststand.records",
+    "read_records_csv": "flowtwin.teststand.records",
+    "write_records_csv": "flowtwin.teststand.records",
+    "CampaignAnalysis": "flowtwin.teststand.report",
+    "ParameterCheck": "flowtwin.teststand.report",
+    "analyse_campaign": "flowtwin.teststand.report",
+    "compare_with_roller": "flowtwin.teststand.report",
+    "simulate_campaign": "flowtwin.teststand.simulate",
+    "simulate_record": "flowtwin.teststand.simulate",
+})

@@ -2,7 +2,7 @@
 
 The test stand of [000 §3] pushes filament with one driving roller against a friction-based
 process-force simulator and records feed force, pinch force and filament velocity. The
-virtual stand (SPEC §3.8) replaces the hardware by three plain data objects:
+virtual stand (docs/spec.md §3.8) replaces the hardware by three plain data objects:
 
 * :class:`DriveUnderTest` — the roller: its slip law, its maximum feed force and how it
   fails (all from :mod:`flowtwin.physics.drive`, parameters from a

@@ -8,6 +8,7 @@ from a known motion so that accuracy is measured against ground truth.
 """
 
 from flowtwin.vision.axis import AxisEstimate, estimate_gear_axis, fit_rotation_axis
+from flowtwin.vision.capture import Frame, FrameSource, open_source, read_timestamps_file
 from flowtwin.vision.config import TrackingParams, VisionConfig, build_config, load_config_file
 from flowtwin.vision.flow import (
     gaussian_smooth,
@@ -26,7 +27,7 @@ from flowtwin.vision.measure import (
     measure_frames,
 )
 from flowtwin.vision.plot import plot_png, write_plot
-from flowtwin.vision.result import (
+from flowtwin.vision.readings import (
     Quality,
     VisionResult,
     VisionSeries,
@@ -35,7 +36,6 @@ from flowtwin.vision.result import (
     write_parquet,
 )
 from flowtwin.vision.roi import Roi, RoiSet, parse_roi, parse_rois
-from flowtwin.vision.source import Frame, FrameSource, open_source, read_timestamps_file
 from flowtwin.vision.width import (
     EdgeMeasurement,
     calibration_factor,

@@ -1,7 +1,7 @@
 """The measurement equations of the slip camera: speed, slip, volume flow [003, 000].
 
 Small pure functions on arrays; the pipeline in :mod:`flowtwin.vision.measure` only
-feeds them. Speeds are in mm/s, widths in mm, slip as a fraction (SPEC §2).
+feeds them. Speeds are in mm/s, widths in mm, slip as a fraction (docs/spec.md §2).
 """
 
 from __future__ import annotations

@@ -31,10 +31,10 @@ import numpy.typing as npt
 from flowtwin.atomic import atomic_write_bytes
 from flowtwin.errors import VisionError
 from flowtwin.vision.axis import estimate_gear_axis
+from flowtwin.vision.capture import Frame, open_source
 from flowtwin.vision.config import TrackingParams
 from flowtwin.vision.features import detect_features
 from flowtwin.vision.roi import Roi
-from flowtwin.vision.source import Frame, open_source
 from flowtwin.vision.track import RoiTracker
 from flowtwin.vision.width import EdgeMeasurement, expected_width_px, measure_width_px
 

@@ -1,6 +1,6 @@
 """The slip-camera pipeline: frames in, gear speed, filament speed, slip and width out.
 
-Per frame (SPEC §3.7, [003 §2.2]): skip blank frames and exact repeats, track the gear ROI
+Per frame (docs/spec.md §3.7, [003 §2.2]): skip blank frames and exact repeats, track the gear ROI
 (rotation about the gear axis, or tangential motion) and the ``after`` ROI (translation
 along the filament) with :class:`~flowtwin.vision.track.RoiTracker`, and measure the width
 in the ``before`` ROI (:func:`~flowtwin.vision.width.measure_width_px`, refused when the
@@ -22,10 +22,10 @@ import numpy.typing as npt
 
 from flowtwin.errors import VisionError
 from flowtwin.vision.axis import estimate_gear_axis
+from flowtwin.vision.capture import INTER_FRAME_CODECS, Frame, open_source
 from flowtwin.vision.config import VisionConfig
 from flowtwin.vision.features import is_stale
-from flowtwin.vision.result import Quality, VisionResult
-from flowtwin.vision.source import INTER_FRAME_CODECS, Frame, open_source
+from flowtwin.vision.readings import Quality, VisionResult
 from flowtwin.vision.summarize import GearSetup, RowLog, SourceInfo, finish
 from flowtwin.vision.track import RoiTracker, StepEstimate
 from flowtwin.vision.width import EdgeMeasurement, expected_width_px, measure_width_px

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from flowtwin.atomic import atomic_write_bytes
-from flowtwin.vision.result import FILAMENT_INVALID, GEAR_INVALID, VisionResult
+from flowtwin.vision.readings import FILAMENT_INVALID, GEAR_INVALID, VisionResult
 
 __all__ = ["plot_png", "write_plot"]
 

@@ -12,7 +12,7 @@ travelled distances (uneven steps weigh by their duration).
 ``min_filament_speed_mm_s``) is a *still* reading: the row is flagged GEAR_STOPPED or
 FILAMENT_STOPPED and has no slip (a single noisy step of a still drive can pass the
 floor, its neighbourhood does not). The run's slip needs at least
-:data:`~flowtwin.vision.result.MIN_SLIP_STEPS` steps with both speeds valid and above
+:data:`~flowtwin.vision.readings.MIN_SLIP_STEPS` steps with both speeds valid and above
 their floors, *and* both mean speeds above their floors; otherwise it is undefined (NaN,
 ``null`` in JSON) and ``slip_note`` says why — a still drive never reads as a slip
 percentage.
@@ -35,7 +35,7 @@ from flowtwin.errors import VisionError
 from flowtwin.vision.axis import AxisEstimate
 from flowtwin.vision.config import VisionConfig
 from flowtwin.vision.flow import gaussian_smooth, slip_fraction, speed_mm_s, volume_flow_mm3_s
-from flowtwin.vision.result import (
+from flowtwin.vision.readings import (
     FILAMENT_INVALID,
     GEAR_INVALID,
     MIN_SLIP_STEPS,

@@ -16,4 +16,10 @@ One concept per module (OpenCV is imported only here, never by the pattern code)
 * :mod:`.analyse` — widths, per-line scores and the twin's lag fit;
 * :mod:`.annotate` — the annotated copy of the photo;
 * :mod:`.photosynth` — an independent renderer of photographic conditions (validation).
+
+The older tick-based reader of flowtwin's ``kline`` scans and its helpers live here too:
+:mod:`.kimage` (``analyse_kline_image``), :mod:`.linefind` (lines and registration by
+ticks), :mod:`.beadwidth` (bead width across a straightened line) and :mod:`.twin_render`
+(known-answer images rendered from the twin). Images are loaded by
+:mod:`flowtwin.vision.loader`, as in vision.
 """

@@ -4,11 +4,11 @@
 (:mod:`.detect`, polarity from the image), the refusals that need only the lines
 (:mod:`.quality`: too few, cut by the frame), the registration without ticks
 (:mod:`.register`), the widths along every test line on the bed grid
-(:mod:`flowtwin.calibration.beadwidth`; light beads are measured on the inverted image,
+(:mod:`flowtwin.calibration.image.beadwidth`; light beads are measured on the inverted image,
 so the integrated "darkness" is the bead's contrast either way), the blur refusal, the
-per-line scores (:func:`flowtwin.calibration.kimage.score_line`, [001 Fig. 14, Table II]
+per-line scores (:func:`flowtwin.calibration.image.kimage.score_line`, [001 Fig. 14, Table II]
 made quantitative) and the lag fitted with the twin to all gap-free lines
-(:func:`flowtwin.calibration.lagfit.fit_lag`, free gain and registration along the lines).
+(:func:`flowtwin.calibration.fits.lagfit.fit_lag`, free gain and registration along the lines).
 
 When the layout's marks do not tell which way the photo is turned, the widths do: in the
 right reading the acceleration and deceleration errors grow with the lines' K (a too-low
@@ -26,7 +26,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.beadwidth import (
+from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
+from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model, printed_runs
+from flowtwin.calibration.image.beadwidth import (
     area_widths,
     dark_level,
     edge_widths,
@@ -34,13 +37,10 @@ from flowtwin.calibration.beadwidth import (
     window_widths,
 )
 from flowtwin.calibration.image.detect import LineSet, detect_lines
+from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
 from flowtwin.calibration.image.register import LayoutGeometry, Reading, register_layout
-from flowtwin.calibration.kfit import pattern_firmware
-from flowtwin.calibration.kimage import LineReading, load_grey, score_line
-from flowtwin.calibration.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.lagmodel import DEFAULT_MACHINE, LagModel, lag_model, printed_runs
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
 from flowtwin.profiles.machine import Machine, load_machine
 
@@ -222,7 +222,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
         Image file or array (grey or BGR).
     pattern
         The pattern as printed (:func:`~.layouts.line_layout_pattern` or
-        :func:`flowtwin.calibration.kline.kline_pattern`), for the machine's firmware.
+        :func:`flowtwin.calibration.patterns.kline.kline_pattern`), for the machine's firmware.
     machine
         Set-up for the twin.
     mm_per_px
@@ -235,7 +235,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     step_mm, method
         Width sample spacing along the lines; ``"area"`` or ``"edges"``.
     fit, fit_dead_time, fit_gain, end_margin_mm
-        The lag fit (see :func:`flowtwin.calibration.lagfit.fit_lag`).
+        The lag fit (see :func:`flowtwin.calibration.fits.lagfit.fit_lag`).
 
     Returns
     -------

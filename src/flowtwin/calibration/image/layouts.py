@@ -8,7 +8,7 @@ what is measured; the marks only tell which way the photo is turned.
 ==============  =========================================================================
 name            geometry and defaults (source)
 ==============  =========================================================================
-``kline``       flowtwin's K-line pattern (:mod:`flowtwin.calibration.kline`): 20/40/20 mm
+``kline``       flowtwin's K-line pattern (:mod:`flowtwin.calibration.patterns.kline`): 20/40/20 mm
                 at 20/70 mm/s, 5 mm pitch, 0.48 mm lines, K 0–0.2 s by 0.01 s [001 Table
                 I]; prime line in front, a tick beyond the end of every 5th line.
 ``marlin``      Marlin's K-factor calibration pattern generator ("standard" pattern;
@@ -50,7 +50,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-from flowtwin.calibration.pattern_base import (
+from flowtwin.calibration.patterns.pattern import (
     Pattern,
     PatternWriter,
     PrintSettings,
@@ -268,7 +268,7 @@ def line_layout_pattern(name: str, settings: PrintSettings,
     ----------
     name
         A key of :data:`LAYOUTS` other than ``kline`` (use
-        :func:`flowtwin.calibration.kline.kline_pattern` for that one).
+        :func:`flowtwin.calibration.patterns.kline.kline_pattern` for that one).
     settings
         Print settings as used (firmware, bead, placement); see :func:`layout_settings`.
     params

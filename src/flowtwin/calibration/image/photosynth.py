@@ -1,6 +1,6 @@
 """An independent renderer of photos of printed line patterns (validation only).
 
-Different code, and a different model, from :mod:`flowtwin.calibration.render` (which
+Different code, and a different model, from :mod:`flowtwin.calibration.image.twin_render` (which
 draws the twin's widths and warps the drawing): nothing here calls the planner or the
 twin, so the analysis is tested on images it did not make.
 
@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.pattern_base import Pattern
+from flowtwin.calibration.patterns.pattern import Pattern
 
 __all__ = ["PhotoConditions", "SynthPhoto", "render_photo", "scene_from_pattern",
            "synthetic_widths"]

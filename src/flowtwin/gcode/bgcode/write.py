@@ -335,7 +335,7 @@ def text_to_bgcode(source: str | os.PathLike[str] | bytes, destination: str | os
     int
         Number of G-code blocks written.
     """
-    from flowtwin.gcode.source import open_source
+    from flowtwin.gcode.inputs import open_source
 
     name = source if isinstance(source, bytes) else os.fspath(source)
 

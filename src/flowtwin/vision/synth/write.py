@@ -1,6 +1,6 @@
 """Write synthetic recordings as real files: videos, image folders, timestamps, config.
 
-The files go through the same readers users' recordings do (:mod:`flowtwin.vision.source`).
+The files go through the same readers users' recordings do (:mod:`flowtwin.vision.capture`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import tomli_w
 
 from flowtwin.atomic import atomic_write_bytes, atomic_write_text
 from flowtwin.errors import VisionError
+from flowtwin.vision.capture import TIMESTAMPS_NAME
 from flowtwin.vision.config import VisionConfig
-from flowtwin.vision.source import TIMESTAMPS_NAME
 from flowtwin.vision.synth.render import SyntheticFrame
 
 __all__ = ["timestamps_text", "write_config_toml", "write_image_folder", "write_video"]

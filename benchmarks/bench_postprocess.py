@@ -1,0 +1,157 @@
+"""``flowtwin postprocess`` as a slicer runs it: a fresh process per file, warm numba cache.
+
+Prints, on the PrusaSlicer 2.7.1 Benchy of the corpus (180 k lines, 112 k moves; carried in
+``tests/data/corpus``) with the environment PrusaSlicer gives a post-processing script
+(its embedded configuration as ``SLIC3R_*`` variables, ``ConfigBase::setenv_``):
+
+* wall time of ``flowtwin postprocess FILE`` (times written + verdict + sidecar) in a fresh
+  process, best and median of several runs after one warm-up run; the same with
+  ``--klipper-config`` (the Klipper planner) and on the file stored as ``.bgcode``;
+* the process's CPU time and peak resident memory (``wait4``), and the same on a file three
+  times as long (the Benchy's moves repeated) to show how memory grows with the file;
+* one run with ``--advance --slip`` (as fast as ``compensate`` is).
+
+Goal (issue #16): ≤ 1 s wall for times + verdict on the Benchy, memory flat in file size.
+"""
+
+from __future__ import annotations
+
+import gzip
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE.parent / "tests" / "data"
+BENCHY = DATA / "corpus" / "prusaslicer_2.7.1_benchy.gcode.gz"
+KLIPPER_CFG = DATA / "klipper" / "B.cfg"
+FLOWTWIN = str(Path(sys.executable).parent / "flowtwin")
+
+
+def _slicer_env(text: str, output: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SLIC3R_")}
+    for m in re.finditer(r"^; ([a-z_][a-z0-9_]*) = (.*)$", text, re.MULTILINE):
+        env["SLIC3R_" + m.group(1).upper()] = m.group(2)
+    env["SLIC3R_PP_HOST"] = "File"
+    env["SLIC3R_PP_OUTPUT_NAME"] = str(output)
+    return env
+
+
+#: A fresh interpreter that loads only the ``postprocess`` command, as a lazy command table
+#: does (``flowtwin`` itself imports every command module on this branch).
+LEAN = ("import sys, typer\n"
+        "from flowtwin.cli import postprocess as p\n"
+        "app = typer.Typer(add_completion=False)\n"
+        "p.register(app)\n"
+        "app.callback()(lambda: None)\n"
+        "app(args=sys.argv[1:])\n")
+
+
+def _run(args: list[str], gcode: Path, env: dict[str, str]) -> tuple[float, float, float]:
+    """(wall s, CPU s, peak RSS MB) of one fresh process: ``flowtwin ARGS FILE``, or the
+    lean entry when ``args`` starts with ``"lean"``."""
+    exe = [sys.executable, "-c", LEAN] if args[:1] == ["lean"] else [FLOWTWIN]
+    args = args[1:] if args[:1] == ["lean"] else args
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([*exe, *args, str(gcode)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"flowtwin {' '.join(args)} failed ({proc.returncode}):\n{err}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+
+
+def _series(label: str, args: list[str], src: bytes, folder: Path, env: dict[str, str],
+            runs: int, suffix: str = ".gcode") -> dict[str, object]:
+    walls, cpus, rss = [], [], []
+    for i in range(runs + 1):                       # the first run warms the cache
+        gcode = folder / f"benchy{suffix}"
+        gcode.write_bytes(src)
+        wall, cpu, mb = _run(args, gcode, {**env, "SLIC3R_PP_OUTPUT_NAME": str(gcode)})
+        if i:
+            walls.append(wall)
+            cpus.append(cpu)
+            rss.append(mb)
+    out = {"wall_best_s": min(walls), "wall_median_s": statistics.median(walls),
+           "cpu_median_s": statistics.median(cpus), "peak_rss_mb": max(rss), "runs": runs}
+    print(f"{label:<44} wall best {out['wall_best_s']:.2f} s, median "
+          f"{out['wall_median_s']:.2f} s; CPU {out['cpu_median_s']:.2f} s; "
+          f"peak RSS {out['peak_rss_mb']:.0f} MB")
+    return out
+
+
+def _in_process(src: bytes, folder: Path, env: dict[str, str], runs: int
+                ) -> dict[str, object]:
+    """The work alone: ``postprocess()`` called in this process after a warm-up call."""
+    from flowtwin.postprocess import postprocess
+
+    walls, cpus = [], []
+    for i in range(runs + 1):
+        gcode = folder / "inproc.gcode"
+        gcode.write_bytes(src)
+        c0, t0 = time.process_time(), time.perf_counter()
+        postprocess(gcode, env={**env, "SLIC3R_PP_OUTPUT_NAME": str(gcode)})
+        if i:
+            walls.append(time.perf_counter() - t0)
+            cpus.append(time.process_time() - c0)
+    out = {"wall_best_s": min(walls), "wall_median_s": statistics.median(walls),
+           "cpu_median_s": statistics.median(cpus), "runs": runs}
+    print(f"{'in process, after imports and a warm-up':<44} wall best "
+          f"{out['wall_best_s']:.2f} s, median {out['wall_median_s']:.2f} s; CPU "
+          f"{out['cpu_median_s']:.2f} s")
+    return out
+
+
+def run(quick: bool = False) -> dict[str, object]:
+    """Time ``flowtwin postprocess`` on the Benchy (see the module docstring)."""
+    runs = 3 if quick else 7
+    text = gzip.decompress(BENCHY.read_bytes())
+    results: dict[str, object] = {"load_average": os.getloadavg()}
+    print(f"load average {results['load_average']}")
+    with tempfile.TemporaryDirectory(prefix="flowtwin-bench-pp-") as tmp:
+        folder = Path(tmp)
+        env = _slicer_env(text.decode(errors="replace"), folder / "benchy.gcode")
+        results["times_and_verdict"] = _series(
+            "postprocess (slicer settings), 180 k lines", ["postprocess"], text, folder, env,
+            runs)
+        results["lean_entry"] = _series(
+            "same, lean entry (only the command loaded)", ["lean", "postprocess"], text,
+            folder, env, runs)
+        results["in_process"] = _in_process(text, folder, env, runs)
+        results["klipper"] = _series(
+            "postprocess --klipper-config, 180 k lines",
+            ["postprocess", "--klipper-config", str(KLIPPER_CFG)], text, folder, env, runs)
+        from flowtwin.gcode.bgcode import text_to_bgcode
+
+        text_to_bgcode(text, folder / "src.bgcode")
+        results["bgcode"] = _series(
+            "postprocess on .bgcode", ["postprocess"], (folder / "src.bgcode").read_bytes(),
+            folder, env, runs, suffix=".bgcode")
+        # a file three times as long: memory against file size
+        body = text.split(b"\n; prusaslicer_config = begin")[0]
+        tail = text[len(body):]
+        moves = body.split(b";LAYER_CHANGE", 1)
+        triple = moves[0] + (b";LAYER_CHANGE" + moves[1]) * 3 + tail
+        results["triple"] = _series(
+            "postprocess, 3 x the Benchy (540 k lines)", ["postprocess"], triple, folder,
+            env, max(1, runs // 3))
+        results["rss_growth"] = (float(results["triple"]["peak_rss_mb"])  # type: ignore[index]
+                                 / float(results["times_and_verdict"]["peak_rss_mb"]))  # type: ignore[index]
+        print(f"peak memory, 3 x the file / 1 x: {results['rss_growth']:.2f}")
+        if not quick:
+            results["advance_slip"] = _series(
+                "postprocess --advance --slip", ["postprocess", "--advance", "--slip"], text,
+                folder, env, 1)
+    return results
+
+
+if __name__ == "__main__":
+    run(quick="--quick" in sys.argv)

@@ -1,0 +1,5 @@
+"""``python -m flowtwin.cli``: the ``flowtwin`` command."""
+
+from flowtwin.cli.main import main
+
+main()

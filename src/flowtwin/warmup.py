@@ -1,0 +1,69 @@
+"""Compile the numba kernels of the everyday commands once, into numba's cache.
+
+A kernel is compiled the first time it runs in an installation and loaded from the cache
+afterwards (``cache=True``). Compiling the kernels ``plan`` and ``simulate`` use takes
+35-100 s (more on a busy machine): ``make install`` runs this module so that a user's first
+command does not. It plans and simulates a small generated print the ways the commands do:
+Klipper and Marlin planners, whole-table and streamed, the default set-up (Marlin-style
+advance) and a Klipper printer with smoothed pressure advance.
+
+Usage: ``python -m flowtwin.warmup`` (prints the seconds it took).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+__all__ = ["warm_up"]
+
+#: A minimal Klipper printer with smoothed pressure advance (the Klipper kernels).
+_KLIPPER_CFG = """[printer]
+kinematics: cartesian
+max_velocity: 300
+max_accel: 3000
+""" + "".join(f"[stepper_{a}]\nposition_endstop: 0\nposition_max: 250\n" for a in "xyz") + """
+[extruder]
+nozzle_diameter: 0.4
+filament_diameter: 1.75
+pressure_advance: 0.04
+pressure_advance_smooth_time: 0.04
+[gcode_arcs]
+resolution: 1.0
+"""
+
+
+def warm_up() -> float:
+    """Run plan and simulate on a small print in every common configuration; return the
+    seconds it took (compilation, or loading from the cache when it is warm)."""
+    from flowtwin.gcode.generator import PrintSpec, write_print
+    from flowtwin.planner.plan_file import plan_gcode
+    from flowtwin.planner.plan_stream import plan_stream
+    from flowtwin.simulation import simulate, simulate_stream
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "warm.gcode"
+        write_print(path, PrintSpec(layers=3))
+        cfg = Path(tmp) / "printer.cfg"
+        cfg.write_text(_KLIPPER_CFG)
+        for kw in ({"printer": "generic-klipper"}, {"printer": "generic-marlin"},
+                   {"klipper_config": cfg}):
+            plan = plan_gcode(path, **kw)  # type: ignore[arg-type]
+            plan.summary()
+            plan.per_layer()
+            plan_stream(path, window_moves=1000, **kw).run().summary()  # type: ignore[arg-type]
+        for cfg_or_none in (None, cfg):
+            sim = simulate(path, klipper_config=cfg_or_none, series_dt_s=0.01)
+            sim.summary()
+            sim.per_layer()
+            sim.per_feature()
+            sim.worst_moves("width")
+            simulate_stream(path, klipper_config=cfg_or_none, section_moves=1000,
+                            chunk_bytes=16 * 1024).summary()
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    print(f"flowtwin kernels compiled and cached in {warm_up():.1f} s")
