@@ -1,7 +1,7 @@
 """The twin's slip law as the firmware's own nonlinear-extrusion settings (``M592``).
 
 The drive slips by ``s = (k_p + s'·F₀)/(1 + s'·F₀)`` in steady extrusion, with ``F₀`` the
-feed force the commanded filament speed needs [000 Eqs. 6, 8] (``F₀ ∝`` flow, SPEC §3.4;
+feed force the commanded filament speed needs [000 Eqs. 6, 8] (``F₀ ∝`` flow, docs/spec.md §3.4;
 :func:`flowtwin.simulation.parameters.operating_point`). To deliver a G-code's filament
 speed ``v`` the drive must be commanded ``v_c`` with ``v_c·(1 − s(v_c)) = v``: the
 firmware should multiply the E of a move by
