@@ -56,7 +56,7 @@ args = json.loads(sys.argv[1])
 t0, c0 = time.perf_counter(), time.process_time()
 fn = simulate_stream if args["stream"] else simulate
 r = fn(args["path"], klipper_config=args["cfg"])
-s = r.summary()
+s = r.summary().as_dict()
 out = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
        "import_s": t0 - t_imp, "max_rss_mb": hwm_mb(),
        "total_time_s": s["total_time_s"], "moves": s["moves"],
@@ -101,7 +101,7 @@ def _warm(path: Path, cfg: Path | None, repeat: int, *, stream: bool = False
         r = fn(path, klipper_config=cfg)
         best_w = min(best_w, time.perf_counter() - t0)
         best_c = min(best_c, time.process_time() - c0)
-        hours = float(r.summary()["total_time_s"]) / 3600.0  # type: ignore[arg-type]
+        hours = r.summary().total_time_s / 3600.0
     return {"wall_s": best_w, "cpu_s": best_c, "print_hours": hours}
 
 

@@ -36,7 +36,7 @@ def _job(path: Path, **kw: object) -> Job:
 def test_row_carries_the_plan_summary_of_the_file(prints: dict[str, Path]) -> None:
     job = _job(prints["p5"])
     row = run_job(job).row
-    expected = plan_gcode(prints["p5"], printer=job.machine.printer).summary()
+    expected = plan_gcode(prints["p5"], printer=job.machine.printer).summary().as_dict()
     assert row["error"] is None and row["error_kind"] is None
     assert row["total_time_s"] == expected["total_time_s"]
     assert row["moves"] == expected["moves"] and row["layers"] == 5
@@ -53,7 +53,8 @@ def test_simulate_engine_row_is_the_twin_summary(prints: dict[str, Path]) -> Non
     assert DEFAULT_ENGINE == "simulate"
     job = _job(prints["p5"], engine="simulate")
     row = run_job(job).row
-    expected = flatten_summary(simulate(str(prints["p5"]), machine=job.machine).summary())
+    expected = flatten_summary(simulate(str(prints["p5"]), machine=job.machine).summary()
+                               .as_dict())
     assert row["error"] is None and row["engine"] == "simulate"
     for key in ("total_time_s", "commanded_volume_mm3", "delivered_volume_mm3",
                 "volume_error", "rms_flow_error", "worst_width_error_mm", "max_feed_force_n",

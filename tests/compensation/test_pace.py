@@ -19,6 +19,7 @@ import pytest
 
 from flowtwin.compensation import compensate
 from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.original import read_original
 from flowtwin.compensation.pace import (
     PaceOptions,
     drop_envelope,
@@ -27,8 +28,7 @@ from flowtwin.compensation.pace import (
     staircase,
     step_speed_mm_s,
 )
-from flowtwin.compensation.pipeline import _printing
-from flowtwin.compensation.source import read_source, row_e_grid, scan_source
+from flowtwin.compensation.stages import printing_pieces
 from flowtwin.errors import ProfileError
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import read_options
@@ -96,8 +96,8 @@ def _draft(path: Path) -> tuple[Draft, SimulationResult, float]:
     m = load_machine(DEFAULT_MACHINE)
     sim = simulate(path, machine=m, pressure_advance=False)
     table = sim.plan.table
-    scanned = scan_source(read_source(path), table, home_xyz=read_options(m.printer).home_xyz)
-    return Draft.identity(scanned, table, row_e_grid(scanned, table)), sim, scanned.e_unit
+    orig = read_original(path, table, home_xyz=read_options(m.printer).home_xyz)
+    return Draft.identity(orig, table), sim, orig.e_unit
 
 
 def _pace(draft: Draft, sim: SimulationResult, options: PaceOptions,
@@ -106,7 +106,7 @@ def _pace(draft: Draft, sim: SimulationResult, options: PaceOptions,
     length = np.linalg.norm(draft.xyz_mm - draft.start_xyz(), axis=1)
     cmd = sim.dynamics.moves["cmd_mm3"]
     area = np.where(length > 0, cmd / np.where(length > 0, length, 1.0), 0.0)
-    return pace_feeds(draft, printing=_printing(sim, draft), cross_section_mm2=area,
+    return pace_feeds(draft, printing=printing_pieces(sim, draft), cross_section_mm2=area,
                       lag_k_s=sim.parameters.params.lag_k_s, volume_mm3=cmd,
                       start_v_mm_s=ph["start_v"],
                       cruise_v_mm_s=ph["cruise_v"], end_v_mm_s=ph["end_v"],
@@ -277,7 +277,7 @@ def test_pacing_and_advance_fix_thin_transitions(thin_gcode: Path, tmp_path: Pat
           f"{paced.time_before_s:.2f} -> {paced.time_after_s:.2f} s")
     assert "pace" in paced.transformations and paced.paced_moves
     assert paced.pace_time_cost_s > 0
-    s = paced.summary()
+    s = paced.as_dict()
     cost = s["pace_time_cost_s"]
     assert s["paced_moves"] == len(paced.paced_moves) and isinstance(cost, float) and cost > 0
     assert b.peak_overextrusion_window > 1.0  # the problem is there: > +100 %
@@ -293,8 +293,8 @@ def test_pace_off_is_byte_identical(example: Path, tmp_path: Path) -> None:
     out = tmp_path / "out.gcode"
     report = compensate(example, out, pace=False)
     assert out.read_bytes() == example.read_bytes()
-    assert report.paced_moves == [] and report.pace_time_cost_s == 0.0
-    assert report.summary()["pace"] is None
+    assert report.paced_moves == () and report.pace_time_cost_s == 0.0
+    assert report.as_dict()["pace"] is None
 
 
 @pytest.mark.parametrize(("name", "value"), [("margin", 1.0), ("min_drop", 1.0),
@@ -322,7 +322,7 @@ def test_a_run_start_is_paced_from_the_state_the_column_carries(tmp_path: Path) 
         paced_lines[blob] = set(lines.tolist())
         if blob:  # the blob row (line 14) extrudes on the Z move, no XY: not a run
             row = int(np.flatnonzero(draft.table.moves["line"] == 14)[0])
-            assert sim.dynamics.moves["cmd_mm3"][row] > 6.0 and not _printing(sim, draft)[row]
+            assert sim.dynamics.moves["cmd_mm3"][row] > 6.0 and not printing_pieces(sim, draft)[row]
     assert 13 not in paced_lines[3.0] and 19 not in paced_lines[3.0]
     assert 13 in paced_lines[0.0] and 19 in paced_lines[0.0]
 

@@ -12,6 +12,7 @@ import pytest
 
 from flowtwin.compensation import (
     AdvanceOptions,
+    CompensationReport,
     GuardOptions,
     SlipOptions,
     TrajectoryOptions,
@@ -33,7 +34,8 @@ def non_motion(path: Path) -> list[bytes]:
 
 
 @pytest.fixture(scope="module")
-def advanced(example: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
+def advanced(example: Path,
+             tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, CompensationReport]:
     out = tmp_path_factory.mktemp("adv") / "out.gcode"
     return out, compensate(example, out, advance=True, slip=True)
 
@@ -54,10 +56,10 @@ def test_no_op_settings_are_byte_identical(example: Path, tmp_path: Path) -> Non
     assert (tmp_path / "out.gcode.gz").read_bytes() == gz.read_bytes()
 
 
-def test_example_five_fold(advanced: tuple[Path, object], example: Path) -> None:
+def test_example_five_fold(advanced: tuple[Path, CompensationReport], example: Path) -> None:
     """Issue §3: RMS flow error and peak over-extrusion each cut by at least 5×."""
     _out, report = advanced
-    b, a = report.before, report.after  # type: ignore[attr-defined]
+    b, a = report.before, report.after
     print(f"\nexample: RMS {b.rms_flow_error:.4f} -> {a.rms_flow_error:.4f}, "
           f"peak {b.peak_overextrusion:.4f} -> {a.peak_overextrusion:.4f}")
     assert b.rms_flow_error > 0.03 and b.peak_overextrusion > 0.1  # a real problem to fix
@@ -65,14 +67,14 @@ def test_example_five_fold(advanced: tuple[Path, object], example: Path) -> None
     assert a.peak_overextrusion * 5.0 <= b.peak_overextrusion
 
 
-def test_untouched_lines_are_kept(advanced: tuple[Path, object], example: Path) -> None:
+def test_untouched_lines_are_kept(advanced: tuple[Path, CompensationReport], example: Path) -> None:
     out, report = advanced
     assert non_motion(out) == non_motion(example)
     src = example.read_bytes().split(b"\n")
     dst = out.read_bytes().split(b"\n")
     kept = set(dst)
     unchanged = sum(1 for ln in src if ln in kept)
-    assert unchanged + report.lines_rewritten >= len(src)  # type: ignore[attr-defined]
+    assert unchanged + report.lines_rewritten >= len(src)
     assert not list(out.parent.glob(".*tmp"))  # no temporary file left behind
 
 
@@ -115,7 +117,7 @@ def test_guard_keeps_force_and_flow_below_the_limits(example: Path, tmp_path: Pa
     out = tmp_path / "guard.gcode"
     base = simulate(example)
     f_max = float(np.min(base.parameters.params.max_feed_force_n))
-    peak = float(base.summary()["max_feed_force_n"])  # type: ignore[arg-type]
+    peak = base.summary().max_feed_force_n
     safety = 0.6 * peak / f_max  # a limit the example exceeds
     report = compensate(example, out, guard=GuardOptions(safety=safety, max_flow_mm3_s=4.0))
     assert report.slowed_moves and report.guard_time_cost_s > 0
@@ -123,7 +125,7 @@ def test_guard_keeps_force_and_flow_below_the_limits(example: Path, tmp_path: Pa
     after = simulate(out)
     # the force follows the flow through the lag: within 3 % of the limit after the
     # guard's iterations (it was 67 % above it)
-    assert float(after.summary()["max_feed_force_n"]) <= 1.03 * safety * f_max  # type: ignore[arg-type]
+    assert after.summary().max_feed_force_n <= 1.03 * safety * f_max
     assert commanded_e(out) == pytest.approx(commanded_e(example), rel=1e-12)
 
 
@@ -136,9 +138,9 @@ def test_trajectory_lays_the_road_and_keeps_the_volume(example: Path, tmp_path: 
     full = compensate(example, out, trajectory=TrajectoryOptions(max_shift_mm=1.5))
     t = full.trajectory
     assert t is not None
-    strand = float(t["strand_lag_mm"])  # type: ignore[arg-type]
-    dev0 = float(t["road_deviation_before_mm"])  # type: ignore[arg-type]
-    dev1 = float(t["road_deviation_after_mm"])  # type: ignore[arg-type]
+    strand = t.strand_lag_mm
+    dev0 = t.road_deviation_before_mm
+    dev1 = t.road_deviation_after_mm
     assert strand == pytest.approx(4.99 * 0.2, rel=0.01)
     assert dev0 == pytest.approx(0.482 * strand, rel=0.02)
     assert dev1 < dev0 / 20  # the corners are laid where they belong
@@ -147,8 +149,8 @@ def test_trajectory_lays_the_road_and_keeps_the_volume(example: Path, tmp_path: 
     capped = compensate(example, out, trajectory=TrajectoryOptions(max_shift_mm=0.4))
     c = capped.trajectory
     assert c is not None
-    assert float(c["max_shift_mm"]) <= 0.4 + 1e-12  # type: ignore[arg-type]
-    assert float(c["road_deviation_after_mm"]) < dev0  # type: ignore[arg-type]
+    assert c.max_shift_mm <= 0.4 + 1e-12
+    assert c.road_deviation_after_mm < dev0
     assert commanded_e(out) == pytest.approx(commanded_e(example), rel=1e-9)
 
 
@@ -156,9 +158,9 @@ def test_metric_of_an_unchanged_file_is_the_twins(example: Path) -> None:
     res = simulate(example, pressure_advance=False)
     fig = flow_figures(res, res, np.arange(len(res.plan.table)))
     s = res.summary()
-    assert fig.rms_flow_error == pytest.approx(s["rms_flow_error"], rel=1e-12)
-    assert fig.peak_overextrusion == pytest.approx(s["peak_overextrusion"], rel=1e-12)
-    assert fig.peak_underextrusion == pytest.approx(s["peak_underextrusion"], rel=1e-12)
+    assert fig.rms_flow_error == pytest.approx(s.rms_flow_error, rel=1e-12)
+    assert fig.peak_overextrusion == pytest.approx(s.peak_overextrusion, rel=1e-12)
+    assert fig.peak_underextrusion == pytest.approx(s.peak_underextrusion, rel=1e-12)
 
 
 def test_bad_input_names_the_file_and_writes_nothing(tmp_path: Path) -> None:
@@ -238,7 +240,7 @@ def test_lag_factor_changes_names_the_moves_whose_physics_differ(tmp_path: Path)
         lag_factor_changes(a, b, rows[:-1])
 
 
-def test_retracting_travels_start_the_next_run_relaxed(advanced: tuple[Path, object],
+def test_retracting_travels_start_the_next_run_relaxed(advanced: tuple[Path, CompensationReport],
                                                         example: Path) -> None:
     """The slicer's retraction holds the run's end pressure through the travel; the
     push-back after it is shortened by that compression (the advance law's −K·v⁰_E where
@@ -246,8 +248,8 @@ def test_retracting_travels_start_the_next_run_relaxed(advanced: tuple[Path, obj
     pass re-sizes it on its own model; the push-backs are short by exactly what the kept
     passes report, and the file keeps its commanded E (the printing pieces carry it)."""
     out, report = advanced
-    passes = [p for p in report.advance if p.get("kept", True)]  # type: ignore[attr-defined]
-    shortened = int(passes[0]["relief_retractions"])
+    passes = [p for p in report.advance if p.kept]
+    shortened = passes[0].relief_retractions
     assert shortened > 0
     e_only = re.compile(r"^G1 E(-?\d*\.\d+)")
 
@@ -265,5 +267,4 @@ def test_retracting_travels_start_the_next_run_relaxed(advanced: tuple[Path, obj
     assert len(short) >= shortened
     taken = sum(retract - v for v in after if retract - 0.2 < v < retract - 1e-9)
     assert taken > 0
-    assert taken == pytest.approx(sum(float(p["relief_retraction_mm"]) for p in passes),
-                                  abs=1e-4)
+    assert taken == pytest.approx(sum(p.relief_retraction_mm for p in passes), abs=1e-4)

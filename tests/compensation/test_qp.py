@@ -1,11 +1,11 @@
-"""The banded Cholesky factorisation of the interior-point steps (LAPACK, one BLAS thread)."""
+"""The compiled banded Cholesky of the interior-point steps, and the independent blocks."""
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
-from flowtwin.compensation._qp import _BandedFactor, _Kkt
+from flowtwin.compensation._qp import envelope_cholesky, envelope_solve, qp_blocks, solve_box_qp
 
 
 def _band_spd(n: int, b: int, seed: int) -> np.ndarray:
@@ -19,30 +19,80 @@ def _band_spd(n: int, b: int, seed: int) -> np.ndarray:
     return m
 
 
-def test_banded_step_matrix_solves_like_numpy() -> None:
-    """``H + Cᵀ·diag(d)·C`` (band ``b``, C = identity) factorised in band storage solves
-    like numpy's dense solve, and numpy's factor is what LAPACK returns."""
+def _envelope(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = m.shape[0]
+    first = np.array([int(np.flatnonzero(m[i, :i + 1])[0]) for i in range(n)])
+    ptr = np.concatenate(([0], np.cumsum(np.arange(n) - first + 1)))
+    vals = np.concatenate([m[i, first[i]:i + 1] for i in range(n)])
+    return first, ptr, vals
+
+
+def test_envelope_cholesky_is_numpys_and_solves() -> None:
     for n, b, seed in [(40, 3, 0), (25, 11, 1), (60, 1, 2), (5, 0, 3)]:
         m = _band_spd(n, b, seed)
-        d = np.random.default_rng(seed + 10).uniform(0.5, 2.0, size=n)
-        kkt = _Kkt(sp.csc_matrix(m), sp.csr_matrix(sp.identity(n)))
-        assert kkt.banded and kkt.b == b
-        fac = kkt.factor(d)
-        assert isinstance(fac, _BandedFactor)
-        full = m + np.diag(d)
-        upper = np.linalg.cholesky(full).T
-        for k in range(b + 1):  # LAPACK upper band storage: ab[b − k, j] = U[j − k, j]
-            np.testing.assert_allclose(fac.factor[b - k, k:], np.diag(upper, k),
-                                       rtol=1e-9, atol=1e-9)
+        # an envelope that is not a band: one dense block of rows in the middle
+        if n > 20:
+            m[15:20, 5:15] = 0.01
+            m[5:15, 15:20] = 0.01
+            m += np.diag(np.full(n, 1.0))
+        first, ptr, vals = _envelope(m)
+        out = np.empty_like(vals)
+        assert envelope_cholesky(first, ptr, vals, out)
+        lower = np.linalg.cholesky(m)
+        for i in range(n):
+            np.testing.assert_allclose(out[ptr[i]:ptr[i + 1]], lower[i, first[i]:i + 1],
+                                       rtol=1e-10, atol=1e-12)
         rhs = np.random.default_rng(seed).normal(size=n)
-        np.testing.assert_allclose(full @ fac.solve(rhs), rhs, rtol=1e-10, atol=1e-10)
+        x = np.empty(n)
+        envelope_solve(first, ptr, out, rhs, x)
+        np.testing.assert_allclose(m @ x, rhs, rtol=1e-10, atol=1e-10)
 
 
-def test_indefinite_step_matrix_is_not_factorised_as_banded() -> None:
-    m = np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # eigenvalue −1
-    kkt = _Kkt(sp.csc_matrix(m), sp.csr_matrix(sp.identity(3)))
-    assert kkt.banded
-    fac = kkt.factor(np.zeros(3))
-    assert not isinstance(fac, _BandedFactor)  # the LU fallback takes it
-    rhs = np.array([1.0, 2.0, 3.0])
-    np.testing.assert_allclose(m @ fac.solve(rhs), rhs, rtol=1e-9)
+def test_indefinite_matrix_is_refused() -> None:
+    first, ptr, vals = _envelope(np.array([[1.0, 2.0], [2.0, 1.0]]))  # eigenvalue −1
+    assert not envelope_cholesky(first, ptr, vals, np.empty_like(vals))
+
+
+def test_blocks_split_where_nothing_couples() -> None:
+    # H couples 0-1 and 3-4; a constraint row spans 5..7
+    starts, ends = qp_blocks(9, np.array([0, 3, 2]), np.array([1, 4, 2]), np.array([5]),
+                             np.array([7]))
+    assert list(zip(starts.tolist(), ends.tolist(), strict=True)) == [
+        (0, 2), (2, 3), (3, 5), (5, 8), (8, 9)]
+
+
+def test_blocks_solve_like_the_whole() -> None:
+    """Two independent least-squares problems with bounds, solved as one program, give
+    each its own solution."""
+    rng = np.random.default_rng(3)
+    sols = []
+    blocks = []
+    for n in (7, 12):
+        a = rng.normal(size=(n + 5, n))
+        b = rng.normal(size=n + 5)
+        lo = np.full(n, -0.2)
+        blocks.append((a.T @ a, -a.T @ b, lo))
+        x, _, _ = solve_box_qp(sp.csc_matrix(a.T @ a), -a.T @ b, sp.identity(n, format="csr"),
+                               np.zeros(n), lo, np.full(n, np.inf))
+        sols.append(x)
+    h = sp.block_diag([b[0] for b in blocks], format="csc")
+    g = np.concatenate([b[1] for b in blocks])
+    lo = np.concatenate([b[2] for b in blocks])
+    x, _, _ = solve_box_qp(h, g, sp.identity(19, format="csr"), np.zeros(19), lo,
+                           np.full(19, np.inf))
+    np.testing.assert_allclose(x, np.concatenate(sols), atol=1e-8)
+
+
+def test_interior_optimum_of_a_run_start_is_found() -> None:
+    """A pre-charge and the state after the first piece of a run (taken from the
+    Cura 5.9.1 program): the optimum lies inside both bounds; separate primal and dual
+    steps made the iterates bounce between the ends of the ratio box for ever."""
+    h = sp.csc_matrix([[4.28434073, -1.64674685], [-1.64674685, 2.67874924]])
+    g = np.array([-2684.34185396, -4701.88793697])
+    c = sp.csr_matrix([[-6.84788816, 7.57871162], [1.0, 0.0]])
+    lo = np.array([166.48459478867323, 0.0])
+    hi = np.array([22063.07752258329, 3368.0392026014647])
+    x, it, _ = solve_box_qp(h, g, c, np.zeros(2), lo, hi, max_iterations=150,
+                            x0=np.array([0.0, 439.34801342]))
+    np.testing.assert_allclose(x, np.linalg.solve(h.toarray(), -g), rtol=1e-9)
+    assert it < 40

@@ -13,9 +13,9 @@ from scipy.optimize import lsq_linear
 from flowtwin.compensation._qp import solve_box_qp
 from flowtwin.compensation._refine_kernel import lag_gain, model_pass
 from flowtwin.compensation.advance import eligible_rows
+from flowtwin.compensation.original import read_original
 from flowtwin.compensation.pieces import Pieces, split_rows
 from flowtwin.compensation.refine import LagModel, RefineOptions, build_lag_model, refine_qp
-from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.dynamics import ExtrusionParams, predict
 from flowtwin.simulation import simulate
 
@@ -84,10 +84,10 @@ def test_model_equals_the_twin_without_slip(tmp_path: Path) -> None:
                                                                     / np.pi)))
     twin = predict(res.plan.table, res.plan.timeline, bare).moves["out_mm3"]
     table, tl = res.plan.table, res.plan.timeline
-    scanned = scan_source(read_source(path), table)
-    rows_e = row_e_grid(scanned, table).astype(float)
+    scanned = read_original(path, table)
+    rows_e = scanned.row_e.astype(float)
     pieces = split_rows(tl, np.zeros(len(table), bool))
-    elig = eligible_rows(table, row_e_grid(scanned, table))
+    elig = eligible_rows(table, scanned.row_e)
     length = pieces.row_length_mm
     ratio = np.where(length > 0, rows_e / np.where(length > 0, length, 1), 0)
     group = np.where(elig, np.cumsum(elig) - 1, -1)
@@ -141,7 +141,7 @@ def _refine_problem(path: Path, lines: list[str], *, relieve: bool = False
     path.write_text("\n".join(lines) + "\n")
     res = simulate(path, pressure_advance=False)
     table, tl, p = res.plan.table, res.plan.timeline, res.parameters.params
-    rows_e = row_e_grid(scan_source(read_source(path), table), table)
+    rows_e = read_original(path, table).row_e
     elig = eligible_rows(table, rows_e)
     pieces = split_rows(tl, elig, accel_pieces=3)
     free = elig[pieces.row]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from flowtwin.compensation.advance import eligible_rows
+from flowtwin.compensation.original import read_original
 from flowtwin.compensation.relief import relief_amounts, retraction_interims
-from flowtwin.compensation.source import read_source, row_e_grid, scan_source
 from flowtwin.simulation import simulate
 
 
@@ -29,8 +29,7 @@ def test_a_hold_starts_at_the_retraction_not_at_the_travel_before_it(tmp_path: P
     ]) + "\n")
     res = simulate(path, pressure_advance=False)
     table = res.plan.table
-    scanned = scan_source(read_source(path), table)
-    e = row_e_grid(scanned, table)
+    e = read_original(path, table).row_e
     elig = eligible_rows(table, e)
     kind = np.asarray(table.moves["kind"], dtype=np.uint8)
     found = retraction_interims(elig, kind, e, table.moves["tool"], res.plan.timeline,

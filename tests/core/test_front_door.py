@@ -43,4 +43,4 @@ def test_plan_and_simulate_through_the_front_door(tmp_path: Path) -> None:
     machine = flowtwin.load_machine("tronvoll2019")
     plan = flowtwin.plan(path, printer=machine.printer)
     sim = flowtwin.simulate(path, machine=machine)
-    assert plan.summary()["total_time_s"] == sim.summary()["total_time_s"] > 0
+    assert plan.summary().total_time_s == sim.summary().total_time_s > 0

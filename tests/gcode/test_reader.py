@@ -40,7 +40,18 @@ def test_g92_xyz_offsets_and_g28_axes() -> None:
     m = t.moves
     assert (m["x"][1], m["y"][1]) == (15.0, 15.0)   # G92 made 10 the new 0
     assert (m["x"][2], m["y"][2]) == (-3.0, 16.0)   # G28 X: only X went home
-    assert [e.code for e in t.events] == ["G28"]
+    # the modal commands are events too (compensation reads its modes from them)
+    assert [(e.code, e.move_index) for e in t.events] == [("G92", 1), ("G28", 2)]
+    assert t.events[0].params == {"X": 0.0, "Y": 0.0}
+
+
+def test_modal_commands_are_events_in_order() -> None:
+    t = read("G21\nM82\nG90\nG1 X1 E1\nG92 E0\nM83\nG91\nG1 X1 E0.5\nG90\nG20\nG1 X1\n")
+    assert [(e.code, e.move_index, e.line) for e in t.events] == [
+        ("G21", 0, 1), ("M82", 0, 2), ("G90", 0, 3), ("G92", 1, 5), ("M83", 1, 6),
+        ("G91", 1, 7), ("G90", 2, 9), ("G20", 2, 10)]
+    assert t.events[3].params == {"E": 0.0}
+    assert t.unknown_commands == {}
 
 
 def test_inches_and_speed_and_flow_factors() -> None:
@@ -56,7 +67,7 @@ def test_inches_and_speed_and_flow_factors() -> None:
 def test_tools_keep_separate_e_and_pseudo_tools() -> None:
     t = read("M83\nT0\nG1 X1 E2\nT1\nG1 X2 E3\nT1000\nG1 X3 E0.5\nT0\nG1 X4 E1\n")
     assert t.net_filament_mm() == pytest.approx({0: 3.0, 1: 3.0, 1000: 0.5})
-    assert [e.code for e in t.events] == ["T0", "T1", "T1000", "T0"]
+    assert [e.code for e in t.events] == ["M83", "T0", "T1", "T1000", "T0"]
 
 
 def test_compact_words_without_spaces() -> None:

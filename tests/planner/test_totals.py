@@ -96,4 +96,4 @@ def test_empty_plan(tmp_path: Path) -> None:
     plan = plan_gcode(path)
     assert plan.per_layer() == []
     s = plan.summary()
-    assert s["moves"] == 0 and s["layers"] == 0 and s["net_filament_mm"] == {}
+    assert s.moves == 0 and s.layers == 0 and s.net_filament_mm == {}

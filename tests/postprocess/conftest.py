@@ -51,13 +51,18 @@ def flowtwin_exe() -> str:
 
 
 def slice_part(prusa_slicer: str, stl: Path, out: Path, *options: str,
-               post_process: str | None = None) -> subprocess.CompletedProcess[str]:
+               post_process: str | None = None, keep_before: Path | None = None
+               ) -> subprocess.CompletedProcess[str]:
     """Slice ``stl`` with PrusaSlicer's command line into ``out`` (a Marlin 2 printer with
     M73 progress and its machine limits in the G-code), with an optional post-processing
-    script."""
+    script; ``keep_before``: a first script copies the slicer's file there before it runs
+    (PrusaSlicer runs its scripts in order; two slicings of one model need not agree move
+    for move, its seams are placed in parallel)."""
     cmd = [prusa_slicer, "--export-gcode", "--gcode-flavor", "marlin2", "--remaining-times",
            "--machine-limits-usage", "emit_to_gcode", "--center", "100,100",
            "--layer-height", "0.2", *options]
+    if keep_before is not None:
+        cmd += ["--post-process", f"/bin/sh -c 'cp \"$0\" {keep_before}'"]
     if post_process is not None:
         cmd += ["--post-process", post_process]
     cmd += ["-o", str(out), str(stl)]

@@ -103,9 +103,9 @@ def test_layer_and_feature_rows_add_up(demo_result: SimulationResult) -> None:
     s = demo_result.summary()
     win = result_windowed(demo_result)
     assert sum(r["commanded_mm3"] for r in var.layers) == pytest.approx(  # type: ignore[misc]
-        s["commanded_volume_mm3"])
+        s.commanded_volume_mm3)
     assert sum(r["delivered_mm3"] for r in var.features) == pytest.approx(  # type: ignore[misc]
-        s["delivered_volume_mm3"])
+        s.delivered_volume_mm3)
     assert max(r["worst_over"] for r in var.layers  # type: ignore[type-var]
                if r["worst_over"] == r["worst_over"]) == pytest.approx(win.peak_over)
     ours = {int(r["layer"]): r["rms_flow_error"] for r in var.layers}  # type: ignore[call-overload]

@@ -43,10 +43,10 @@ def test_demo_verdict_agrees_with_summary_and_compensation(
     assert v.over is not None and v.under is not None
     assert v.over.error == pytest.approx(comp.peak_overextrusion_window, rel=1e-12)
     # a window inside one move is that move: equal up to the rounding of two sums
-    assert v.over.error <= s["peak_overextrusion"] * (1 + 1e-9)  # type: ignore[operator]
-    assert v.grinding.min_margin_n == pytest.approx(s["min_force_margin_n"])
-    assert v.grinding.level == "safe" and s["grinding_moves"] == 0
-    assert v.print_time_s == s["total_time_s"] and v.ooze_mm3 == s["ooze_volume_mm3"]
+    assert v.over.error <= s.peak_overextrusion * (1 + 1e-9)
+    assert v.grinding.min_margin_n == pytest.approx(s.min_force_margin_n)
+    assert v.grinding.level == "safe" and s.grinding_moves == 0
+    assert v.print_time_s == s.total_time_s and v.ooze_mm3 == s.ooze_volume_mm3
     lines = demo_gcode.read_text().splitlines()
     for spot in (*v.worst_over, *v.worst_under):
         text = lines[spot.line - 1]
@@ -73,7 +73,7 @@ def test_micrometre_move_is_not_the_headline_and_the_cli_lists_windows(
     path.write_bytes(_gcode(body))
     result = simulate(path)
     v = build_verdict(result)
-    per_move = float(result.summary()["peak_overextrusion"])  # type: ignore[arg-type]
+    per_move = result.summary().peak_overextrusion
     assert v.over is not None
     assert per_move > 0.5 and v.over.error < 0.5 * per_move
     assert v.over.line_first == 9 and v.over.line_last == 10   # the slow line and the tiny move

@@ -66,4 +66,4 @@ def test_temperature_outside_the_viscosity_law_is_an_explicit_warning(tmp_path: 
     result = simulate(gcode)
     assert any("outside the viscosity law's range" in w for w in result.warnings)
     assert any("outside the viscosity law's range" in w
-               for w in result.summary()["warnings"])  # type: ignore[union-attr]
+               for w in result.summary().warnings)

@@ -113,9 +113,10 @@ def test_simulation_warns_and_stream_agrees(unmarked_spiral: Path) -> None:
     # streaming sees layer tops only as they come, and must reach the same heights
     st = simulate_stream(unmarked_spiral, chunk_bytes=16 * 1024, section_moves=1000)
     assert st.sections >= 2  # a spiral has no rest: the section is cut mid-wall
-    a, b = whole.summary(), st.summary()
-    for key in ("delivered_volume_mm3", "rms_flow_error", "max_feed_force_n"):
-        assert abs(float(b[key]) - float(a[key])) <= 1e-9 * max(abs(float(a[key])), 1e-9), key  # type: ignore[arg-type]
+    a, b = whole.summary(), st.summary().figures
+    for x, y in ((a.delivered_volume_mm3, b.delivered_volume_mm3),
+                 (a.rms_flow_error, b.rms_flow_error), (a.max_feed_force_n, b.max_feed_force_n)):
+        assert abs(y - x) <= 1e-9 * max(abs(x), 1e-9)
 
 
 def test_layer_top_z_matches_numpy_maximum_at():

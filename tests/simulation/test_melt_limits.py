@@ -83,7 +83,7 @@ def test_maxflow_pattern_shows_the_hot_ends_limit() -> None:
     assert p.flow_limit_mm3_s is not None and p.melt_temperature_c is not None
     summary = res.summary()
     flagged = p.over_flow_limit
-    assert summary["moves_over_flow_limit"] == int(np.count_nonzero(flagged)) > 0
+    assert summary.moves_over_flow_limit == int(np.count_nonzero(flagged)) > 0
     limit = p.flow_limit_mm3_s[flagged]
     assert np.all(p.flow_mm3_s[flagged] > limit)
     assert 6.0 < float(np.min(limit)) < 15.0          # low double digits (0.2 mm layers)
@@ -96,8 +96,8 @@ def test_maxflow_pattern_shows_the_hot_ends_limit() -> None:
     # nozzle the leaving melt falls line by line (plug residence, physics.melt_history)
     melt = p.melt_temperature_c[flagged]
     assert float(melt[-1]) < 210.0 and np.all(np.diff(melt) <= 1e-9)
-    assert any("maximum volumetric flow" in w for w in summary["warnings"])  # type: ignore[union-attr]
-    assert float(summary["max_feed_force_n"]) > 27.3  # type: ignore[arg-type]
+    assert any("maximum volumetric flow" in w for w in summary.warnings)
+    assert summary.max_feed_force_n > 27.3
 
 
 def test_unretracted_filament_is_not_fed_cold_again() -> None:
@@ -143,4 +143,4 @@ def test_retraction_pairs_do_not_cool_the_melt(tmp_path) -> None:
     printing_a, printing_b = printing(ra), printing(rb)
     assert printing_a.size == printing_b.size == 39  # the first sits on the start point
     assert np.all(tb[printing_b] >= ta[printing_a] - 1e-9)
-    assert int(rb.summary()["moves_over_flow_limit"]) == 0
+    assert rb.summary().moves_over_flow_limit == 0

@@ -29,7 +29,7 @@ def demo_gcode(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_summary_has_the_required_figures_and_conserves_mass(demo_gcode: Path) -> None:
     result = simulate(demo_gcode)
-    s = result.summary()
+    s = result.summary().as_dict()
     for key in REQUIRED:
         assert key in s and s[key] is not None, key
     d = result.dynamics
@@ -104,9 +104,9 @@ def test_pressure_advance_changes_the_prediction_not_the_volume(demo_gcode: Path
                 hotend=base.hotend, material=base.material, filament=base.filament)
     with_pa = simulate(demo_gcode, machine=m).summary()
     without = simulate(demo_gcode, machine=m, pressure_advance=False).summary()
-    assert with_pa["commanded_volume_mm3"] == pytest.approx(without["commanded_volume_mm3"])
+    assert with_pa.commanded_volume_mm3 == pytest.approx(without.commanded_volume_mm3)
     # K_LA = K of the twin: the advance brings the delivered flow closer to the command
-    assert float(with_pa["rms_flow_error"]) < float(without["rms_flow_error"])  # type: ignore[arg-type]
+    assert with_pa.rms_flow_error < without.rms_flow_error
 
 
 def test_empty_file_is_a_clear_error(tmp_path: Path) -> None:
@@ -126,5 +126,5 @@ def test_impossible_profile_is_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_summary_is_json_serialisable(demo_gcode: Path) -> None:
-    s = simulate(demo_gcode).summary()
+    s = simulate(demo_gcode).summary().as_dict()
     json.dumps(s, allow_nan=False)

@@ -57,8 +57,8 @@ def test_stream_equals_whole_simulation_on_generated_print(gen_gcode: Path) -> N
     st = simulate_stream(gen_gcode, chunk_bytes=16 * 1024, section_moves=1000)
     assert st.sections > 3 and st.windows > 3  # the test crosses many borders
     assert st.unverified_moves == 0
-    _assert_same(whole.summary(), st.summary())
-    total = float(whole.summary()["commanded_volume_mm3"])  # type: ignore[arg-type]
+    _assert_same(whole.summary().as_dict(), st.summary().as_dict())
+    total = whole.summary().commanded_volume_mm3
     _rows_same(whole.per_layer(), st.per_layer(), total)  # type: ignore[arg-type]
     _rows_same(whole.per_feature(), st.per_feature(), total)  # type: ignore[arg-type]
     _worst_same(whole, st)
@@ -95,7 +95,7 @@ def test_stream_equals_whole_with_klipper_smoothed_advance(corpus_dir: Path,
                          section_moves=5000)
     assert st.sections > 3
     assert st.cuts_not_at_rest == 0 and st.unverified_moves == 0
-    _assert_same(whole.summary(), st.summary())
+    _assert_same(whole.summary().as_dict(), st.summary().as_dict())
     _worst_same(whole, st)
 
 
@@ -138,7 +138,7 @@ def test_stream_carries_marlin_linear_advance(corpus_dir: Path) -> None:
     assert whole.dynamics.feed.advance == "marlin"
     st = simulate_stream(path, section_moves=20_000)
     assert st.sections > 3 and st.unverified_moves == 0
-    _assert_same(whole.summary(), st.summary())
+    _assert_same(whole.summary().as_dict(), st.summary().as_dict())
 
 
 @pytest.mark.corpus

@@ -216,13 +216,13 @@ def evaluate(source: str | bytes | io.BytesIO, machine: Machine, *, engine: Engi
 
         planned = (plan_stream(source, printer=machine.printer).run() if large
                    else plan_gcode(source, printer=machine.printer))
-        summary = planned.summary()
+        summary = planned.summary().as_dict()
         return summary, ({**summary, "per_layer": planned.per_layer()} if report else None)
     if engine == "simulate":
         from flowtwin.simulation import simulate, simulate_stream
 
         summary = (simulate_stream(source, machine=machine).aggregates.summary() if large
-                   else simulate(source, machine=machine).summary())
+                   else simulate(source, machine=machine).summary()).as_dict()
         return summary, (dict(summary) if report else None)
     raise FlowtwinError("unknown engine", field="engine", value=engine,
                         allowed=", ".join(ENGINES))

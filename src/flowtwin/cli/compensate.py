@@ -16,9 +16,10 @@ from flowtwin.cli._common import console, err_console, fmt_duration, print_json,
 from flowtwin.defaults import DEFAULT_MACHINE
 
 if TYPE_CHECKING:
+    from flowtwin.calibration.tuning.nonlinear_extrusion import NonlinearExtrusionFit
     from flowtwin.compensation import CompensationReport
 
-__all__ = ["register", "render_report"]
+__all__ = ["nonlinear_settings", "register", "render_nonlinear", "render_report"]
 
 
 def _pct(v: float) -> str:
@@ -33,7 +34,6 @@ def _times(a: float, b: float) -> str:
 
 def render_report(report: CompensationReport) -> None:
     """Print the before/after figures of one compensated file with rich."""
-    s = report.summary()
     b, a = report.before, report.after
     rows = [
         ("RMS flow error", _pct(b.rms_flow_error), _pct(a.rms_flow_error),
@@ -71,19 +71,18 @@ def render_report(report: CompensationReport) -> None:
         notes.append(f"guard slowed {len(report.slowed_moves)} moves "
                      f"(+{report.guard_time_cost_s:.1f} s)")
     for p in report.advance:
-        kept = "" if p.get("kept", True) else " (not kept)"
-        notes.append(f"advance pass: {p['pieces']:,} pieces in {p['runs']:,} runs, "
-                     f"{p['relief_travels']} relief retractions added, "
-                     f"{float(p.get('relief_precharge_mm', 0.0)):.3f} mm pre-charge"  # type: ignore[arg-type]
-                     f"{kept}")
-    if report.trajectory:
+        kept = "" if p.kept else " (not kept)"
+        notes.append(f"advance pass: {p.pieces:,} pieces in {p.runs:,} runs, "
+                     f"{p.relief_travels} relief retractions added, "
+                     f"{p.relief_precharge_mm:.3f} mm pre-charge{kept}")
+    if report.trajectory is not None:
         t = report.trajectory
-        notes.append(f"trajectory: L = {t['lag_mm']:.3f} mm, {t['pivots']} pivots, laid road "
-                     f"within {t['road_deviation_before_mm']:.3f} → "
-                     f"{t['road_deviation_after_mm']:.3f} mm of the intended one")
+        notes.append(f"trajectory: L = {t.lag_mm:.3f} mm, {t.pivots} pivots, laid road "
+                     f"within {t.road_deviation_before_mm:.3f} → "
+                     f"{t.road_deviation_after_mm:.3f} mm of the intended one")
     for n in notes:
         console.print(n)
-    for w in s["warnings"]:  # type: ignore[attr-defined]
+    for w in report.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", markup=True)
 
 
@@ -167,7 +166,7 @@ def register(app: typer.Typer) -> None:
             target.parent.mkdir(parents=True, exist_ok=True)
             written = write_comparison(report, target)
         if json_out:
-            out = report.summary()
+            out = report.as_dict()
             if written is not None:
                 out["report"] = str(written)
             print_json(out)
@@ -195,6 +194,13 @@ def register(app: typer.Typer) -> None:
         accels: Annotated[str, typer.Option(
             "--accels", help="Adaptive table accelerations, mm/s², comma-separated."
         )] = "1000,3000,6000",
+        nonlinear: Annotated[bool, typer.Option(
+            "--nonlinear", help="Also fit the firmware's nonlinear extrusion (M592) to the "
+                                "twin's slip.")] = False,
+        firmware: Annotated[str | None, typer.Option(
+            "--firmware", help="Nonlinear extrusion for this firmware (marlin, "
+                               "reprapfirmware, klipper, …; default: the printer's).")
+        ] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     ) -> None:
         """The firmware's pressure advance that best fits the machine, and why."""
@@ -206,6 +212,10 @@ def register(app: typer.Typer) -> None:
 
         fit = best_pressure_advance(gcode, machine=profile, klipper_config=klipper_config)
         out: dict[str, object] = {"best": fit.as_dict()}
+        slip_fit = None
+        if nonlinear or firmware is not None:
+            slip_fit = nonlinear_settings(profile, klipper_config, firmware)
+            out["nonlinear_extrusion"] = slip_fit.as_dict()
         table_text = None
         if adaptive or table_out is not None:
             table, _fits = adaptive_pa_table(
@@ -228,3 +238,26 @@ def register(app: typer.Typer) -> None:
         if table_text is not None:
             console.print("OrcaSlicer adaptive pressure advance (PA, flow, accel):")
             console.print(table_text.rstrip())
+        if slip_fit is not None:
+            render_nonlinear(slip_fit)
+
+
+def nonlinear_settings(profile: str, klipper_config: Path | None,
+                       firmware: str | None) -> NonlinearExtrusionFit:
+    """The nonlinear-extrusion fit for the set-up's (or the given) firmware."""
+    from flowtwin.calibration.tuning.nonlinear_extrusion import fit_nonlinear_extrusion
+    from flowtwin.profiles.machine import load_machine
+
+    m = load_machine(profile)
+    fw = firmware or ("klipper" if klipper_config is not None else m.printer.firmware)
+    return fit_nonlinear_extrusion(m, fw)
+
+
+def render_nonlinear(fit: NonlinearExtrusionFit) -> None:
+    """Print a nonlinear-extrusion fit with rich."""
+    rows = [("firmware", fit.firmware.label), ("command", fit.command or "(none)"),
+            ("feed range", f"{fit.feed_min_mm_s:g}–{fit.feed_max_mm_s:.1f} mm/s of filament"),
+            ("residual", f"{100 * fit.rms_residual:.2f} % RMS, "
+                         f"{100 * fit.max_residual:.2f} % worst")]
+    console.print(table_from_rows("Nonlinear extrusion (the twin's slip)", ["", ""], rows))
+    console.print(fit.note)

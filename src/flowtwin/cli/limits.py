@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from flowtwin.errors import ProfileError
+
 if TYPE_CHECKING:
     from flowtwin.profiles.material import MaterialProfile
 
@@ -106,11 +108,12 @@ def _material(ref: str) -> MaterialProfile:
     from flowtwin.profiles import load_builtin, load_profile
     from flowtwin.profiles.material import MaterialProfile
 
-    if ref.endswith(".toml"):
-        return load_profile(ref, "material")
-    profile = load_builtin(ref, "material")
-    assert isinstance(profile, MaterialProfile)  # the library gives the kind asked for
-    return profile
+    mat = load_profile(ref, "material") if ref.endswith(".toml") else load_builtin(
+        ref, "material")
+    if not isinstance(mat, MaterialProfile):
+        raise ProfileError("not a material profile", field="--material", value=ref,
+                           allowed="a material from `flowtwin profiles list`")
+    return mat
 
 
 def _setup(ref: str) -> object:

@@ -22,25 +22,25 @@ def render_plan(result: PlanResult | PlanStream, *, layers: bool = True,
     """Print a plan's summary (and per-layer table) with rich (a streamed plan: after it
     ran)."""
     s = result.summary()
-    rows = [
-        ("file", s["file"]), ("printer", f"{s['printer']} ({s['firmware']})"),
-        ("print time", fmt_duration(float(s["total_time_s"]))),  # type: ignore[arg-type]
+    rows: list[tuple[str, str]] = [
+        ("file", s.file), ("printer", f"{s.printer} ({s.firmware})"),
+        ("print time", fmt_duration(s.total_time_s)),
         ("net filament (G-code E)", ", ".join(f"T{k}: {v:.2f} mm"
-                                               for k, v in s["net_filament_mm"].items())),  # type: ignore[attr-defined]
-        ("moves / lines / layers", f"{s['moves']:,} / {s['lines']:,} / {s['layers']:,}"),
+                                               for k, v in s.net_filament_mm.items())),
+        ("moves / lines / layers", f"{s.moves:,} / {s.lines:,} / {s.layers:,}"),
     ]
-    if s.get("slicer_time_s"):
+    if s.slicer_time_s:
         rows.append(("slicer's own estimate",
-                     f"{fmt_duration(float(s['slicer_time_s']))} ({s['slicer']})"))  # type: ignore[arg-type]
-    unknown = s["unknown_commands"]
+                     f"{fmt_duration(s.slicer_time_s)} ({s.slicer})"))
+    unknown = s.unknown_commands
     if unknown:
         rows.append(("unknown commands (ignored)",
-                     ", ".join(f"{k}×{v}" for k, v in list(unknown.items())[:8])  # type: ignore[attr-defined]
-                     + (" …" if len(unknown) > 8 else "")))  # type: ignore[arg-type]
+                     ", ".join(f"{k}×{v}" for k, v in list(unknown.items())[:8])
+                     + (" …" if len(unknown) > 8 else "")))
     console.print(table_from_rows("Plan", ["", ""], rows))
-    feats = s["time_by_feature_s"]
     console.print(table_from_rows("Time by feature", ["feature", "time"],
-                                  [(k, fmt_duration(v)) for k, v in feats.items()]))  # type: ignore[attr-defined]
+                                  [(k, fmt_duration(v))
+                                   for k, v in s.time_by_feature_s.items()]))
     if layers:
         per = result.per_layer()
         half = max_layer_rows // 2
@@ -97,7 +97,7 @@ def register(app: typer.Typer) -> None:
                 result = plan_gcode(str(gcode), printer=profile, klipper_config=klipper_config,
                                     use_slicer_limits=slicer_limits, strict=strict)
         if json_out:
-            out = result.summary()
+            out = result.summary().as_dict()
             out["per_layer"] = result.per_layer()
             print_json(out)
         else:

@@ -16,7 +16,7 @@ from flowtwin.errors import FlowtwinError
 if TYPE_CHECKING:
     from flowtwin.report.spots import Spot
     from flowtwin.report.verdict import Verdict
-    from flowtwin.simulation import SimulationResult, StreamResult
+    from flowtwin.simulation import SimulationResult, SimulationSummary, StreamResult
 
 __all__ = ["FIT_MAX_MOVES", "register", "render_simulation", "run_simulation"]
 
@@ -73,7 +73,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
 
             out_dir.mkdir(parents=True, exist_ok=True)
             write_report(result, out_dir / "report.html", verdict=verdict)
-            body = {"summary": result.summary(), "verdict": verdict.as_dict(),
+            body = {"summary": result.summary().as_dict(), "verdict": verdict.as_dict(),
                     "per_layer": result.per_layer(), "per_feature": result.per_feature(),
                     "worst_by_force": result.worst_moves("force")}
             atomic_write_text(out_dir / "summary.json",
@@ -130,10 +130,6 @@ def render_simulation(result: SimulationResult | StreamResult,
 
     v = verdict if verdict is not None else build_verdict(result)
     s = result.summary()
-
-    def pct(x: object) -> str:
-        return f"{100 * float(x):+.2f} %" if x is not None else "-"  # type: ignore[arg-type]
-
     console.print(f"[bold]{escape(v.headline)}[/]")
     for line in v.sentences()[1:]:
         console.print(f"  {escape(line)}")
@@ -142,25 +138,9 @@ def render_simulation(result: SimulationResult | StreamResult,
         console.print(f"  {k}. {escape(a.text)}")
         if a.command:
             console.print(f"     [cyan]{escape(a.command)}[/]")
-    rows = [
-        ("file", s["file"]), ("machine", f"{s['machine']} ({s['printer']}, {s['firmware']})"),
-        ("pressure advance", s["pressure_advance"]),
-        ("print time", fmt_duration(float(s["total_time_s"]))),  # type: ignore[arg-type]
-        ("commanded / delivered melt",
-         f"{s['commanded_volume_mm3']:.1f} / {s['delivered_volume_mm3']:.1f} mm³"),
-        ("volume error", pct(s["volume_error"])),
-        ("RMS flow error per move (beads)", f"{100 * float(s['rms_flow_error']):.2f} %"),  # type: ignore[arg-type]
-        (f"worst over- / under-extrusion over {v.window_mm:g} mm",
-         f"{pct(v.over.error if v.over else 0.0)} / "
-         f"{pct(v.under.error if v.under else 0.0)}"),
-        ("mean slip", f"{100 * float(s['mean_slip']):.2f} %"),  # type: ignore[arg-type]
-        ("max feed force / min margin",
-         f"{float(s['max_feed_force_n']):.2f} N / "  # type: ignore[arg-type]
-         + (f"{float(s['min_force_margin_n']):.2f} N" if s["min_force_margin_n"] is not None  # type: ignore[arg-type]
-            else "-")),
-        ("grinding events", s["grinding_events"]),
-        ("ooze (travels and stops)", f"{float(s['ooze_volume_mm3']):.2f} mm³"),  # type: ignore[arg-type]
-    ]
+    rows = _figure_rows(s, (f"worst over- / under-extrusion over {v.window_mm:g} mm",
+                            f"{_pct(v.over.error if v.over else 0.0)} / "
+                            f"{_pct(v.under.error if v.under else 0.0)}"))
     console.print(table_from_rows("Simulation", ["", ""], rows))
     cols = ["lines", "layer", "feature", "flow", "mm³", "bead mm", ""]
     console.print(table_from_rows(
@@ -169,34 +149,39 @@ def render_simulation(result: SimulationResult | StreamResult,
     console.print(table_from_rows(
         f"Worst under-extrusion over {v.window_mm:g} mm of path", cols,
         _spot_rows(v.worst_under[:8])))
-    for w in s["warnings"]:  # type: ignore[attr-defined]
-        err_console.print(f"[yellow]warning:[/] {escape(str(w))}", markup=True)
+    for w in s.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(w)}", markup=True)
+
+
+def _pct(x: float | None) -> str:
+    return f"{100 * x:+.2f} %" if x is not None else "-"
+
+
+def _figure_rows(s: SimulationSummary, peaks: tuple[str, str]) -> list[tuple[str, object]]:
+    """The whole-print figures as rows of the console table (``peaks``: the row of the
+    worst over- and under-extrusion)."""
+    return [
+        ("file", s.file), ("machine", f"{s.machine} ({s.printer}, {s.firmware})"),
+        ("pressure advance", s.pressure_advance),
+        ("print time", fmt_duration(s.total_time_s)),
+        ("commanded / delivered melt",
+         f"{s.commanded_volume_mm3:.1f} / {s.delivered_volume_mm3:.1f} mm³"),
+        ("volume error", _pct(s.volume_error)),
+        ("RMS flow error per move (beads)", f"{100 * s.rms_flow_error:.2f} %"),
+        peaks,
+        ("mean slip", f"{100 * s.mean_slip:.2f} %"),
+        ("max feed force / min margin",
+         f"{s.max_feed_force_n:.2f} N / "
+         + (f"{s.min_force_margin_n:.2f} N" if s.min_force_margin_n is not None else "-")),
+        ("grinding events", s.grinding_events),
+        ("ooze (travels and stops)", f"{s.ooze_volume_mm3:.2f} mm³"),
+    ]
 
 
 def _render_streamed(result: StreamResult) -> None:
     s = result.aggregates.summary()
-
-    def pct(x: object) -> str:
-        return f"{100 * float(x):+.2f} %" if x is not None else "-"  # type: ignore[arg-type]
-
-    rows = [
-        ("file", s["file"]), ("machine", f"{s['machine']} ({s['printer']}, {s['firmware']})"),
-        ("pressure advance", s["pressure_advance"]),
-        ("print time", fmt_duration(float(s["total_time_s"]))),  # type: ignore[arg-type]
-        ("commanded / delivered melt",
-         f"{s['commanded_volume_mm3']:.1f} / {s['delivered_volume_mm3']:.1f} mm³"),
-        ("volume error", pct(s["volume_error"])),
-        ("RMS flow error per move (beads)", f"{100 * float(s['rms_flow_error']):.2f} %"),  # type: ignore[arg-type]
-        ("peak over- / under-extrusion per move",
-         f"{pct(s['peak_overextrusion'])} / {pct(-float(s['peak_underextrusion']))}"),  # type: ignore[arg-type]
-        ("mean slip", f"{100 * float(s['mean_slip']):.2f} %"),  # type: ignore[arg-type]
-        ("max feed force / min margin",
-         f"{float(s['max_feed_force_n']):.2f} N / "  # type: ignore[arg-type]
-         + (f"{float(s['min_force_margin_n']):.2f} N" if s["min_force_margin_n"] is not None  # type: ignore[arg-type]
-            else "-")),
-        ("grinding events", s["grinding_events"]),
-        ("ooze (travels and stops)", f"{float(s['ooze_volume_mm3']):.2f} mm³"),  # type: ignore[arg-type]
-    ]
+    rows = _figure_rows(s, ("peak over- / under-extrusion per move",
+                            f"{_pct(s.peak_overextrusion)} / {_pct(-s.peak_underextrusion)}"))
     console.print(table_from_rows("Simulation (streamed: no verdict, run with --no-stream "
                                   "for it)", ["", ""], rows))
     console.print(table_from_rows(
@@ -208,8 +193,8 @@ def _render_streamed(result: StreamResult) -> None:
         "Smallest margins to grinding", ["line", "layer", "peak force (N)", "margin (N)"],
         [(w["line"], w["layer"], f"{w['peak_force_n']:.2f}", f"{w['force_margin_n']:.2f}")
          for w in result.worst_moves("force", 5)]))
-    for w in s["warnings"]:  # type: ignore[attr-defined]
-        err_console.print(f"[yellow]warning:[/] {escape(str(w))}", markup=True)
+    for w in s.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(w)}", markup=True)
 
 
 def register(app: typer.Typer) -> None:
@@ -266,7 +251,8 @@ def register(app: typer.Typer) -> None:
             if json_out:
                 # chosen by size: the figures of the whole-table object; asked for: with
                 # the stream's own counts
-                print_json(streamed.summary() if asked else streamed.aggregates.summary())
+                figures = streamed.summary() if asked else streamed.aggregates.summary()
+                print_json(figures.as_dict())
             else:
                 render_simulation(streamed)
             return
@@ -277,7 +263,7 @@ def register(app: typer.Typer) -> None:
                                          show_progress=not json_out, fit=not no_fit,
                                          series_dt_s=series_dt)
         if json_out:
-            print_json({**result.summary(), "verdict": verdict.as_dict()})
+            print_json({**result.summary().as_dict(), "verdict": verdict.as_dict()})
             return
         render_simulation(result, verdict)
         if out is not None:

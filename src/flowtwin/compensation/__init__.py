@@ -19,8 +19,9 @@ if TYPE_CHECKING:
     from flowtwin.compensation.guard import GuardOptions
     from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
     from flowtwin.compensation.metrics import FlowFigures, flow_figures
+    from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
     from flowtwin.compensation.pace import PaceOptions, PaceReport
-    from flowtwin.compensation.pipeline import CompensationReport, compensate
+    from flowtwin.compensation.pipeline import compensate
     from flowtwin.compensation.refine import RefineOptions
     from flowtwin.compensation.slip import SlipOptions
     from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AdvanceLaw",
     "AdvanceOptions",
+    "AdvancePassSummary",
     "CompensationReport",
     "ExtruderLimits",
     "FlowFigures",
@@ -48,7 +50,8 @@ __all__ = [
 __getattr__, __dir__ = lazy_exports(__name__, {
     "AdvanceLaw": "flowtwin.compensation.advance",
     "AdvanceOptions": "flowtwin.compensation.advance",
-    "CompensationReport": "flowtwin.compensation.pipeline",
+    "AdvancePassSummary": "flowtwin.compensation.outcome",
+    "CompensationReport": "flowtwin.compensation.outcome",
     "ExtruderLimits": "flowtwin.compensation.limits",
     "FlowFigures": "flowtwin.compensation.metrics",
     "GuardOptions": "flowtwin.compensation.guard",

@@ -7,153 +7,327 @@ Solves ::
 
 with ``H`` symmetric positive (semi)definite and ``H + Cᵀ·D·C`` positive definite for
 positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
-``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``;
+``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``
+(centring ``σ = min(1, (μ_aff/μ)³)``, one step length for primal and dual);
 every Newton step solves ``(H + Cᵀ(z/s + w/t)C)·Δx = r``, which keeps the sparsity
-(banded for the lag model): a banded Cholesky factorisation (LAPACK ``pbtrf``, with BLAS
-held to one thread: on narrow bands a threaded BLAS ran 1000× slower on a busy machine),
-or SuperLU when the band is wide. Nocedal & Wright, *Numerical
-Optimization* (2nd ed.), §16.6.
+(banded for the lag model). Nocedal & Wright, *Numerical Optimization* (2nd ed.), §16.6.
+
+The program falls apart into **independent blocks** wherever no entry of ``H`` and no row
+of ``C`` joins a variable to the next one (the lag model's runs between relieved travels:
+their states do not carry over). Every block is solved on its own by a compiled
+interior-point loop (:func:`_solve_blocks`), whose steps factorise ``H + Cᵀ·D·C`` in
+envelope storage (:func:`envelope_cholesky`: a move cut into many pieces widens only its
+own rows), so the cost is linear in the number of variables; the blocks are solved in
+parallel.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
-from scipy.sparse.linalg import splu
-from threadpoolctl import threadpool_limits
+from numba import njit, prange
 
-__all__ = ["solve_box_qp"]
+__all__ = ["envelope_cholesky", "envelope_solve", "qp_blocks", "solve_box_qp"]
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 
-@dataclass(frozen=True, slots=True)
-class _State:
-    """Slacks, multipliers and residuals of one interior-point iteration."""
+@njit(cache=True)
+def envelope_cholesky(first: IntArray, ptr: IntArray, m: FloatArray, out: FloatArray) -> bool:
+    """Lower Cholesky factor ``M = L·Lᵀ`` of a symmetric matrix in envelope storage.
 
-    s: FloatArray
-    t: FloatArray
-    z: FloatArray
-    w: FloatArray
-    r_d: FloatArray
-    r_l: FloatArray
-    r_u: FloatArray
-    finite_hi: npt.NDArray[np.bool_]
-
-
-def _newton(lu: object, c: sp.csr_matrix, ct: sp.csc_matrix, st: _State, sigma_mu: float,
-            ds_corr: FloatArray, dt_corr: FloatArray
-            ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """One Newton direction. Complementarity targets ``s·z = σμ − Δs·Δz`` (corrector);
-    ``Δs = CΔx + r_l``, ``Δt = −CΔx + r_u``, ``Δz = (−rc_l − zΔs)/s``,
-    ``Δw = (−rc_u − wΔt)/t``, and ``Δx`` from the reduced system factorised in ``lu``."""
-    f = st.finite_hi
-    rc_l = st.s * st.z - sigma_mu + ds_corr
-    rc_u = np.where(f, st.t * st.w - sigma_mu + dt_corr, 0.0)
-    rhs = -st.r_d + ct @ ((-rc_l - st.z * st.r_l) / st.s
-                          - np.where(f, (-rc_u - st.w * st.r_u) / st.t, 0.0))
-    dx = lu.solve(rhs)  # type: ignore[attr-defined]
-    cdx = c @ dx
-    ds = cdx + st.r_l
-    dt = np.where(f, -cdx + st.r_u, 0.0)
-    dz = (-rc_l - st.z * ds) / st.s
-    dw = np.where(f, (-rc_u - st.w * dt) / st.t, 0.0)
-    return dx, ds, dt, dz, dw
-
-
-class _Kkt:
-    """Factorisations of ``H + Cᵀ·diag(D)·C`` for changing ``D``.
-
-    When the band is narrow the matrix is assembled straight into LAPACK's upper band
-    storage (``ab[b − k, j] = M[j − k, j]``) from precomputed index pairs of ``C``'s rows,
-    and factorised by banded Cholesky (``pbtrf``); otherwise by SuperLU.
+    Row ``i`` of the lower triangle holds columns ``first[i] … i`` at
+    ``m[ptr[i] : ptr[i + 1]]`` (so ``M[i, j] = m[ptr[i] + j − first[i]]``); the factor
+    fills no entry outside the envelope and is stored the same way in ``out``. The work
+    is ``Σ (i − first[i])²/2``: a move cut into many pieces widens the envelope of its
+    own rows only. Returns ``False`` when ``M`` is not (numerically) positive definite.
     """
-
-    def __init__(self, h: sp.csc_matrix, c: sp.csr_matrix) -> None:
-        self.h = h
-        self.c = c
-        self.ct = sp.csc_matrix(c.T)
-        n = h.shape[0]
-        hc = h.tocoo()
-        cc = c.tocoo()
-        # pairs (i ≤ j) of columns sharing a row of C
-        order = np.argsort(cc.row, kind="stable")
-        rows, cols, vals = cc.row[order], cc.col[order], cc.data[order]
-        starts = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
-        counts = np.diff(np.append(starts, rows.size))
-        pr: list[npt.NDArray[np.int64]] = []
-        pi: list[npt.NDArray[np.int64]] = []
-        pj: list[npt.NDArray[np.int64]] = []
-        pv: list[FloatArray] = []
-        for width in np.unique(counts).tolist():
-            sel = starts[counts == width]
-            for u in range(width):
-                for v in range(width):
-                    ii = cols[sel + u]
-                    jj = cols[sel + v]
-                    keep = ii <= jj
-                    pr.append(rows[sel + u][keep])
-                    pi.append(ii[keep])
-                    pj.append(jj[keep])
-                    pv.append((vals[sel + u] * vals[sel + v])[keep])
-        self.p_row = np.concatenate(pr) if pr else np.zeros(0, dtype=np.int64)
-        p_i = np.concatenate(pi) if pi else np.zeros(0, dtype=np.int64)
-        p_j = np.concatenate(pj) if pj else np.zeros(0, dtype=np.int64)
-        self.p_val = np.concatenate(pv) if pv else np.zeros(0)
-        upper = hc.row <= hc.col
-        band_h = int(np.max(hc.col[upper] - hc.row[upper], initial=0))
-        band_c = int(np.max(p_j - p_i, initial=0))
-        self.b = max(band_h, band_c)
-        self.n = n
-        self.banded = self.b * self.b * n <= 1e9 and self.b < n // 2 + 1
-        if self.banded:
-            b = self.b
-            self.h_band = np.zeros((b + 1) * n)
-            np.add.at(self.h_band, (b - (hc.col[upper] - hc.row[upper])) * n + hc.col[upper],
-                      hc.data[upper])
-            self.p_index = (b - (p_j - p_i)) * n + p_j
-
-    def factor(self, dd: FloatArray) -> object:
-        """Factorise ``H + Cᵀ·diag(dd)·C + δ·I``; ``δ`` (1e-13 of the largest diagonal,
-        raised if needed) only guards against round-off making the matrix indefinite."""
-        if self.banded:
-            band = self.h_band + np.bincount(self.p_index, weights=dd[self.p_row] * self.p_val,
-                                             minlength=self.h_band.size)
-            ab = band.reshape(self.b + 1, self.n)  # LAPACK's upper band storage
-            delta = 1e-13 * float(np.max(np.abs(ab[self.b])))
-            for _ in range(4):
-                reg = ab.copy()
-                reg[self.b] += delta
-                try:
-                    with threadpool_limits(limits=1, user_api="blas"):
-                        return _BandedFactor(cholesky_banded(reg, lower=False,
-                                                             check_finite=False))
-                except LinAlgError:  # not positive definite after round-off
-                    delta *= 1e3
-        m = sp.csc_matrix(self.h + self.ct @ sp.diags(dd) @ self.c)
-        return splu(m + sp.identity(self.n, format="csc")
-                    * (1e-13 * float(np.max(np.abs(m.diagonal())))))
+    n = first.shape[0]
+    for i in range(n):
+        fi = first[i]
+        pi = ptr[i] - fi
+        for j in range(fi, i + 1):
+            fj = first[j]
+            pj = ptr[j] - fj
+            s = m[pi + j]
+            for k in range(max(fi, fj), j):
+                s -= out[pi + k] * out[pj + k]
+            if j < i:
+                out[pi + j] = s / out[pj + j]
+            else:
+                if not s > 0.0:
+                    return False
+                out[pi + i] = math.sqrt(s)
+    return True
 
 
-class _BandedFactor:
-    def __init__(self, factor: FloatArray) -> None:
-        self.factor = factor
+@njit(cache=True)
+def envelope_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArray,
+                   out: FloatArray) -> None:
+    """Solve ``L·Lᵀ·x = rhs`` with the factor of :func:`envelope_cholesky`."""
+    n = first.shape[0]
+    for i in range(n):  # L y = rhs
+        fi = first[i]
+        pi = ptr[i] - fi
+        s = rhs[i]
+        for k in range(fi, i):
+            s -= f[pi + k] * out[k]
+        out[i] = s / f[pi + i]
+    for i in range(n - 1, -1, -1):  # Lᵀ x = y
+        fi = first[i]
+        pi = ptr[i] - fi
+        out[i] /= f[pi + i]
+        xi = out[i]
+        for k in range(fi, i):
+            out[k] -= f[pi + k] * xi
 
-    def solve(self, rhs: FloatArray) -> FloatArray:
-        with threadpool_limits(limits=1, user_api="blas"):
-            return np.asarray(cho_solve_banded((self.factor, False), rhs,
-                                               check_finite=False))
+
+@njit(cache=True)
+def _step(v: FloatArray, dv: FloatArray, mask: npt.NDArray[np.bool_]) -> float:
+    a = 1.0
+    for i in range(v.shape[0]):
+        if mask[i] and dv[i] < 0.0:
+            r = -v[i] / dv[i]
+            if r < a:
+                a = r
+    return a
 
 
-def _step_to_boundary(v: FloatArray, dv: FloatArray) -> float:
-    neg = dv < 0.0
-    if not np.any(neg):
-        return 1.0
-    return float(min(1.0, np.min(-v[neg] / dv[neg])))
+@njit(cache=True)
+def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r1, d, lo, hi,  # type: ignore[no-untyped-def]
+                 a, e, max_iterations, tolerance):
+    """Interior-point loop on variables ``a:e`` and constraint rows ``r0:r1``; ``x``
+    (the whole vector) is updated in place. Returns the iterations."""
+    n = e - a
+    m = r1 - r0
+    fin = np.empty(m, dtype=np.bool_)
+    ones = np.ones(m, dtype=np.bool_)
+    s = np.empty(m)
+    t = np.empty(m)
+    z = np.ones(m)
+    w = np.empty(m)
+    y = np.empty(m)
+    r_l = np.empty(m)
+    r_u = np.empty(m)
+    xl = x[a:e].copy()
+    for q in range(m):
+        i = r0 + q
+        fin[q] = hi[i] < np.inf
+        v = d[i]
+        for p in range(c_ptr[i], c_ptr[i + 1]):
+            v += c_val[p] * xl[c_col[p] - a]
+        span = hi[i] - lo[i] if fin[q] else 1.0
+        s[q] = max(v - lo[i], 1e-3 * span)
+        t[q] = max(hi[i] - v, 1e-3 * span) if fin[q] else 1.0
+        w[q] = 1.0 if fin[q] else 0.0
+    n_c = m
+    for q in range(m):
+        if fin[q]:
+            n_c += 1
+    gmax = 1.0
+    for i in range(a, e):
+        if abs(g[i]) > gmax:
+            gmax = abs(g[i])
+    lomax = 0.0
+    for q in range(m):
+        if abs(lo[r0 + q]) > lomax:
+            lomax = abs(lo[r0 + q])
+    mu0 = 0.0
+    for q in range(m):
+        mu0 += s[q] * z[q] + t[q] * w[q]
+    mu0 = max(mu0 / max(n_c, 1), 1e-300)
+    # envelope of the step matrix H + Cᵀ·D·C: row i from the lowest column joined to it
+    first = np.arange(n)
+    for p in range(h_ptr0, h_ptr1):
+        lo_c = min(h_r[p], h_c[p]) - a
+        hi_c = max(h_r[p], h_c[p]) - a
+        if lo_c < first[hi_c]:
+            first[hi_c] = lo_c
+    for q in range(m):
+        i = r0 + q
+        mn = n
+        for p in range(c_ptr[i], c_ptr[i + 1]):
+            mn = min(mn, c_col[p] - a)
+        for p in range(c_ptr[i], c_ptr[i + 1]):
+            cj = c_col[p] - a
+            if mn < first[cj]:
+                first[cj] = mn
+    ptr = np.empty(n + 1, dtype=np.int64)
+    ptr[0] = 0
+    for i in range(n):
+        ptr[i + 1] = ptr[i] + i - first[i] + 1
+    size = ptr[n]
+    hb = np.zeros(size)
+    for p in range(h_ptr0, h_ptr1):
+        lo_c = min(h_r[p], h_c[p]) - a
+        hi_c = max(h_r[p], h_c[p]) - a
+        hb[ptr[hi_c] + lo_c - first[hi_c]] += h_v[p]
+    ab = np.empty(size)
+    uf = np.empty(size)
+    r_d = np.empty(n)
+    rhs = np.empty(n)
+    dx = np.empty(n)
+    cdx = np.empty(m)
+    ds = np.empty(m)
+    dt = np.empty(m)
+    dz = np.empty(m)
+    dw = np.empty(m)
+    rc_l = np.empty(m)
+    rc_u = np.empty(m)
+    dd = np.empty(m)
+    it = 0
+    while it < max_iterations:
+        it += 1
+        # residuals
+        for i in range(n):
+            r_d[i] = g[a + i]
+        for p in range(h_ptr0, h_ptr1):  # H x (symmetric, one triangle stored)
+            i = h_r[p] - a
+            j = h_c[p] - a
+            r_d[i] += h_v[p] * xl[j]
+            if i != j:
+                r_d[j] += h_v[p] * xl[i]
+        mu = 0.0
+        pmax = 0.0
+        for q in range(m):
+            i = r0 + q
+            v = d[i]
+            for p in range(c_ptr[i], c_ptr[i + 1]):
+                v += c_val[p] * xl[c_col[p] - a]
+            y[q] = v
+            zw = z[q] - w[q]
+            for p in range(c_ptr[i], c_ptr[i + 1]):
+                r_d[c_col[p] - a] -= c_val[p] * zw
+            r_l[q] = v - lo[i] - s[q]
+            r_u[q] = hi[i] - v - t[q] if fin[q] else 0.0
+            mu += s[q] * z[q] + t[q] * w[q]
+            if abs(r_l[q]) > pmax:
+                pmax = abs(r_l[q])
+        mu /= max(n_c, 1)
+        dual = 0.0
+        for i in range(n):
+            if abs(r_d[i]) > dual:
+                dual = abs(r_d[i])
+        if pmax < tolerance * (1.0 + lomax) and (mu < tolerance or mu < 1e-12 * mu0):
+            if dual < tolerance * gmax or (mu < 1e-3 * tolerance and dual < 1e-3 * gmax):
+                break
+        # the step matrix H + Cᵀ·diag(z/s + w/t)·C, factorised
+        for q in range(m):
+            dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)
+        for k in range(size):
+            ab[k] = hb[k]
+        for q in range(m):
+            i = r0 + q
+            for p in range(c_ptr[i], c_ptr[i + 1]):
+                ci = c_col[p] - a
+                for p2 in range(c_ptr[i], c_ptr[i + 1]):
+                    cj = c_col[p2] - a
+                    if ci <= cj:
+                        ab[ptr[cj] + ci - first[cj]] += dd[q] * c_val[p] * c_val[p2]
+        diag_max = 0.0
+        for i in range(n):
+            v = abs(ab[ptr[i + 1] - 1])
+            if v > diag_max:
+                diag_max = v
+        delta = 1e-13 * diag_max
+        ok = False
+        for _ in range(4):
+            for i in range(n):
+                ab[ptr[i + 1] - 1] += delta
+            if envelope_cholesky(first, ptr, ab, uf):
+                ok = True
+                break
+            for i in range(n):
+                ab[ptr[i + 1] - 1] -= delta
+            delta = max(delta * 1e3, 1e-300)
+        if not ok:
+            break
+        sigma_mu = 0.0
+        for corr in range(2):
+            # Newton direction (predictor, then corrector with σμ and Δs·Δz)
+            for q in range(m):
+                rc_l[q] = s[q] * z[q] - sigma_mu + (ds[q] * dz[q] if corr else 0.0)
+                rc_u[q] = (t[q] * w[q] - sigma_mu + (dt[q] * dw[q] if corr else 0.0)
+                           if fin[q] else 0.0)
+            for i in range(n):
+                rhs[i] = -r_d[i]
+            for q in range(m):
+                i = r0 + q
+                v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
+                if fin[q]:
+                    v -= (-rc_u[q] - w[q] * r_u[q]) / t[q]
+                for p in range(c_ptr[i], c_ptr[i + 1]):
+                    rhs[c_col[p] - a] += c_val[p] * v
+            envelope_solve(first, ptr, uf, rhs, dx)
+            for q in range(m):
+                i = r0 + q
+                v = 0.0
+                for p in range(c_ptr[i], c_ptr[i + 1]):
+                    v += c_val[p] * dx[c_col[p] - a]
+                cdx[q] = v
+                ds[q] = v + r_l[q]
+                dt[q] = -v + r_u[q] if fin[q] else 0.0
+                dz[q] = (-rc_l[q] - z[q] * ds[q]) / s[q]
+                dw[q] = (-rc_u[q] - w[q] * dt[q]) / t[q] if fin[q] else 0.0
+            a_p = min(_step(s, ds, ones), _step(t, dt, fin))
+            a_d = min(_step(z, dz, ones), _step(w, dw, fin))
+            if corr == 0:
+                mu_aff = 0.0
+                for q in range(m):
+                    mu_aff += (s[q] + a_p * ds[q]) * (z[q] + a_d * dz[q])
+                    if fin[q]:
+                        mu_aff += (t[q] + a_p * dt[q]) * (w[q] + a_d * dw[q])
+                mu_aff /= max(n_c, 1)
+                # Mehrotra's centring, never above the current gap
+                sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0.0 else 0.0
+                sigma_mu = sigma * mu
+        # one step for primal and dual: with H in the dual residual, separate steps would
+        # break the Newton direction (a two-variable run start oscillated between the
+        # bounds of its ratio box with them)
+        alpha = min(0.995 * min(a_p, a_d), 1.0)
+        for i in range(n):
+            xl[i] += alpha * dx[i]
+        for q in range(m):
+            s[q] += alpha * ds[q]
+            t[q] = t[q] + alpha * dt[q] if fin[q] else 1.0
+            z[q] += alpha * dz[q]
+            w[q] = w[q] + alpha * dw[q] if fin[q] else 0.0
+    for i in range(n):
+        x[a + i] = xl[i]
+    return it
+
+
+@njit(cache=True, parallel=True)
+def _solve_blocks(x, block_a, block_e, h_ptr, h_r, h_c, h_v, g, row_ptr,  # type: ignore[no-untyped-def]
+                  c_ptr, c_col, c_val, d, lo, hi, max_iterations, tolerance, iters):
+    for k in prange(block_a.shape[0]):
+        iters[k] = _solve_block(x, h_ptr[k], h_ptr[k + 1], h_r, h_c, h_v, g, c_ptr, c_col,
+                                c_val, row_ptr[k], row_ptr[k + 1], d, lo, hi, block_a[k],
+                                block_e[k], max_iterations, tolerance)
+
+
+def qp_blocks(n: int, h_r: IntArray, h_c: IntArray, row_lo: IntArray, row_hi: IntArray
+              ) -> tuple[IntArray, IntArray]:
+    """Independent blocks of variables: ``[starts[k], ends[k])``.
+
+    Variables ``i`` and ``i + 1`` belong together when an entry ``H[r, c]`` with
+    ``r ≤ i < c`` or a constraint row spanning columns ``row_lo … row_hi`` across them
+    couples them.
+    """
+    cover = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(cover, np.minimum(h_r, h_c), 1)
+    np.add.at(cover, np.maximum(h_r, h_c), -1)
+    np.add.at(cover, row_lo, 1)
+    np.add.at(cover, row_hi, -1)
+    joined = np.cumsum(cover)[:max(n - 1, 0)] > 0  # boundary i | i + 1 is joined
+    cuts = np.flatnonzero(~joined) + 1
+    starts = np.concatenate(([0], cuts)).astype(np.int64)
+    ends = np.concatenate((cuts, [n])).astype(np.int64)
+    return starts, ends
 
 
 def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, lo: FloatArray,
@@ -173,7 +347,7 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
         Bounds of ``C·x + d``, ``(m,)``; ``lo < hi``; either may be infinite (a row with
         both infinite is ignored).
     max_iterations
-        Newton steps at most.
+        Newton steps at most (per block).
     tolerance
         Stop when the duality gap per constraint and the scaled residuals are below it.
     x0
@@ -183,7 +357,7 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     Returns
     -------
     tuple
-        ``x`` ``(n,)``, iterations, final mean complementarity.
+        ``x`` ``(n,)``, the most iterations any block took, and 0.
     """
     n = h.shape[0]
     c = sp.csr_matrix(c)
@@ -198,71 +372,48 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
         c = sp.csr_matrix(sp.diags(sign) @ c)[keep]
         d = (sign * d)[keep]
         lo, hi = np.where(upper_only, -hi, lo)[keep], np.where(upper_only, np.inf, hi)[keep]
-    m = c.shape[0]
-    h = sp.csc_matrix(h)
-    ct = sp.csc_matrix(c.T)
-    finite_hi = np.isfinite(hi)
-    span = np.where(finite_hi, hi - lo, np.inf)
-    # start: a point with C·x + d strictly inside the bounds (least squares towards the
-    # middle of each interval, or just above lo where hi is infinite)
-    target = np.where(finite_hi, lo + 0.5 * span, lo + np.maximum(1.0, np.abs(lo)) * 0.5)
+    c.sum_duplicates()
+    c.eliminate_zeros()
     if x0 is not None:
         x = np.asarray(x0, dtype=np.float64).copy()
     else:
+        finite_hi = np.isfinite(hi)
+        span = np.where(finite_hi, hi - lo, np.inf)
+        target = np.where(finite_hi, lo + 0.5 * span, lo + np.maximum(1.0, np.abs(lo)) * 0.5)
+        from scipy.sparse.linalg import splu
+
+        ct = sp.csc_matrix(c.T)
         reg = sp.identity(n, format="csc") * 1e-12
         x = splu(sp.csc_matrix(ct @ c + reg)).solve(ct @ (target - d))
-    y = c @ x + d
-    s = np.maximum(y - lo, 1e-3 * np.where(finite_hi, span, 1.0))
-    t = np.where(finite_hi, np.maximum(hi - y, 1e-3 * np.where(finite_hi, span, 1.0)), 1.0)
-    z = np.ones(m)
-    w = np.where(finite_hi, 1.0, 0.0)
-    kkt = _Kkt(h, c)
-    scale = max(1.0, float(np.max(np.abs(g))) if g.size else 1.0)
-    it = 0
-    mu = float(np.mean(s * z + t * w))
-    mu0 = max(mu, 1e-300)
-    while it < max_iterations:
-        it += 1
-        y = c @ x + d
-        r_d = h @ x + g - ct @ (z - w)           # dual residual
-        r_l = y - lo - s                          # primal residuals
-        r_u = np.where(finite_hi, hi - y - t, 0.0)
-        mu = float(np.sum(s * z + t * w) / max(m + int(np.count_nonzero(finite_hi)), 1))
-        primal_ok = (float(np.max(np.abs(r_l), initial=0.0))
-                     < tolerance * (1.0 + float(np.max(np.abs(lo)))))
-        dual = float(np.max(np.abs(r_d), initial=0.0))
-        if primal_ok and (mu < tolerance or mu < 1e-12 * mu0):
-            # converged; with barrier terms spanning many decades the dual residual of the
-            # last Newton steps only reaches the accuracy of the factorisation
-            if dual < tolerance * scale or (mu < 1e-3 * tolerance and dual < 1e-3 * scale):
-                break
-        dz_s = z / s
-        dw_t = np.where(finite_hi, w / t, 0.0)
-        dd = dz_s + dw_t
-        try:
-            lu = kkt.factor(dd)
-        except (RuntimeError, np.linalg.LinAlgError):  # numerically singular: done
-            break
-
-        zero = np.zeros(m)
-        state = _State(s, t, z, w, r_d, r_l, r_u, finite_hi)
-        dx, ds, dt, dz, dw = _newton(lu, c, ct, state, 0.0, zero, zero)
-        a_p = min(_step_to_boundary(s, ds), _step_to_boundary(t[finite_hi], dt[finite_hi]))
-        a_d = min(_step_to_boundary(z, dz), _step_to_boundary(w[finite_hi], dw[finite_hi]))
-        n_c = m + int(np.count_nonzero(finite_hi))
-        mu_aff = float(np.sum((s + a_p * ds) * (z + a_d * dz))
-                       + np.sum(((t + a_p * dt) * (w + a_d * dw))[finite_hi])) / max(n_c, 1)
-        sigma = (mu_aff / mu) ** 3 if mu > 0 else 0.0
-        dx, ds, dt, dz, dw = _newton(lu, c, ct, state, sigma * mu, ds * dz,
-                                     np.where(finite_hi, dt * dw, 0.0))
-        eta = 0.995
-        a_p = eta * min(_step_to_boundary(s, ds), _step_to_boundary(t[finite_hi], dt[finite_hi]))
-        a_d = eta * min(_step_to_boundary(z, dz), _step_to_boundary(w[finite_hi], dw[finite_hi]))
-        a_p = min(a_p, 1.0)
-        a_d = min(a_d, 1.0)
-        x = x + a_p * dx
-        s = s + a_p * ds
-        t = np.where(finite_hi, t + a_p * dt, 1.0)
-        z = z + a_d * dz
-        w = np.where(finite_hi, w + a_d * dw, 0.0)
-    return x, it, mu
+    hu = sp.csr_matrix(sp.triu(sp.coo_matrix(h)))
+    hu.eliminate_zeros()  # a structural zero couples nothing (a relaxed run start)
+    hu = hu.tocoo()
+    h_r = hu.row.astype(np.int64)
+    h_c = hu.col.astype(np.int64)
+    h_v = hu.data.astype(np.float64)
+    m = c.shape[0]
+    c_ptr = c.indptr.astype(np.int64)
+    c_col = c.indices.astype(np.int64)
+    row_lo = np.zeros(m, dtype=np.int64)  # an empty row (a constant bound) joins nothing
+    row_hi = np.zeros(m, dtype=np.int64)
+    nonempty = np.flatnonzero(np.diff(c_ptr) > 0)
+    if nonempty.size:
+        row_lo[nonempty] = np.minimum.reduceat(c_col, c_ptr[nonempty])
+        row_hi[nonempty] = np.maximum.reduceat(c_col, c_ptr[nonempty])
+    starts, ends = qp_blocks(n, h_r, h_c, row_lo.astype(np.int64), row_hi.astype(np.int64))
+    # H entries and constraint rows ordered by block
+    h_block = np.searchsorted(starts, h_r, side="right") - 1
+    order = np.argsort(h_block, kind="stable")
+    h_r, h_c, h_v = h_r[order], h_c[order], h_v[order]
+    h_ptr = np.searchsorted(h_block[order], np.arange(starts.size + 1)).astype(np.int64)
+    row_block = np.searchsorted(starts, row_lo, side="right") - 1
+    rorder = np.argsort(row_block, kind="stable")
+    c2 = c[rorder] if m else c
+    row_ptr = np.searchsorted(row_block[rorder], np.arange(starts.size + 1)).astype(np.int64)
+    iters = np.zeros(starts.size, dtype=np.int64)
+    _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
+                  row_ptr, c2.indptr.astype(np.int64), c2.indices.astype(np.int64),
+                  c2.data.astype(np.float64), d[rorder] if m else d,
+                  lo[rorder] if m else lo, hi[rorder] if m else hi, int(max_iterations),
+                  float(tolerance), iters)
+    return x, int(iters.max(initial=0)), 0.0

@@ -337,20 +337,30 @@ def round_total(e: FloatArray, total: int) -> IntArray:
     if low.size == 0:
         return out
     # every low piece borrows from the currently largest one (first index on ties): a heap
-    # keeps this O(n + m log n) where a scan per low piece was O(n·m)
-    heap = [(-int(v), int(i)) for i, v in enumerate(out.tolist())]
+    # keeps this O(n + m log n) where a scan per low piece was O(n·m); the heap holds the
+    # largest few (a borrow takes a unit or two: the largest stays among them), and is
+    # rebuilt from every piece should a borrow ever pull its top below the rest
+    k = min(out.size, 2 * low.size + 16)
+    top = np.argpartition(-out, k - 1)[:k] if k < out.size else np.arange(out.size)
+    rest_max = int(np.max(np.delete(out, top), initial=-(1 << 62)))
+    heap = [(-int(out[i]), int(i)) for i in top.tolist()]
     heapq.heapify(heap)
     for j in low.tolist():
         while True:  # entries whose value changed since they were pushed are stale
-            neg, k = heap[0]
-            if -neg == int(out[k]):
+            neg, kk = heap[0]
+            if -neg == int(out[kk]):
                 break
-            heapq.heapreplace(heap, (-int(out[k]), k))
+            heapq.heapreplace(heap, (-int(out[kk]), kk))
+        if -heap[0][0] <= rest_max:  # the top may no longer be the largest: all of them
+            heap = [(-int(v), int(i)) for i, v in enumerate(out.tolist())]
+            heapq.heapify(heap)
+            rest_max = -(1 << 62)
+            kk = heap[0][1]
         need = 1 - int(out[j])
-        if out[k] - need < 1:
+        if out[kk] - need < 1:
             break
         out[j] += need
-        out[k] -= need
-        heapq.heapreplace(heap, (-int(out[k]), k))
+        out[kk] -= need
+        heapq.heapreplace(heap, (-int(out[kk]), kk))
         heapq.heappush(heap, (-int(out[j]), j))
     return out

@@ -2,28 +2,24 @@
 
 A :class:`Draft` keeps, for every move row of the *original* file, the pieces it has become
 (end position, E in grid units) and the feed its line is written with. Transformations
-compose on it: each one renders the draft (:meth:`Draft.render`), lets the twin read and
-plan the rendered file — whose rows are exactly the draft's pieces — and replaces pieces
-by finer pieces (:meth:`Draft.split`), moves them, or changes their E. The final file is
-always written from the original, so every line no transformation touched stays byte for
-byte as it was.
+compose on it: each one lets the twin plan and simulate the draft's move table — the table
+the written file reads back as (:meth:`Draft.to_table`, computed in memory) — and replaces
+pieces by finer pieces (:meth:`Draft.split`), moves them, or changes their E. The file is
+written from the original (:meth:`Draft.render`), so every line no transformation touched
+stays byte for byte as it was.
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.atomic import atomic_write_bytes
-from flowtwin.compensation.emit import EmitResult, PieceGeometry, emit_edits
-from flowtwin.compensation.source import ScannedSource
-from flowtwin.errors import GcodeError
+from flowtwin.compensation.emit import Layout, draft_table, lay_out_draft, write_draft
+from flowtwin.compensation.original import OriginalFile
 from flowtwin.gcode.moves import MoveTable
-from flowtwin.gcode.writer import rewrite_gcode
 
 __all__ = ["Draft"]
 
@@ -37,8 +33,8 @@ class Draft:
 
     Attributes
     ----------
-    scanned
-        The original file's lines and states.
+    original
+        The original file's text and the modes of its rows.
     table
         The original file's move rows.
     row_e
@@ -56,7 +52,7 @@ class Draft:
         Feed of each piece (``nan``: its line's), shape ``(n,)``.
     """
 
-    scanned: ScannedSource
+    original: OriginalFile
     table: MoveTable
     row_e: IntArray
     row: IntArray
@@ -66,12 +62,13 @@ class Draft:
     piece_feed_mm_min: FloatArray
 
     @classmethod
-    def identity(cls, scanned: ScannedSource, table: MoveTable, row_e: IntArray) -> Draft:
+    def identity(cls, original: OriginalFile, table: MoveTable) -> Draft:
         """The original file: one piece per row."""
         mv = table.moves
         n = len(table)
+        row_e = original.row_e
         xyz = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
-        return cls(scanned, table, np.asarray(row_e, dtype=np.int64),
+        return cls(original, table, np.asarray(row_e, dtype=np.int64),
                    np.arange(n, dtype=np.int64), xyz, np.asarray(row_e, dtype=np.int64).copy(),
                    np.full(n, np.nan), np.full(n, np.nan))
 
@@ -113,33 +110,26 @@ class Draft:
                                minlength=n) > 0
         return np.asarray(changed & (np.arange(n) >= 0))
 
-    def geometry(self) -> PieceGeometry:
-        """The pieces as :class:`~flowtwin.compensation.emit.PieceGeometry`."""
-        return PieceGeometry(self.row, self.xyz_mm, self.e_grid, self.changed_rows(),
-                             self.feed_mm_min, self.piece_feed_mm_min)
+    def layout(self) -> Layout:
+        """The words of every piece as they will be written (:mod:`.emit`)."""
+        return lay_out_draft(self)
 
-    def render(self, destination: str | os.PathLike[str]) -> EmitResult:
-        """Write the draft as G-code (atomically) from the original file.
+    def to_table(self, layout: Layout | None = None, *, source: str | None = None
+                 ) -> MoveTable:
+        """The move table the written draft reads back as (computed, not read)."""
+        return draft_table(self, layout, source=source)
 
-        With no change at all the original bytes are copied unchanged.
+    def render(self, destination: str | os.PathLike[str],
+               layout: Layout | None = None) -> Layout:
+        """Write the draft as G-code (atomically) from the original file; with no change
+        at all the original bytes are copied unchanged.
 
         Raises
         ------
         GcodeError
-            The source cannot be read, or a line cannot be rewritten.
+            A line to rewrite cannot be (a checksum, a relative step off the grid).
         """
-        result = emit_edits(self.scanned, self.table, self.geometry())
-        src = self.scanned.text.source
-        if not result.edits:
-            try:
-                data = Path(src).read_bytes()
-            except OSError as exc:
-                raise GcodeError(f"cannot read the G-code file: {exc.strerror}",
-                                 source=src) from exc
-            atomic_write_bytes(destination, data)
-            return result
-        rewrite_gcode(src, destination, result.edits)
-        return result
+        return write_draft(self, destination, layout)
 
     def split(self, piece: IntArray, xyz_mm: FloatArray, e_grid: IntArray,
               piece_feed_mm_min: FloatArray | None = None) -> Draft:

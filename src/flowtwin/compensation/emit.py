@@ -1,260 +1,327 @@
-"""Writing rewritten moves as G-code lines, and keeping the E coordinate consistent.
+"""Writing a draft: the words of every piece, the move table it reads back as, the file.
 
-A rewritten line becomes one ``G1`` per piece (``G0``/``G1`` keep their code; an arc that
-must change becomes the ``G1`` chords the reader split it into). Coordinates follow the
-line's own modes: absolute (``G90``) piece ends are the G-code coordinates
-``(toolhead − G92 offset)``, written with 5 decimals, the last piece repeating the
-original word exactly; relative (``G91``) pieces are steps on a 10⁻⁵ mm grid whose sum is
-exactly the original step. E is written from whole grid units
-(:mod:`flowtwin.compensation.source`), so every sum is exact in decimal.
+A rewritten line becomes one line per piece, ``G0``/``G1`` as written (an arc becomes the
+``G1`` chords the reader split it into), every piece in the line's own modes
+(:mod:`flowtwin.compensation.original`): absolute coordinates on a 10⁻⁵ mm grid
+(``G-code = toolhead − G92 offset``; the last piece ends exactly where the line did),
+relative steps on the 10⁻⁵ mm grid adding up to the line's own step, E from whole grid
+units, F on the first piece and wherever a piece has its own feed (the line's F is
+restored after it). The line's comment stays on its first piece.
 
-**Absolute E.** When a rewritten line ends at a different E coordinate than before, the
-difference ``δ`` (grid units) is carried: every later line with an E word in absolute
-mode is rewritten with ``E + δ`` (only its E word changes; the rest of the line is kept
-byte for byte) until a ``G92 E`` sets the coordinate again. The advance keeps ``δ = 0`` at
-the end of every run, so in practice only slip feed-forward shifts later lines.
+**Absolute E.** A rewritten stretch of lines whose E adds up to a different amount than
+the original's leaves the written E coordinate ``δ`` ahead; the next rewritten line goes
+on from there, and where the file needs the original coordinate again — before a line
+that may carry an E word and is not rewritten — a ``G92 E<original coordinate>`` follows
+the stretch. Untouched lines are copied byte for byte.
+
+:func:`lay_out_draft` computes all words once, with the rows the reader will make of them
+(:mod:`flowtwin.compensation._write_kernel`); :func:`draft_table` is the move table of
+the written file without writing it (the twin simulates drafts in memory) and
+:func:`write_draft` writes the file atomically.
 """
 
 from __future__ import annotations
 
-import math
-import re
-from dataclasses import dataclass, field
+import gzip
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.source import MotionLine, ScannedSource, format_grid
+from flowtwin.atomic import atomic_write_bytes
+from flowtwin.compensation._write_kernel import XYZ_DECIMALS, lay_out, write_text
+from flowtwin.compensation.original import OriginalFile, check_rewritable
 from flowtwin.errors import GcodeError
-from flowtwin.gcode.moves import MoveTable
+from flowtwin.gcode._columns import fill_columns
+from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
 
-__all__ = ["EmitResult", "PieceGeometry", "emit_edits"]
+if TYPE_CHECKING:
+    from flowtwin.compensation.draft import Draft
+
+__all__ = ["Layout", "draft_table", "lay_out_draft", "write_draft"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-
-_XYZ_DECIMALS = 5
-_E_WORD = re.compile(r"(E)(\s*)([-+]?(?:\d+\.?\d*|\.\d+))", re.IGNORECASE)
+BoolArray = npt.NDArray[np.bool_]
 
 
 @dataclass(frozen=True, slots=True)
-class PieceGeometry:
-    """Where every piece of every row ends and how much E it has.
+class Layout:
+    """A draft as it will be written.
 
     Attributes
     ----------
-    row
-        Row of each piece (non-decreasing), shape ``(n,)``.
-    xyz_mm
-        Toolhead position at each piece's end, mm, shape ``(n, 3)``.
-    e_grid
-        E of each piece, grid units, shape ``(n,)``.
-    changed_rows
-        Rows whose line must be rewritten, shape ``(n_rows,)``.
-    feed_mm_min
-        Feed of each row's line (``nan``: as written), shape ``(n_rows,)``.
-    piece_feed_mm_min
-        Feed of each piece (``nan``: its line's), shape ``(n,)``; used for E-only pieces.
+    rows
+        The move rows the written file reads back as (:data:`MOVE_DTYPE`), one per piece.
+    changed_lines
+        Original line numbers rewritten, ascending, shape ``(m,)``.
+    line_p0, line_p1
+        Pieces of every rewritten line, shape ``(m,)``.
+    line_code
+        ``1``: written as ``G1``, ``0``: as ``G0``, shape ``(m,)``.
+    line_f_restore
+        F restored after the line (F grid integer), −1: none, shape ``(m,)``.
+    line_g92, line_has_g92
+        ``G92 E`` written after the line (E grid) and whether, shape ``(m,)``.
+    flags, q_xyz, q_dec, q_e, q_f
+        Words of every piece (see :func:`flowtwin.compensation._write_kernel.lay_out`).
+    layer_z
+        Z of every layer the reader will find (mm).
     """
 
-    row: IntArray
-    xyz_mm: FloatArray
-    e_grid: IntArray
-    changed_rows: npt.NDArray[np.bool_]
-    feed_mm_min: FloatArray
-    piece_feed_mm_min: FloatArray
+    rows: npt.NDArray[np.void]
+    changed_lines: IntArray
+    line_p0: IntArray
+    line_p1: IntArray
+    line_code: IntArray
+    line_f_restore: IntArray
+    line_g92: IntArray
+    line_has_g92: BoolArray
+    flags: npt.NDArray[np.int8]
+    q_xyz: IntArray
+    q_dec: npt.NDArray[np.int8]
+    q_e: IntArray
+    q_f: IntArray
+    layer_z: list[float]
+
+    @property
+    def lines_rewritten(self) -> int:
+        """Original lines replaced by pieces."""
+        return int(self.changed_lines.size)
 
 
-@dataclass(slots=True)
-class EmitResult:
-    """Edits for :func:`flowtwin.gcode.writer.rewrite_gcode` and how lines map.
+def lay_out_draft(draft: Draft, *, check: bool = True) -> Layout:
+    """The words of every piece of ``draft`` and the rows the written file reads back as.
 
-    Attributes
-    ----------
-    edits
-        Line number → replacement lines.
-    new_line_count
-        Output lines per edited input line (1 for lines only re-numbered in E).
-    rows_per_row
-        Output move rows per input row, shape ``(n_rows,)``.
-    lines_rewritten
-        Lines replaced by pieces.
-    lines_shifted
-        Lines whose E word was shifted by the carried ``δ``.
-    """
-
-    edits: dict[int, list[str]] = field(default_factory=dict)
-    new_line_count: dict[int, int] = field(default_factory=dict)
-    rows_per_row: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    lines_rewritten: int = 0
-    lines_shifted: int = 0
-
-
-def _fmt(value: float) -> str:
-    text = f"{value:.{_XYZ_DECIMALS}f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
-
-
-def _grid_xyz(raw: str) -> int:
-    whole, _, frac = raw.strip().lstrip("+").partition(".")
-    sign = -1 if whole.startswith("-") else 1
-    whole = whole.lstrip("-")
-    frac = (frac + "0" * _XYZ_DECIMALS)[:_XYZ_DECIMALS]
-    return sign * int((whole or "0") + frac)
-
-
-def emit_edits(scanned: ScannedSource, table: MoveTable, geometry: PieceGeometry) -> EmitResult:
-    """G-code text for every changed line, and the ``δ`` shifts of later absolute E words.
-
-    Parameters
-    ----------
-    scanned
-        The source lines and their states.
-    table
-        The reader's rows of the same file.
-    geometry
-        The pieces to write.
-
-    Returns
-    -------
-    EmitResult
+    ``check``: refuse lines that cannot be rewritten (for the file to write; a table to
+    simulate needs no check).
 
     Raises
     ------
     GcodeError
-        A line to rewrite carries a checksum, has a relative XYZ step that is not on the
-        10⁻⁵ mm grid, or has more decimals in an axis than can be kept.
+        A line to rewrite carries a line number or checksum, or a relative step that is
+        not on the 10⁻⁵ mm grid.
     """
+    original = draft.original
+    table = draft.table
     mv = table.moves
-    n = len(table)
-    src = scanned.text.source
-    dec = scanned.e_decimals
-    counts = np.bincount(geometry.row, minlength=n).astype(np.int64)
-    offsets = np.concatenate(([0], np.cumsum(counts)))
-    rows_per_row = np.ones(n, dtype=np.int64)
+    n_rows = len(table)
+    n = len(draft)
     row_line = np.asarray(mv["line"], dtype=np.int64)
-    changed_lines = sorted(set(row_line[geometry.changed_rows].tolist()))
-    result = EmitResult()
-    start_xyz = np.empty((n, 3))
-    if n:
-        start_xyz[0] = table.start_xyze[:3]
-        start_xyz[1:, 0], start_xyz[1:, 1], start_xyz[1:, 2] = mv["x"][:-1], mv["y"][:-1], \
-            mv["z"][:-1]
-    orig_end = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
-    # rows of each changed line
-    first_row = np.searchsorted(row_line, changed_lines, side="left")
-    last_row = np.searchsorted(row_line, changed_lines, side="right")
-    changed = dict(zip(changed_lines, zip(first_row.tolist(), last_row.tolist(), strict=True),
-                       strict=True))
-    # walk every motion line with E (absolute) and every changed line, in order
-    events = sorted(set(changed_lines) | set(scanned.e_resets)
-                    | {ln for ln, ml in scanned.motion.items() if ml.abs_e and "E" in ml.words})
-    resets = set(scanned.e_resets)
-    delta = 0
-    for ln in events:
-        if ln in resets and ln not in scanned.motion:
-            delta = 0
-            continue
-        ml = scanned.motion[ln]
-        if ln in changed:
-            r0, r1 = changed[ln]
-            if ml.checksum:
-                raise GcodeError("cannot rewrite a line with a line number or checksum",
-                                 source=src, line=ln, value=scanned.text.text(ln),
-                                 allowed="G-code without N/* (as slicers write it)")
-            lines, e_end = _piece_lines(ml, r0, r1, offsets, geometry, start_xyz, orig_end,
-                                        delta, dec, src)
-            if ml.abs_e:
-                delta = e_end - ml.e_after
-            result.edits[ln] = lines
-            result.new_line_count[ln] = len(lines)
-            rows_per_row[r0:r1] = counts[r0:r1]
-            result.lines_rewritten += 1
-        elif ml.abs_e and "E" in ml.words and delta != 0:
-            result.edits[ln] = [_shift_e(scanned.text.text(ln), ml.e_after + delta, dec,
-                                         src, ln)]
-            result.new_line_count[ln] = 1
-            result.lines_shifted += 1
-    result.rows_per_row = rows_per_row
-    return result
+    changed_rows = draft.changed_rows()
+    changed_lines = np.unique(row_line[changed_rows])
+    row_changed = np.isin(row_line, changed_lines) if changed_lines.size else \
+        np.zeros(n_rows, dtype=bool)
+    if check:
+        check_rewritable(original, changed_lines)
+        _check_relative_steps(draft, row_changed)
+    piece_row = draft.row
+    piece_line = row_line[piece_row]
+    first_piece = np.concatenate(([True], piece_line[1:] != piece_line[:-1])) if n else \
+        np.zeros(0, dtype=bool)
+    last_piece = np.concatenate((piece_line[1:] != piece_line[:-1], [True])) if n else \
+        np.zeros(0, dtype=bool)
+    # a piece's own feed, else its row's (the guard), else the line's (NaN)
+    piece_f = np.where(np.isfinite(draft.piece_feed_mm_min), draft.piece_feed_mm_min,
+                       draft.feed_mm_min[piece_row])
+    g92_after = _g92_after(original, row_line, changed_lines)
+    orig_xyz = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
+    out_xyz = np.empty((n, 3))
+    out_de = np.empty(n)
+    out_feed = np.empty(n)
+    out_kind = np.empty(n, dtype=np.uint8)
+    flags = np.zeros(n, dtype=np.int8)
+    q_xyz = np.zeros((n, 3), dtype=np.int64)
+    q_dec = np.zeros((n, 3), dtype=np.int8)
+    q_e = np.zeros(n, dtype=np.int64)
+    q_f = np.zeros(n, dtype=np.int64)
+    g92_val = np.zeros(n, dtype=np.int64)
+    g92_has = np.zeros(n, dtype=bool)
+    lay_out(piece_row, np.ascontiguousarray(draft.xyz_mm, dtype=np.float64),
+            draft.e_grid.astype(np.int64), piece_f.astype(np.float64), row_changed,
+            first_piece, last_piece, orig_xyz, np.asarray(mv["de"], dtype=np.float64),
+            np.asarray(mv["feed_mm_s"], dtype=np.float64), np.asarray(mv["kind"]),
+            original.abs_xyz, original.abs_e, original.offset_xyz, original.speed_factor,
+            original.e_before, original.row_e, original.e_reset, g92_after,
+            np.asarray(table.start_xyze[:3], dtype=np.float64), original.e_decimals,
+            out_xyz, out_de, out_feed, out_kind, flags, q_xyz, q_dec, q_e, q_f, g92_val,
+            g92_has)
+    # per rewritten line
+    changed_piece = row_changed[piece_row]
+    starts = np.flatnonzero(first_piece & changed_piece)
+    ends = np.flatnonzero(last_piece & changed_piece) + 1
+    first_row = piece_row[starts]
+    kind0 = np.asarray(mv["kind"])[first_row]
+    line_code = np.where(((kind0 & MoveKind.RAPID) != 0) & ((kind0 & MoveKind.ARC) == 0),
+                         0, 1).astype(np.int64)
+    line_f = np.rint(np.asarray(mv["feed_mm_s"], dtype=np.float64)[first_row] * 60.0
+                     / original.speed_factor[first_row] * 10.0 ** XYZ_DECIMALS
+                     ).astype(np.int64)
+    f_restore = np.where(q_f[ends - 1] != line_f, line_f, -1).astype(np.int64)
+    rows, layer_z = _rows(draft, out_xyz, out_de, out_feed, out_kind, changed_lines, starts,
+                          ends,
+                 f_restore, g92_has[ends - 1] if ends.size else np.zeros(0, dtype=bool),
+                 first_piece & changed_piece, changed_piece)
+    return Layout(rows, changed_lines.astype(np.int64), starts.astype(np.int64),
+                  ends.astype(np.int64), line_code, f_restore, g92_val[ends - 1],
+                  g92_has[ends - 1], flags, q_xyz, q_dec, q_e, q_f, layer_z)
 
 
-def _shift_e(text: str, new_e: int, dec: int, src: str, line: int) -> str:
-    body, sep, comment = text.partition(";")
-    m = _E_WORD.search(body)
-    if m is None:
-        raise GcodeError("E word not found where the reader saw one", source=src, line=line,
-                         value=text)
-    body = body[:m.start(3)] + format_grid(new_e, dec) + body[m.end(3):]
-    return body + sep + comment
+def _check_relative_steps(draft: Draft, row_changed: BoolArray) -> None:
+    """A relative (``G91``) line is cut on a 10⁻⁵ mm grid: its step must be on it."""
+    rel = np.flatnonzero(row_changed & ~draft.original.abs_xyz)
+    if rel.size == 0:
+        return
+    mv = draft.table.moves
+    end = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
+    start = np.vstack([np.asarray(draft.table.start_xyze[:3], dtype=np.float64), end[:-1]])
+    step = (end - start)[rel] * 10.0 ** XYZ_DECIMALS
+    bad = np.abs(step - np.rint(step)) > 1e-3
+    if np.any(bad):
+        r, k = np.argwhere(bad)[0]
+        raise GcodeError("relative step with more than 5 decimals", source=draft.original.source,
+                         line=int(mv["line"][rel[r]]), field="XYZ"[k],
+                         value=float((end - start)[rel[r], k]), allowed="at most 5 decimals")
 
 
-def _piece_lines(ml: MotionLine, r0: int, r1: int, offsets: IntArray, geometry: PieceGeometry,
-                 start_xyz: FloatArray, orig_end: FloatArray, delta: int, dec: int,
-                 src: str) -> tuple[list[str], int]:
-    """Text of the pieces of rows ``r0:r1`` (one line); returns lines and the end E."""
-    code = ml.code if ml.code in ("G0", "G1") else "G1"
-    p0, p1 = int(offsets[r0]), int(offsets[r1])
-    # plain Python values: this runs once per rewritten line (10⁵ on large files)
-    ends: list[list[float]] = geometry.xyz_mm[p0:p1].tolist()
-    e_pieces: list[int] = geometry.e_grid[p0:p1].tolist()
-    line_start: list[float] = (geometry.xyz_mm[p0 - 1] if p0 > 0 else start_xyz[0]).tolist()
-    starts = [line_start, *ends[:-1]]
-    original_end: list[float] = orig_end[r1 - 1].tolist()
-    e_pos = ml.e_before + delta
-    out: list[str] = []
-    row_feed = float(geometry.feed_mm_min[r0])
-    piece_feed: list[float] = geometry.piece_feed_mm_min[p0:p1].tolist()
-    line_f_raw = ml.words.get("F")
-    line_f = float(line_f_raw) if line_f_raw is not None else ml.feed_mm_min
-    default_f = row_feed if math.isfinite(row_feed) else line_f
-    state_f = ml.feed_mm_min
-    rel_grid: dict[int, int] = {}
-    if not ml.abs_xyz:
-        for k, axis in enumerate("XYZ"):
-            if axis in ml.words:
-                total = _grid_xyz(ml.words[axis])
-                if abs(total * 10.0 ** -_XYZ_DECIMALS - float(ml.words[axis])) > 1e-12:
-                    raise GcodeError("relative step with more than 5 decimals",
-                                     source=src, line=ml.line, field=axis,
-                                     value=ml.words[axis], allowed="at most 5 decimals")
-                rel_grid[k] = total
-    written_rel = dict.fromkeys(rel_grid, 0)
-    n_p = len(ends)
-    for j in range(n_p):
-        words: list[str] = [code]
-        last = j == n_p - 1
-        for k, axis in enumerate("XYZ"):
-            moved = abs(ends[j][k] - starts[j][k]) > 1e-9
-            if ml.abs_xyz:
-                if last and axis in ml.words and abs(ends[j][k] - original_end[k]) < 1e-9:
-                    words.append(axis + ml.words[axis])
-                elif moved:
-                    words.append(axis + _fmt(ends[j][k] - ml.offset_xyz[k]))
-            elif k in rel_grid or moved:
-                total = rel_grid.get(k, 0)
-                frac_pos = ends[j][k] - line_start[k]
-                target = total if last else int(round(frac_pos * 10 ** _XYZ_DECIMALS))
-                step = target - written_rel.get(k, 0)
-                written_rel[k] = target
-                if step != 0 or (last and k in rel_grid):
-                    words.append(axis + format_grid(step, _XYZ_DECIMALS))
-        e = int(e_pieces[j])
-        if e != 0:
-            e_pos += e
-            words.append("E" + format_grid(e_pos if ml.abs_e else e, dec))
-        own_feed = math.isfinite(piece_feed[j])
-        want = piece_feed[j] if own_feed else default_f
-        if j == 0 and line_f_raw is not None and not own_feed \
-                and not math.isfinite(row_feed):
-            words.append("F" + line_f_raw)
-        elif want != state_f:
-            words.append("F" + _fmt(want))
-        state_f = want
-        text = " ".join(words)
-        if j == 0 and ml.comment:
-            text += " " + ml.comment
-        out.append(text)
-    if state_f != line_f:
-        out.append("G1 F" + (line_f_raw if line_f_raw is not None else _fmt(line_f)))
-    return out, e_pos
+def _g92_after(original: OriginalFile, row_line: IntArray, changed_lines: IntArray
+               ) -> BoolArray:
+    """Rows that end a rewritten stretch before a line that may read the E coordinate
+    (``G92 E`` restores it there when it differs)."""
+    out = np.zeros(row_line.size, dtype=bool)
+    if changed_lines.size == 0:
+        return out
+    unsafe = np.flatnonzero(~original.line_inert) + 1  # line numbers
+    k = np.searchsorted(unsafe, changed_lines, side="right")
+    has_next = k < unsafe.size
+    nxt = unsafe[np.minimum(k, unsafe.size - 1)] if unsafe.size else changed_lines
+    j = np.searchsorted(changed_lines, nxt)
+    next_changed = has_next & (j < changed_lines.size) & (
+        changed_lines[np.minimum(j, changed_lines.size - 1)] == nxt)
+    # only where the line read there is in absolute E (the mode of the next row)
+    rows_at = np.searchsorted(row_line, nxt, side="left")
+    abs_there = original.abs_e[np.minimum(rows_at, row_line.size - 1)]
+    need = has_next & ~next_changed & abs_there
+    # the last row of each such line
+    last_row = np.searchsorted(row_line, changed_lines[need], side="right") - 1
+    out[last_row] = True
+    return out
+
+
+def _rows(draft: Draft, xyz: FloatArray, de: FloatArray, feed: FloatArray,
+          kind: npt.NDArray[np.uint8], changed_lines: IntArray, starts: IntArray,
+          ends: IntArray, f_restore: IntArray, g92: BoolArray, line_first: BoolArray,
+          changed_piece: BoolArray) -> tuple[npt.NDArray[np.void], list[float]]:
+    """The reader's rows of the written file (line numbers of the written file)."""
+    mv = draft.table.moves
+    r = draft.row
+    n = r.size
+    out = np.zeros(n, dtype=MOVE_DTYPE)
+    out["x"], out["y"], out["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    out["de"] = de
+    out["feed_mm_s"] = feed
+    out["kind"] = kind
+    for name in ("layer", "flow", "tool", "feature"):
+        out[name] = mv[name][r]
+    # running E per tool, summed in file order like the reader
+    tool = np.asarray(out["tool"], dtype=np.int64)
+    e = np.empty(n)
+    for t in np.unique(tool).tolist():
+        sel = tool == t
+        e[sel] = np.cumsum(de[sel])
+    out["e"] = e
+    # line numbers: every rewritten line grows by its pieces, an F restore and a G92
+    line = np.asarray(mv["line"], dtype=np.int64)[r]
+    grow = (ends - starts) + (f_restore >= 0) + g92 - 1
+    shift_after = np.cumsum(grow)
+    k = np.searchsorted(changed_lines, line, side="left")  # rewritten lines before (or it)
+    before = np.where(k > 0, shift_after[np.maximum(k - 1, 0)], 0) if changed_lines.size \
+        else np.zeros(n, dtype=np.int64)
+    # pieces of a rewritten line are consecutive lines from its first
+    idx = np.arange(n)
+    first_idx = np.maximum.accumulate(np.where(line_first, idx, 0)) if n else idx
+    within = np.where(changed_piece, idx - first_idx, 0)
+    out["line"] = (line + before + within).astype(np.int32)
+    layer_z = list(draft.table.layer_z)
+    if draft.original.layers_by_z:
+        # no layer markers: the reader starts a layer at each extrusion above the last,
+        # which an E-only piece (a push-back at the next layer's height) can be
+        _f, _l, _z, layer_z = fill_columns(out, [], None, base=0, feature=-1, layer=-1,
+                                           max_extrude_z=-np.inf)
+        out["feature"] = mv["feature"][r]
+    return out, layer_z
+
+
+def draft_table(draft: Draft, layout: Layout | None = None, *,
+                source: str | None = None) -> MoveTable:
+    """The move table the written draft reads back as, without writing it.
+
+    Parameters
+    ----------
+    draft
+        The draft.
+    layout
+        Its layout (computed when not given).
+    source
+        Name of the table's source (default: the original's).
+    """
+    lay = lay_out_draft(draft, check=False) if layout is None else layout
+    table = draft.table
+    offsets = np.concatenate(([0], np.cumsum(draft.counts))).astype(np.int64)
+    at = offsets[np.minimum([ev.move_index for ev in table.events], offsets.size - 1)
+                 ].tolist() if table.events else []
+    events = [Event(k, ev.line, ev.code, ev.params)
+              for k, ev in zip(at, table.events, strict=True)]
+    return MoveTable(moves=lay.rows, events=events,
+                     start_xyze=np.asarray(table.start_xyze, dtype=np.float64).copy(),
+                     features=list(table.features), layer_z=list(lay.layer_z),
+                     metadata=dict(table.metadata),
+                     unknown_commands=dict(table.unknown_commands),
+                     warnings=list(table.warnings),
+                     source=table.source if source is None else source,
+                     n_lines=table.n_lines + int(np.sum(lay.line_p1 - lay.line_p0)
+                                                 + np.sum(lay.line_f_restore >= 0)
+                                                 + np.sum(lay.line_has_g92))
+                     - lay.lines_rewritten)
+
+
+def write_draft(draft: Draft, destination: str | os.PathLike[str],
+                layout: Layout | None = None) -> Layout:
+    """Write the draft as G-code, atomically; a draft without changes is the original's
+    bytes. Returns the layout written."""
+    lay = lay_out_draft(draft) if layout is None else layout
+    original = draft.original
+    text = original.text
+    if lay.changed_lines.size == 0:  # the original file's own bytes (gzip too)
+        try:
+            atomic_write_bytes(destination, Path(original.source).read_bytes())
+        except OSError as exc:
+            raise GcodeError(f"cannot read the G-code file: {exc.strerror}",
+                             source=original.source) from exc
+        return lay
+    pieces = int(np.sum(lay.line_p1 - lay.line_p0))
+    size = text.size + 160 * (pieces + 2 * lay.lines_rewritten) + 64
+    buf = np.empty(size, dtype=np.uint8)
+    used = write_text(text, original.line_start, lay.changed_lines, lay.line_p0,
+                      lay.line_p1, lay.line_code, lay.line_f_restore, lay.line_g92,
+                      lay.line_has_g92, lay.flags, lay.q_xyz, lay.q_dec, lay.q_e, lay.q_f,
+                      original.e_decimals, buf)
+    data = buf[:used].tobytes()
+    if original.bgcode:  # stored as the original was (compression, checksum, encoding)
+        from flowtwin.gcode.bgcode.read import read_bgcode_info
+        from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+        with open(original.source, "rb") as fh:
+            info = read_bgcode_info(fh, original.source)
+        text_to_bgcode(data, destination, file_metadata=info.file_metadata,
+                       options=BgcodeOptions.like(info.compression, info.checksum,
+                                                  info.gcode_encoding))
+        return lay
+    if original.gzip:
+        data = gzip.compress(data, compresslevel=6, mtime=0)
+    atomic_write_bytes(destination, data)
+    return lay
+

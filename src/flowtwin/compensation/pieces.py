@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from flowtwin.errors import DataError
 from flowtwin.planner.timeline import Timeline
@@ -213,32 +214,20 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
         if np.any(ok):
             d, _ = phase_distance_mm(sv[ok], cv[ok], ev[ok], ta[ok], tc[ok], td[ok], col[ok])
             dist[ok, j] = d
-    keep_cuts: dict[int, list[float]] = {}
-    for i in sel_idx.tolist():
-        kept: list[float] = []
-        last_d = 0.0
-        total = float(length[i])
-        for tj, dj in zip(cuts[i].tolist(), dist[i].tolist(), strict=True):
-            if not np.isfinite(tj):
-                break
-            if dj - last_d >= min_piece_mm and total - dj >= min_piece_mm:
-                kept.append(tj)
-                last_d = dj
-        if kept:
-            keep_cuts[i] = kept
-    counts = np.ones(n, dtype=np.int64)
-    for i, kept in keep_cuts.items():
-        counts[i] = len(kept) + 1
+    keep = np.zeros(cuts.shape, dtype=np.bool_)
+    _keep_cuts(cuts, dist, length, sel_idx.astype(np.int64), float(min_piece_mm), keep)
+    counts = 1 + np.sum(keep, axis=1).astype(np.int64)
     offsets[1:] = np.cumsum(counts)
     total_pieces = int(offsets[-1])
     rows_arr = np.repeat(np.arange(n, dtype=np.int64), counts)
     tau0 = np.zeros(total_pieces)
     tau1 = np.repeat(duration, counts)
-    for i, kept in keep_cuts.items():
-        o = int(offsets[i])
-        cut = np.asarray(kept)
-        tau0[o + 1:o + 1 + cut.size] = cut
-        tau1[o:o + cut.size] = cut
+    kr, kc = np.nonzero(keep)  # kept cuts in row order, and in time order within a row
+    if kr.size:
+        rank = np.arange(kr.size) - np.repeat(np.cumsum(counts - 1) - (counts - 1), counts - 1)
+        o = offsets[kr]
+        tau0[o + 1 + rank] = cuts[kr, kc]
+        tau1[o + rank] = cuts[kr, kc]
     r = rows_arr
     s0, v0 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau0)
     s1, v1 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau1)
@@ -249,3 +238,20 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
     s1[last], v1[last] = length, ev
     return Pieces(row=rows_arr, t0_s=t_start[r] + tau0, t1_s=t_start[r] + tau1, s0_mm=s0,
                   s1_mm=s1, v0_mm_s=v0, v1_mm_s=v1, offsets=offsets, row_length_mm=length)
+
+
+@njit(cache=True)
+def _keep_cuts(cuts: FloatArray, dist: FloatArray, length: FloatArray, rows: IntArray,
+               min_piece_mm: float, keep: npt.NDArray[np.bool_]) -> None:
+    """Mark the cuts kept: in time order, each at least ``min_piece_mm`` after the last
+    kept one and before the row's end."""
+    for i in rows:
+        last_d = 0.0
+        total = length[i]
+        for j in range(cuts.shape[1]):
+            if not np.isfinite(cuts[i, j]):
+                break
+            dj = dist[i, j]
+            if dj - last_d >= min_piece_mm and total - dj >= min_piece_mm:
+                keep[i, j] = True
+                last_d = dj

@@ -15,192 +15,64 @@ the original file (untouched lines stay byte for byte):
 4. **slip** [000 §6] — E scaled by ``1/(1 − s)`` with the slip the twin predicts
    (:mod:`flowtwin.compensation.slip`).
 
-Every stage that needs the twin renders the draft to a temporary file and simulates it
-(:func:`flowtwin.simulation.simulate`), so it always sees what the firmware will plan.
-The original and the result are simulated on the same machine and compared move by move
-against the original intent (:mod:`flowtwin.compensation.metrics`).
+Each stage is a function of :mod:`flowtwin.compensation.stages` from the current draft
+(and its simulation) to the next, with typed options and outcome. Every stage that needs
+the twin renders the draft to a temporary file and simulates it
+(:meth:`flowtwin.compensation.stages.Twin.simulate_draft`), so it always sees what the
+firmware will plan. The original and the result are simulated on the same machine and
+compared move by move against the original intent (:mod:`flowtwin.compensation.metrics`);
+the figures are a :class:`~flowtwin.compensation.outcome.CompensationReport`.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
-from flowtwin.compensation.bake import PassReport, advance_pass
+from flowtwin.compensation.advance import AdvanceOptions
 from flowtwin.compensation.draft import Draft
-from flowtwin.compensation.guard import GuardOptions, guard_feeds
-from flowtwin.compensation.limits import ExtruderLimits, extruder_limits
-from flowtwin.compensation.metrics import FlowFigures, flow_figures
-from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
-from flowtwin.compensation.slip import SlipOptions, slip_feedforward
-from flowtwin.compensation.source import ScannedSource, read_source, row_e_grid, scan_source
-from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
+from flowtwin.compensation.emit import Layout
+from flowtwin.compensation.guard import GuardOptions
+from flowtwin.compensation.limits import extruder_limits
+from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.original import read_original
+from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
+from flowtwin.compensation.pace import PaceOptions, PaceReport
+from flowtwin.compensation.slip import SlipOptions
+from flowtwin.compensation.stages import (
+    Current,
+    Setting,
+    Twin,
+    advance_stage,
+    guard_stage,
+    pace_stage,
+    printing_pieces,
+    slip_stage,
+    trajectory_stage,
+)
+from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 from flowtwin.errors import DataError, GcodeError
-from flowtwin.gcode.moves import MoveKind
+from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import read_options
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
-from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult, simulate
+from flowtwin.simulation import DEFAULT_MACHINE, SimulationResult
 
-__all__ = ["CompensationReport", "compensate", "lag_factor_changes"]
+__all__ = ["compensate", "lag_factor_changes"]
 
 Progress = Callable[[str], None]
-
-#: The advance keeps the predicted feed force below this share of the grinding limit.
-_GRIND_MARGIN = 0.9
+_O = TypeVar("_O")
 
 
-@dataclass(slots=True)
-class CompensationReport:
-    """What ``compensate`` did and what the twin predicts before and after.
-
-    Attributes
-    ----------
-    source, destination
-        The files.
-    machine
-        Name of the set-up simulated.
-    firmware_pressure_advance
-        Whether the simulations include the firmware's own pressure advance.
-    transformations
-        Names of the stages that ran.
-    before, after
-        Flow figures of the original and of the compensated file, both against the
-        original intent (:class:`~flowtwin.compensation.metrics.FlowFigures`).
-    time_before_s, time_after_s
-        Planned print time, s.
-    commanded_e_before_mm, commanded_e_after_mm
-        Total E written in the G-code (before M221), mm of filament.
-    added_volume_mm3
-        Volume the slip feed-forward added (mm³ of melt; 0 without it).
-    slowed_moves
-        Source lines the grinding guard slowed.
-    guard_time_cost_s
-        Print time the guard added (planned with and without it), s.
-    grinding_moves_before, grinding_moves_after
-        Moves the twin flags as grinding.
-    max_force_before_n, max_force_after_n
-        Largest predicted feed force, N.
-    advance
-        Figures of the advance passes (pieces, runs, clipping counts, refinement).
-    trajectory
-        Figures of the trajectory stage, or ``None``.
-    limits
-        The firmware limits the advance respected.
-    lines_rewritten
-        Source lines replaced (motion lines only).
-    warnings
-        Everything the user should know.
-    seconds
-        Wall time of the compensation.
-    lag_factor_changed_moves
-        Original moves some piece of which the twin simulates with a different lag factor
-        than the move itself (:func:`lag_factor_changes`; 0 when the twin is consistent).
-    paced_moves
-        Source lines the flow pacing slowed (part of).
-    pace_time_cost_s
-        Print time the pacing added (re-planned with and without it), s.
-    pace
-        Figures of the pacing stage (:class:`~flowtwin.compensation.pace.PaceReport`), or
-        ``None``.
-    original_result, compensated_result, piece_row
-        The two simulations and the original move of every compensated move (for the
-        before/after report, :func:`flowtwin.report.write_comparison`).
-    """
-
-    source: str
-    destination: str
-    machine: str
-    firmware_pressure_advance: bool
-    transformations: list[str]
-    before: FlowFigures
-    after: FlowFigures
-    time_before_s: float
-    time_after_s: float
-    commanded_e_before_mm: float
-    commanded_e_after_mm: float
-    added_volume_mm3: float = 0.0
-    slowed_moves: list[int] = field(default_factory=list)
-    guard_time_cost_s: float = 0.0
-    grinding_moves_before: int = 0
-    grinding_moves_after: int = 0
-    max_force_before_n: float = 0.0
-    max_force_after_n: float = 0.0
-    advance: list[dict[str, object]] = field(default_factory=list)
-    trajectory: dict[str, object] | None = None
-    limits: dict[str, object] = field(default_factory=dict)
-    lines_rewritten: int = 0
-    warnings: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-    lag_factor_changed_moves: int = 0
-    paced_moves: list[int] = field(default_factory=list)
-    pace_time_cost_s: float = 0.0
-    pace: dict[str, object] | None = None
-    original_result: SimulationResult | None = field(default=None, repr=False)
-    compensated_result: SimulationResult | None = field(default=None, repr=False)
-    piece_row: npt.NDArray[np.int64] | None = field(default=None, repr=False)
-
-    def _repr_html_(self) -> str:
-        from flowtwin.report.notebook import compensation_repr
-        return compensation_repr(self)
-
-    def summary(self) -> dict[str, object]:
-        """The figures as plain JSON-able values (the ``--json`` object)."""
-        def ratio(a: float, b: float) -> float | None:
-            return a / b if b > 0 else None
-
-        return {
-            "file": self.source, "output": self.destination, "machine": self.machine,
-            "firmware_pressure_advance": self.firmware_pressure_advance,
-            "transformations": list(self.transformations),
-            "rms_flow_error_before": self.before.rms_flow_error,
-            "rms_flow_error_after": self.after.rms_flow_error,
-            "rms_improvement": ratio(self.before.rms_flow_error, self.after.rms_flow_error),
-            "peak_overextrusion_before": self.before.peak_overextrusion,
-            "peak_overextrusion_after": self.after.peak_overextrusion,
-            "peak_improvement": ratio(self.before.peak_overextrusion,
-                                      self.after.peak_overextrusion),
-            "peak_overextrusion_window_before": self.before.peak_overextrusion_window,
-            "peak_overextrusion_window_after": self.after.peak_overextrusion_window,
-            "peak_window_improvement": ratio(self.before.peak_overextrusion_window,
-                                             self.after.peak_overextrusion_window),
-            "peak_window_mm": self.before.window_mm,
-            "peak_underextrusion_before": self.before.peak_underextrusion,
-            "peak_underextrusion_after": self.after.peak_underextrusion,
-            "delivered_volume_before_mm3": self.before.delivered_volume_mm3,
-            "delivered_volume_after_mm3": self.after.delivered_volume_mm3,
-            "intended_volume_mm3": self.before.intended_volume_mm3,
-            "commanded_e_before_mm": self.commanded_e_before_mm,
-            "commanded_e_after_mm": self.commanded_e_after_mm,
-            "added_volume_mm3": self.added_volume_mm3,
-            "slowed_moves": len(self.slowed_moves),
-            "slowed_lines": list(self.slowed_moves[:1000]),
-            "guard_time_cost_s": self.guard_time_cost_s,
-            "paced_moves": len(self.paced_moves),
-            "paced_lines": list(self.paced_moves[:1000]),
-            "pace_time_cost_s": self.pace_time_cost_s, "pace": self.pace,
-            "time_before_s": self.time_before_s, "time_after_s": self.time_after_s,
-            "grinding_moves_before": self.grinding_moves_before,
-            "grinding_moves_after": self.grinding_moves_after,
-            "max_force_before_n": self.max_force_before_n,
-            "max_force_after_n": self.max_force_after_n,
-            "advance": list(self.advance), "trajectory": self.trajectory,
-            "limits": dict(self.limits), "lines_rewritten": self.lines_rewritten,
-            "lag_factor_changed_moves": self.lag_factor_changed_moves,
-            "warnings": list(self.warnings), "seconds": self.seconds,
-        }
-
-
-def _option(value: object, cls: type) -> object | None:
+def _option(value: _O | bool | None, cls: type[_O]) -> _O | None:
     if value is None or value is False:
         return None
     if value is True:
@@ -211,19 +83,30 @@ def _option(value: object, cls: type) -> object | None:
     return value
 
 
-def _printing(sim: SimulationResult, draft: Draft) -> npt.NDArray[np.bool_]:
-    """Pieces that print: of a printing original move, with XY motion and positive E."""
-    kind = sim.plan.table.moves["kind"]
-    orig = eligible_rows(draft.table, draft.row_e)
-    return orig[draft.row] & ((kind & MoveKind.XY) != 0) & (draft.e_grid > 0)
+@dataclass(frozen=True, slots=True)
+class _Stages:
+    """The stages asked for, with their options (``None``: off)."""
+
+    advance: AdvanceOptions | None
+    slip: SlipOptions | None
+    guard: GuardOptions | None
+    trajectory: TrajectoryOptions | None
+    pace: PaceOptions | None
 
 
-def _checked(sim: SimulationResult, draft: Draft, path: Path) -> SimulationResult:
-    if len(sim.plan.table) != len(draft):
-        raise GcodeError("the rewritten file does not read back as the pieces written "
-                         f"({len(sim.plan.table)} moves, {len(draft)} pieces)", source=path,
-                         allowed="a reader/writer round trip that keeps every piece")
-    return sim
+@dataclass(slots=True)
+class _Record:
+    """What the stages did, gathered as they run (the report's raw material)."""
+
+    names: list[str]
+    warnings: list[str]
+    passes: tuple[AdvancePassSummary, ...] = ()
+    trajectory: TrajectoryReport | None = None
+    slowed: npt.NDArray[np.bool_] | None = None
+    guard_cost_s: float = 0.0
+    pace: PaceReport | None = None
+    pace_cost_s: float = 0.0
+    added_grid: int = 0
 
 
 def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[str], *,
@@ -274,211 +157,186 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     """
     t_start = time.perf_counter()
     step = progress or (lambda _name: None)
-    adv = _option(advance, AdvanceOptions)
-    sl = _option(slip, SlipOptions)
-    gd = _option(guard, GuardOptions)
-    tr = _option(trajectory, TrajectoryOptions)
-    pc = _option(pace, PaceOptions)
-    assert pc is None or isinstance(pc, PaceOptions)
-    assert adv is None or isinstance(adv, AdvanceOptions)
-    assert sl is None or isinstance(sl, SlipOptions)
-    assert gd is None or isinstance(gd, GuardOptions)
-    assert tr is None or isinstance(tr, TrajectoryOptions)
+    stages = _Stages(_option(advance, AdvanceOptions), _option(slip, SlipOptions),
+                     _option(guard, GuardOptions), _option(trajectory, TrajectoryOptions),
+                     _option(pace, PaceOptions))
     if advance_passes not in (1, 2, 3):
         raise DataError("advance passes must be 1, 2 or 3", field="advance_passes",
                         value=advance_passes, allowed="1, 2, 3")
     m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
-    pa = (adv is None) if firmware_pressure_advance is None else bool(firmware_pressure_advance)
+    pa = ((stages.advance is None) if firmware_pressure_advance is None
+          else bool(firmware_pressure_advance))
     src = Path(source)
     dst = Path(destination)
-
-    def sim(path: Path) -> SimulationResult:
-        return simulate(path, machine=m, klipper_config=klipper_config, pressure_advance=pa)
-
     step("simulate original")
-    original = sim(src)
+    setting, draft = _read(src, Twin(m, klipper_config, pa))
+    record = _Record([], [])
+    current = _run_stages(setting, Current(draft, setting.original), stages, advance_passes,
+                          record, step)
+    step("write")
+    layout = current.draft.layout()
+    current.draft.render(dst, layout)
+    step("simulate result")
+    after = _written(setting, current, layout, dst)
+    return _report(setting, current.draft, after, record, src, dst,
+                   lines_rewritten=layout.lines_rewritten,
+                   baked_advance=stages.advance is not None,
+                   seconds=time.perf_counter() - t_start)
+
+
+def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
+    """Simulate the original, read its text and modes: the setting and the identity
+    draft."""
+    original = twin.simulate(src)
     table = original.plan.table
-    text = read_source(src)
-    if klipper_config is not None:
-        home = klipper_read_options(load_printer_cfg(klipper_config)).home_xyz
+    if twin.klipper_config is not None:
+        options = klipper_read_options(load_printer_cfg(twin.klipper_config))
     else:
-        home = read_options(m.printer).home_xyz
-    scanned = scan_source(text, table, home_xyz=home)
-    row_e = row_e_grid(scanned, table)
-    draft = Draft.identity(scanned, table, row_e)
-    limits = extruder_limits(original.plan.settings)
-    names: list[str] = []
-    warnings: list[str] = []
-    advance_reports: list[dict[str, object]] = []
-    traj_report: TrajectoryReport | None = None
-    slowed = np.zeros(len(table), dtype=bool)
-    guard_cost = 0.0
-    pace_cost = 0.0
-    pace_report: PaceReport | None = None
-    added_grid = 0
-    with tempfile.TemporaryDirectory(prefix="flowtwin-compensate-") as tmpdir:
-        work = Path(tmpdir) / ("draft" + "".join(src.suffixes[-1:]) if src.suffix else "draft")
-        current = original
+        options = read_options(twin.machine.printer)
+    text = read_original(src, table, home_xyz=options.home_xyz)
+    draft = Draft.identity(text, table)
+    twin = replace(twin, settings=original.plan.settings, printer=original.plan.printer)
+    return Setting(twin, original, text, extruder_limits(original.plan.settings),
+                   options), draft
 
-        def refresh(d: Draft) -> SimulationResult:
-            d.render(work)
-            return _checked(sim(work), d, work)
 
-        if tr is not None and not tr.is_identity:
-            step("trajectory")
-            names.append("trajectory")
-            draft, traj_report = bend_paths(draft, current, tr)
-            current = refresh(draft)
-        if gd is not None:
-            step("guard")
-            names.append("guard")
-            time0 = current.plan.timeline.total_time_s
-            for _ in range(gd.iterations):
-                draft, now = _guard_step(draft, current, scanned, gd)
-                if not np.any(now):
-                    break
-                slowed |= now
-                current = refresh(draft)
-            guard_cost = current.plan.timeline.total_time_s - time0
-        if pc is not None:
-            step("pace")
-            time0 = current.plan.timeline.total_time_s
-            draft, pace_report = _pace_step(draft, current, scanned, limits,
-                                            float(m.filament.area_mm2), pc)
-            if pace_report.paced_rows.size:
-                names.append("pace")
-                current = refresh(draft)
-                pace_cost = current.plan.timeline.total_time_s - time0
-        if adv is not None and not adv.is_identity:
-            step("advance")
-            # the advance is computed for the file without the firmware's own advance
-            cur = current if not pa else simulate(work if names else src, machine=m,
-                                                  klipper_config=klipper_config,
-                                                  pressure_advance=False)
-            pre_advance = draft
-            kept_draft, kept_sim = draft, cur
-            kept_rms = flow_figures(original, cur, draft.row).rms_flow_error
-            # every later pass first with the twin's correction of the model, then (if
-            # that raised the twin's RMS) without it
-            attempts = [(k, k > 0) for k in range(advance_passes)]
-            attempts = [a for k, ilc in attempts for a in ([(k, True), (k, False)] if ilc
-                                                          else [(k, False)])]
-            done: set[int] = set()
-            for k, ilc in attempts:
-                if k in done:
-                    continue
-                pp = cur.parameters.params
-                # compression at which the feed force reaches the grinding limit (margin)
-                cap = (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
-                       * np.asarray(pp.compliance_mm_per_n, dtype=np.float64) / scanned.e_unit)
-                seen = _delivered_grid(original, cur, draft) if ilc else None
-                draft, rep = advance_pass(draft, cur.plan.table, cur.plan.timeline,
-                                          pp.lag_k_s, limits, adv, e_unit_mm=scanned.e_unit,
-                                          split=k == 0, relief=(k == 0 and adv.relief),
-                                          state_max=cap, delivered=seen)
-                draft.render(work)
-                cur = _checked(simulate(work, machine=m, klipper_config=klipper_config,
-                                        pressure_advance=False), draft, work)
-                rms = flow_figures(original, cur, draft.row).rms_flow_error
-                entry = _pass_dict(rep)
-                entry["rms_flow_error"] = rms
-                entry["twin_correction"] = ilc
-                advance_reports.append(entry)
-                if ilc and rms > kept_rms:
-                    entry["kept"] = False
-                    draft, cur = kept_draft, kept_sim
-                    continue  # the same pass again, without the correction
-                done.add(k)
-                if rms <= kept_rms:
-                    kept_draft, kept_sim, kept_rms = draft, cur, rms
-                else:
-                    entry["kept"] = False
-                    warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
-                                    f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
-                                    "its result is not used")
-                    draft, cur = kept_draft, kept_sim
-                    break
-            if kept_draft is not pre_advance:
-                names.append("advance")
-            draft = kept_draft
-            current = kept_sim if not pa else refresh(draft)
-        if sl is not None and not sl.is_identity:
-            step("slip")
-            base = draft.e_grid.copy()
-            printing = _printing(current, draft)
-            before_slip = (draft, current)
-            rms0 = flow_figures(original, current, draft.row).rms_flow_error
-            for _ in range(sl.iterations):
-                draft = slip_feedforward(draft, base, printing,
-                                         current.dynamics.moves["slip"], sl)
-                current = refresh(draft)
-            rms1 = flow_figures(original, current, draft.row).rms_flow_error
-            if rms1 > rms0:
-                warnings.append(f"the slip feed-forward raised the twin's RMS flow error (to "
-                                f"{100 * rms1:.2f} % from {100 * rms0:.2f} %; the drive is "
-                                "near grinding, try --guard): it is not used")
-                draft, current = before_slip
-            else:
-                names.append("slip")
-                added_grid = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
-        step("write")
-        result = draft.render(dst)
-        step("simulate result")
-        after_sim = _checked(sim(dst), draft, dst)
+def _written(setting: Setting, current: Current, layout: Layout, dst: Path
+             ) -> SimulationResult:
+    """The twin's simulation of the written file.
+
+    The file is read back; where its moves are the draft's table bit for bit (always, but
+    for relative coordinates after a rewritten line), the draft's simulation is the
+    file's, else the file is simulated as read.
+
+    Raises
+    ------
+    GcodeError
+        The written file does not read back as the pieces written.
+    """
+    read = read_gcode(dst, options=setting.read_options)
+    if len(read) != len(current.draft):
+        raise GcodeError("the rewritten file does not read back as the pieces written "
+                         f"({len(read)} moves, {len(current.draft)} pieces)", source=dst,
+                         allowed="a reader/writer round trip that keeps every piece")
+    mine = layout.rows
+    same = all(np.array_equal(read.moves[k], mine[k])
+               for k in ("x", "y", "z", "e", "de", "feed_mm_s", "kind", "layer", "tool",
+                         "flow", "feature", "line"))
+    if same and np.array_equal(np.asarray(read.layer_z, dtype=np.float64),
+                               np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
+        return current.sim
+    return setting.twin.simulate_table(read)
+
+
+def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_passes: int,
+                record: _Record, step: Progress) -> Current:
+    """Trajectory, guard, pace, advance, slip: each that is asked for, in this order."""
+    tr, gd, pc, adv, sl = (stages.trajectory, stages.guard, stages.pace, stages.advance,
+                           stages.slip)
+    if tr is not None and not tr.is_identity:
+        step("trajectory")
+        record.names.append("trajectory")
+        bent = trajectory_stage(setting, current, tr)
+        current, record.trajectory = bent.current, bent.report
+    if gd is not None:
+        step("guard")
+        record.names.append("guard")
+        guarded = guard_stage(setting, current, gd)
+        current, record.slowed = guarded.current, guarded.slowed
+        record.guard_cost_s = guarded.time_cost_s
+    if pc is not None:
+        step("pace")
+        paced = pace_stage(setting, current, pc)
+        current, record.pace = paced.current, paced.report
+        if paced.applied:
+            record.names.append("pace")
+            record.pace_cost_s = paced.time_cost_s
+    if adv is not None and not adv.is_identity:
+        step("advance")
+        advanced = advance_stage(setting, current, adv, passes=advance_passes)
+        current, record.passes = advanced.current, advanced.passes
+        record.warnings.extend(advanced.warnings)
+        if advanced.applied:
+            record.names.append("advance")
+    if sl is not None and not sl.is_identity:
+        step("slip")
+        slipped = slip_stage(setting, current, sl)
+        current = slipped.current
+        record.warnings.extend(slipped.warnings)
+        if slipped.applied:
+            record.names.append("slip")
+            record.added_grid = slipped.added_grid
+    return current
+
+
+def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record: _Record,
+            src: Path, dst: Path, *, lines_rewritten: int, baked_advance: bool,
+            seconds: float) -> CompensationReport:
+    """Before/after figures of the written file against the original intent."""
+    original = setting.original
+    m = setting.twin.machine
+    table = original.plan.table
+    e_unit = setting.original_file.e_unit
     window = float(m.hotend.nozzle_diameter_mm)
     before = flow_figures(original, original, np.arange(len(table), dtype=np.int64),
                           window_mm=window)
     after = flow_figures(original, after_sim, draft.row, window_mm=window)
-    area = m.filament.area_mm2
     flow = after_sim.plan.table.moves["flow"].astype(np.float64)
-    pr = _printing(after_sim, draft)
+    pr = printing_pieces(after_sim, draft)
     summary0 = original.summary()
     summary1 = after_sim.summary()
+    warnings = list(record.warnings)
     warnings.extend(str(w) for w in after_sim.warnings if w not in original.warnings)
     changed_k = lag_factor_changes(original, after_sim, draft.row)
     if changed_k.size:
-        k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
-        k1 = np.asarray(after_sim.parameters.params.lag_k_s, dtype=np.float64)
-        worst = int(np.argmax(np.abs(np.log(k1 / k0[draft.row]))))
-        lines = table.moves["line"][changed_k]
-        warnings.append(
-            f"the twin's lag factor of {changed_k.size} moves (lines "
+        warnings.append(_lag_warning(original, after_sim, draft, changed_k))
+    if baked_advance and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(original)):
+        warnings.append("the advance is baked into the file: turn the firmware's pressure "
+                        "advance off (M900 K0 / M572 S0 / SET_PRESSURE_ADVANCE ADVANCE=0) "
+                        "when printing it")
+    lines = table.moves["line"]
+    slowed = () if record.slowed is None else tuple(int(x) for x in
+                                                     lines[record.slowed].tolist())
+    paced = () if record.pace is None else tuple(int(x) for x in
+                                                  lines[record.pace.paced_rows].tolist())
+    return CompensationReport(
+        source=str(src), destination=str(dst), machine=m.name,
+        firmware_pressure_advance=setting.twin.pressure_advance,
+        transformations=tuple(record.names), before=before, after=after,
+        time_before_s=float(original.plan.timeline.total_time_s),
+        time_after_s=float(after_sim.plan.timeline.total_time_s),
+        commanded_e_before_mm=float(np.sum(draft.row_e) * e_unit),
+        commanded_e_after_mm=float(np.sum(draft.e_grid) * e_unit),
+        limits=setting.limits,
+        added_volume_mm3=float(record.added_grid * e_unit * m.filament.area_mm2
+                               * (float(np.mean(flow[pr])) if np.any(pr) else 1.0)),
+        slowed_moves=slowed, guard_time_cost_s=float(record.guard_cost_s),
+        grinding_moves_before=summary0.grinding_moves,
+        grinding_moves_after=summary1.grinding_moves,
+        max_force_before_n=summary0.max_feed_force_n,
+        max_force_after_n=summary1.max_feed_force_n,
+        advance=record.passes, trajectory=record.trajectory,
+        lines_rewritten=lines_rewritten, warnings=tuple(warnings), seconds=seconds,
+        lag_factor_changed_moves=int(changed_k.size), paced_moves=paced,
+        pace_time_cost_s=float(record.pace_cost_s), pace=record.pace,
+        original_result=original, compensated_result=after_sim,
+        piece_row=np.asarray(draft.row, dtype=np.int64))
+
+
+def _lag_warning(original: SimulationResult, after: SimulationResult, draft: Draft,
+                 changed: npt.NDArray[np.int64]) -> str:
+    table = original.plan.table
+    k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
+    k1 = np.asarray(after.parameters.params.lag_k_s, dtype=np.float64)
+    worst = int(np.argmax(np.abs(np.log(k1 / k0[draft.row]))))
+    lines = table.moves["line"][changed]
+    return (f"the twin's lag factor of {changed.size} moves (lines "
             f"{', '.join(str(int(x)) for x in lines[:5])}{' …' if lines.size > 5 else ''}) "
             f"differs between the original and the compensated file (e.g. line "
             f"{int(table.moves['line'][draft.row[worst]])}: K {k0[draft.row[worst]]:.3g} s → "
             f"{k1[worst]:.3g} s): the twin's parameters of a move depend on how it is cut "
             "(a layer height read from where the layer's first extrusion ends, in spiral "
             "layers); before and after are then not predicted on the same physics")
-    if adv is not None and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(original)):
-        warnings.append("the advance is baked into the file: turn the firmware's pressure "
-                        "advance off (M900 K0 / M572 S0 / SET_PRESSURE_ADVANCE ADVANCE=0) "
-                        "when printing it")
-    return CompensationReport(
-        source=str(src), destination=str(dst), machine=m.name,
-        firmware_pressure_advance=pa, transformations=names, before=before, after=after,
-        time_before_s=float(original.plan.timeline.total_time_s),
-        time_after_s=float(after_sim.plan.timeline.total_time_s),
-        commanded_e_before_mm=float(np.sum(row_e) * scanned.e_unit),
-        commanded_e_after_mm=float(np.sum(draft.e_grid) * scanned.e_unit),
-        added_volume_mm3=float(added_grid * scanned.e_unit * area
-                               * (float(np.mean(flow[pr])) if np.any(pr) else 1.0)),
-        slowed_moves=[int(x) for x in table.moves["line"][slowed].tolist()],
-        guard_time_cost_s=float(guard_cost),
-        grinding_moves_before=int(summary0["grinding_moves"]),  # type: ignore[call-overload]
-        grinding_moves_after=int(summary1["grinding_moves"]),  # type: ignore[call-overload]
-        max_force_before_n=float(summary0["max_feed_force_n"]),  # type: ignore[arg-type]
-        max_force_after_n=float(summary1["max_feed_force_n"]),  # type: ignore[arg-type]
-        advance=advance_reports,
-        trajectory=None if traj_report is None else traj_report.as_dict(),
-        limits=limits.as_dict(), lines_rewritten=result.lines_rewritten,
-        warnings=warnings, seconds=time.perf_counter() - t_start,
-        lag_factor_changed_moves=int(changed_k.size),
-        paced_moves=([] if pace_report is None else
-                     [int(x) for x in table.moves["line"][pace_report.paced_rows].tolist()]),
-        pace_time_cost_s=float(pace_cost),
-        pace=None if pace_report is None else pace_report.as_dict(),
-        original_result=original, compensated_result=after_sim,
-        piece_row=np.asarray(draft.row, dtype=np.int64))
 
 
 #: Relative change of a piece's lag factor against its original move's that is reported.
@@ -514,79 +372,8 @@ def lag_factor_changes(original: SimulationResult, compensated: SimulationResult
     return np.unique(piece_row[off]).astype(np.int64)
 
 
-def _delivered_grid(original: SimulationResult, sim: SimulationResult,
-                    draft: Draft) -> npt.NDArray[np.float64]:
-    """Melt the twin predicts every original row delivers in ``sim`` without the drive's
-    slip, in E grid units of the row's intent (``delivered/commanded · row E``)."""
-    d = sim.dynamics.moves
-    out = np.asarray(d["out_mm3"], dtype=np.float64) + np.asarray(d["slip_loss_mm3"],
-                                                                   dtype=np.float64)
-    n = draft.n_rows
-    delivered = np.bincount(draft.row, weights=out, minlength=n)
-    cmd = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(cmd > 0, delivered / cmd * draft.row_e, draft.row_e.astype(float))
-
-
 def _has_pa_commands(sim: SimulationResult) -> bool:
     for ev in sim.plan.table.events:
         if ev.code in ("M900", "M572", "SET_PRESSURE_ADVANCE"):
             return True
     return False
-
-
-def _pass_dict(rep: PassReport) -> dict[str, object]:
-    return {"pieces": rep.pieces, "runs": rep.runs, "law_clipping": dict(rep.law_counts),
-            "refinement": dict(rep.refinement), "relief_travels": rep.relief_travels,
-            "relief_mm": rep.relief_mm, "relief_retractions": rep.relief_retractions,
-            "relief_retraction_mm": rep.relief_retraction_mm,
-            "relief_precharge_mm": rep.relief_precharge_mm}
-
-
-def _guard_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
-                options: GuardOptions) -> tuple[Draft, npt.NDArray[np.bool_]]:
-    d = sim.dynamics.moves
-    ph = sim.plan.timeline.phases
-    printing = _printing(sim, draft)
-    length = np.maximum(sim.plan.timeline.move_time_s, 0.0)
-    mv = sim.plan.table.moves
-    path = np.hypot(np.diff(np.concatenate(([sim.plan.table.start_xyze[0]], mv["x"]))),
-                    np.diff(np.concatenate(([sim.plan.table.start_xyze[1]], mv["y"]))))
-    cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        flow = np.where((path > 0) & (length > 0), d["cmd_mm3"] / path * cruise, 0.0)
-    lines = draft.table.moves["line"]
-    speed_factor = np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
-                             else 1.0 for ln in lines.tolist()])
-    pp = sim.parameters.params
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v_e = np.where(path > 0, draft.e_grid * scanned.e_unit / path * cruise, 0.0)
-    steady = np.asarray(pp.lag_k_s, dtype=np.float64) * v_e / np.asarray(
-        pp.compliance_mm_per_n, dtype=np.float64)
-    return guard_feeds(draft, cruise, d["peak_force_n"], steady, pp.max_feed_force_n, flow,
-                       printing, speed_factor, options)
-
-
-
-def _pace_step(draft: Draft, sim: SimulationResult, scanned: ScannedSource,
-               limits: ExtruderLimits, filament_area_mm2: float,
-               options: PaceOptions) -> tuple[Draft, PaceReport]:
-    """Flow pacing on the current draft with the twin's lag factors and the plan's speeds."""
-    ph = sim.plan.timeline.phases
-    start = draft.start_xyz()
-    length = np.sqrt(np.sum((draft.xyz_mm - start) ** 2, axis=1))
-    cmd = np.asarray(sim.dynamics.moves["cmd_mm3"], dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        area = np.where(length > 0, cmd / length, 0.0)
-    lines = draft.table.moves["line"][draft.row]
-    speed_factor = np.array([scanned.motion[int(ln)].speed_factor if int(ln) in scanned.motion
-                             else 1.0 for ln in lines.tolist()])
-    push = filament_area_mm2 * min(limits.jump_mm_s, limits.max_e_speed_mm_s)
-    return pace_feeds(draft, printing=_printing(sim, draft), cross_section_mm2=area,
-                      lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
-                      volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
-                      cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
-                      end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
-                      t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
-                      t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
-                      speed_factor=speed_factor, push_mm3_s=push, options=options)

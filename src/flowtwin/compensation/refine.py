@@ -453,15 +453,16 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         d_con = np.concatenate((d_con, np.zeros(k_y)))
         lo_con = np.concatenate((lo_con, np.zeros(k_y)))
         hi_con = np.concatenate((hi_con, y_max))
+    # the state cap: rows only where it binds (solved without it first; most runs stay
+    # far below the compression at which the drive would grind)
+    cap_rows = None
     if state_max is not None and np.any(np.isfinite(state_max)):
         cap = np.isfinite(state_max)
         rows_x = sp.csr_matrix((np.ones(int(cap.sum())), (np.arange(int(cap.sum())),
                                                           idx[cap])),
                                shape=(int(cap.sum()), n + k_y))
-        con = sp.vstack([con, rows_x], format="csr")
-        d_con = np.concatenate((d_con, np.zeros(int(cap.sum()))))
-        lo_con = np.concatenate((lo_con, np.full(int(cap.sum()), -np.inf)))
-        hi_con = np.concatenate((hi_con, state_max[cap]))
+        cap_rows = (rows_x, np.zeros(int(cap.sum())), np.full(int(cap.sum()), -np.inf),
+                    np.asarray(state_max, dtype=np.float64)[cap], cap)
     if jump is not None:
         jmp = np.asarray(jump, dtype=np.float64)
         if jmp.shape != (n,):
@@ -483,13 +484,26 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     # each pre-charge just before the piece it feeds: the band stays narrow
     order = np.argsort(np.concatenate((idx, after_v - 0.5)), kind="stable")
     h = sp.csr_matrix(h)[order][:, order] if k_y else h
-    z, iterations, _mu = solve_box_qp(h / scale, g[order] / scale,
-                                      sp.csr_matrix(con)[:, order] if k_y else con,
-                                      d_con, lo_con, hi_con,
-                                      max_iterations=options.max_iterations,
-                                      x0=x_start[order])
     x = np.empty(n + k_y)
-    x[order] = z
+    iterations = 0
+    for with_cap in (False, True):
+        if with_cap:
+            if cap_rows is None:
+                break
+            over = x[:n][cap_rows[4]] > cap_rows[3] + 1e-6 * np.maximum(np.abs(cap_rows[3]), 1)
+            if not np.any(over):
+                break
+            con = sp.vstack([con, cap_rows[0]], format="csr")
+            d_con = np.concatenate((d_con, cap_rows[1]))
+            lo_con = np.concatenate((lo_con, cap_rows[2]))
+            hi_con = np.concatenate((hi_con, cap_rows[3]))
+        z, its, _mu = solve_box_qp(h / scale, g[order] / scale,
+                                   sp.csr_matrix(con)[:, order] if k_y else con,
+                                   d_con, lo_con, hi_con,
+                                   max_iterations=options.max_iterations,
+                                   x0=x_start[order])
+        iterations = max(iterations, its)
+        x[order] = z
     c = np.clip(c_mat @ x + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)

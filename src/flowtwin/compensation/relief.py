@@ -291,29 +291,32 @@ def insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
     push-back after its last one."""
     speed = min(RELIEF_SPEED_MM_S, 0.9 * limits.e_only_speed_mm_s)
     feed_mm_min = 60.0 * speed
-    before = {a: -retract for a, _b, retract, _back in reliefs}
-    after = {b: back for _a, b, _retract, back in reliefs}
-    rows: list[int] = []
-    pts: list[FloatArray] = []
-    es: list[int] = []
-    fs: list[float] = []
-    for k in range(piece_of.size):
-        r = int(piece_of[k])
-        first_of_row = k == 0 or piece_of[k - 1] != r
-        last_of_row = k == piece_of.size - 1 or piece_of[k + 1] != r
-        if first_of_row and r in before:
-            rows.append(r)
-            pts.append(start[r])
-            es.append(before[r])
-            fs.append(feed_mm_min)
-        rows.append(r)
-        pts.append(xyz[k])
-        es.append(int(e_piece[k]))
-        fs.append(float(feed[k]))
-        if last_of_row and after.get(r, 0) > 0:
-            rows.append(r)
-            pts.append(end[r])
-            es.append(after[r])
-            fs.append(feed_mm_min)
-    return (np.asarray(rows, dtype=np.int64), np.vstack(pts) if pts else xyz,
-            np.asarray(es, dtype=np.int64), np.asarray(fs, dtype=np.float64))
+    n = piece_of.size
+    if n == 0 or not reliefs:
+        return piece_of, xyz, e_piece, feed
+    rows_b = np.array([a for a, _b, _r, _back in reliefs], dtype=np.int64)
+    amount_b = np.array([-r for _a, _b, r, _back in reliefs], dtype=np.int64)
+    after = [(b, back) for _a, b, _r, back in reliefs if back > 0]
+    rows_a = np.array([b for b, _back in after], dtype=np.int64)
+    amount_a = np.array([back for _b, back in after], dtype=np.int64)
+    first_of = np.searchsorted(piece_of, rows_b, side="left")   # before a row's first piece
+    after_last = np.searchsorted(piece_of, rows_a, side="right")  # after a row's last one
+    # at a shared position the push-back of the row before comes first
+    pos = np.concatenate((after_last * 2, first_of * 2 + 1))
+    order = np.argsort(pos, kind="stable")
+    at = np.concatenate((after_last, first_of))[order]
+    ins_row = np.concatenate((rows_a, rows_b))[order]
+    ins_pt = np.vstack((end[rows_a], start[rows_b]))[order] if at.size else xyz[:0]
+    ins_e = np.concatenate((amount_a, amount_b))[order]
+    # the original pieces move up by the insertions before them
+    total = n + at.size
+    new_idx = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
+    ins_idx = at + np.arange(at.size)
+    rows = np.empty(total, dtype=np.int64)
+    pts = np.empty((total, 3))
+    es = np.empty(total, dtype=np.int64)
+    fs = np.empty(total)
+    rows[new_idx], pts[new_idx], es[new_idx], fs[new_idx] = piece_of, xyz, e_piece, feed
+    rows[ins_idx], pts[ins_idx], es[ins_idx] = ins_row, ins_pt, ins_e
+    fs[ins_idx] = feed_mm_min
+    return rows, pts, es, fs

@@ -216,12 +216,12 @@ def bend_paths(draft: Draft, sim: SimulationResult,
         lag_phys = np.asarray(tractrix_contact_length_mm(np.maximum(height, 1e-6)),
                               dtype=np.float64)
     lag = np.minimum(lag_phys, options.max_shift_mm)
-    for ln in np.unique(sim.plan.table.moves["line"][printing]).tolist():
-        ml = draft.scanned.motion.get(int(ln))
-        if ml is not None and not ml.abs_xyz:
-            raise GcodeError("the trajectory correction needs absolute XYZ (G90) in printing "
-                             "moves", source=draft.scanned.text.source, line=int(ln),
-                             value="G91", allowed="G90")
+    relative = printing & ~draft.original.abs_xyz[draft.row]
+    if np.any(relative):
+        ln = int(draft.table.moves["line"][draft.row[np.argmax(relative)]])
+        raise GcodeError("the trajectory correction needs absolute XYZ (G90) in printing "
+                         "moves", source=draft.original.source, line=ln, value="G91",
+                         allowed="G90")
     # runs: consecutive printing pieces at one Z
     same_z = np.concatenate(([False], np.abs(end[1:, 2] - end[:-1, 2]) < 1e-9))
     cont = printing & np.concatenate(([False], printing[:-1])) & same_z

@@ -5,7 +5,9 @@
 * :mod:`~flowtwin.firmware.advance`: writing and reading the pressure-advance and
   acceleration commands, their ranges and defaults;
 * :mod:`~flowtwin.firmware.factors`: the ``M220``/``M221`` multipliers (encoding, Marlin's
-  reports, commands refused on Klipper).
+  reports, commands refused on Klipper);
+* :mod:`~flowtwin.firmware.nonlinear`: nonlinear extrusion (``M592``): which firmware scales
+  E with the extrusion speed, by which formula.
 
 Planning (:mod:`flowtwin.planner.plan_file`), the dynamics' pressure advance, the calibration
 patterns, the twin's firmware settings and the closed loop all read the firmware from
@@ -43,6 +45,7 @@ from flowtwin.firmware.factors import (
     read_factor_command,
 )
 from flowtwin.firmware.kinds import AdvanceAlgorithm, Firmware, PaSyntax, PlannerFamily
+from flowtwin.firmware.nonlinear import NonlinearFormula, nonlinear_command, nonlinear_formula
 
 __all__ = [
     "ACCEL_MAX_MM_S2",
@@ -54,6 +57,7 @@ __all__ = [
     "AdvanceAlgorithm",
     "Channel",
     "Firmware",
+    "NonlinearFormula",
     "PaChange",
     "PaSyntax",
     "PlannerFamily",
@@ -62,6 +66,8 @@ __all__ = [
     "check_command",
     "check_factor_commands",
     "encode_factor",
+    "nonlinear_command",
+    "nonlinear_formula",
     "pa_command",
     "parse_factor_report",
     "query_command",

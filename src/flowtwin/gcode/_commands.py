@@ -32,12 +32,13 @@ EVENT_CODES = frozenset({
     "M109", "M140", "M190", "M141", "M191", "M200", "M201", "M203", "M204", "M205",
     "M207", "M208", "M220", "M221", "M400", "M572", "M900", "SET_VELOCITY_LIMIT",
     "SET_PRESSURE_ADVANCE", "ACTIVATE_EXTRUDER", "M82", "M83", "G90", "G91", "G92",
+    "G20", "G21",
     # pauses, filament changes, probing and levelling: the firmware stops the head
     "M600", "M601", "M125", "M226", "M420", "M701", "M702", "G30", "G33", "G34", "M25",
 })
 #: Commands understood without consequence for the twin (not "unknown").
-HARMLESS_CODES = frozenset({"G21", "G20", "G17", "M117", "M73", "M105", "M115", "M110",
-                            "M17", "M108", "M113", "M103", "M101", "M82", "M83"})
+HARMLESS_CODES = frozenset({"G17", "M117", "M73", "M105", "M115", "M110",
+                            "M17", "M108", "M113", "M103", "M101"})
 #: Parameters that must be numbers, per command.
 NUMERIC_PARAMS: dict[str, frozenset[str]] = {
     "G4": frozenset("PS"), "M104": frozenset("ST"), "M109": frozenset("STR"),

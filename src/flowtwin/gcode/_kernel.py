@@ -4,7 +4,8 @@ This is the reader's hot loop. It walks a ``uint8`` buffer line by line and
 
 * executes the frequent commands itself: ``G0/G1``, ``G2/G3`` (XY plane, I/J or R,
   helical, linearised), ``G92``, ``G90/G91``, ``M82/M83``, ``G20/G21``, ``G28``,
-  ``T<n>``, ``M220 S``, ``M221 S``, ``N`` line numbers with ``*`` checksums;
+  ``T<n>``, ``M220 S``, ``M221 S``, ``N`` line numbers with ``*`` checksums (the modal
+  ones, ``G90/G91``, ``G92``, ``G20/G21`` and ``M82/M83``, are also recorded as events);
 * records every other non-empty line as a span ``(line, start, end, move_index)`` for the
   Python side to interpret afterwards, in order: comment-only lines (the text after ``;``),
   commands whose words are all numbers (events such as ``M204 S800``: already parsed, their
@@ -426,13 +427,19 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
             # malformed parameters on a command we don't execute: Python decides
             state[S_LINE] = line
             return ST_PYTHON, start, n_out, n_other, n_vals
+        # executed here and not recorded; the modal commands (G90/G91, G92, G20/G21,
+        # M82/M83) are executed *and* recorded: the events are the reader's modal state
+        # for whoever rewrites the file (compensation writes every line in its own modes)
         executed = True
         if c0 == 71:
             if code_num == 90:
                 state[S_ABS_XYZ] = 1.0
+                executed = False
             elif code_num == 91:
                 state[S_ABS_XYZ] = 0.0
+                executed = False
             elif code_num == 92:
+                executed = False
                 unit = state[S_UNIT]
                 none = (mask & (_XYZ | _E)) == 0
                 if mask & _X or none:
@@ -445,8 +452,10 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
                     state[S_EGC] = (val[4] * unit * state[S_E_FACTOR]) if mask & _E else 0.0
             elif code_num == 21:
                 state[S_UNIT] = 1.0
+                executed = False
             elif code_num == 20:
                 state[S_UNIT] = 25.4
+                executed = False
             elif code_num == 28:
                 any_axis = (mask & _XYZ) != 0
                 if mask & _X or not any_axis:
@@ -463,8 +472,10 @@ def scan(buf, pos, state, out, n_out, other, vals, n_other, n_vals, e_acc):  # t
         else:  # M
             if code_num == 82:
                 state[S_ABS_E] = 1.0
+                executed = False
             elif code_num == 83:
                 state[S_ABS_E] = 0.0
+                executed = False
             elif (code_num == 220 and mask & _S) or (code_num == 221
                                                      and (mask & (_S | _T | _D)) == _S):
                 # M220 S<pct>, M221 S<pct> (Marlin's M221 T<n> S<pct> targets one tool:

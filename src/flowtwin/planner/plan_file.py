@@ -10,6 +10,7 @@ apply from where they appear, as on the printer.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import BinaryIO
@@ -32,7 +33,8 @@ from flowtwin.planner.timeline import Timeline
 from flowtwin.planner.totals import PlanTotals
 from flowtwin.profiles.printer import PrinterProfile
 
-__all__ = ["DEFAULT_PRINTER", "PlanResult", "load_printer", "plan_gcode"]
+__all__ = ["DEFAULT_PRINTER", "PlanResult", "PlanSummary", "load_printer", "metadata_number",
+           "plan_gcode", "plan_table"]
 
 
 
@@ -71,8 +73,8 @@ class PlanResult:
         """One row per layer: index, Z (mm), time (s), filament (mm), moves."""
         return self.totals().per_layer(self.table.layer_z)
 
-    def summary(self) -> dict[str, object]:
-        """The whole-print figures as plain JSON-able values."""
+    def summary(self) -> PlanSummary:
+        """The whole-print figures (:class:`PlanSummary`)."""
         t = self.table
         tot = self.totals()
         net = {str(k): w for k, (w, _x) in tot.filament_by_tool().items()}
@@ -81,24 +83,77 @@ class PlanResult:
         n = tot.moves
         ext_written = tot.extruding_written
         layers = tot.layers
+        slicer = t.metadata.get("slicer")
+        return PlanSummary(
+            file=t.source, printer=self.printer, firmware=self.timeline.firmware,
+            total_time_s=float(self.timeline.total_time_s), net_filament_mm=net,
+            extruded_filament_mm=extruded, moves=int(n), extruding_moves=int(ext_written),
+            lines=t.n_lines, layers=int(layers), unknown_commands=dict(t.unknown_commands),
+            warnings=len(t.warnings) + len(self.timeline.warnings),
+            time_by_feature_s=by_feature, slicer=slicer if isinstance(slicer, str) else None,
+            slicer_time_s=metadata_number(t.metadata.get("slicer_time_s")),
+            slicer_filament_mm=metadata_number(t.metadata.get("slicer_filament_mm")))
+
+
+@dataclass(frozen=True, slots=True)
+class PlanSummary:
+    """The whole-print figures of a plan (the ``--json`` object of ``flowtwin plan``).
+
+    Attributes
+    ----------
+    file, printer, firmware
+        The G-code's name, the printer (profile name or ``printer.cfg``), the firmware.
+    total_time_s
+        Planned print time, s.
+    net_filament_mm, extruded_filament_mm
+        Net filament written (E words, firmware retractions left out) and filament
+        extruded (after M221) per tool number, mm.
+    moves, extruding_moves, lines, layers
+        Move rows, extruding rows written in the G-code, lines read, layers.
+    unknown_commands
+        Commands the reader did not interpret, with counts.
+    warnings
+        Number of reader and planner warnings.
+    time_by_feature_s
+        Print time per feature name (dwells as one feature), s.
+    slicer, slicer_time_s, slicer_filament_mm
+        The slicer and its own time (s) and filament (mm) estimates, where the file says.
+    """
+
+    file: str
+    printer: str
+    firmware: str
+    total_time_s: float
+    net_filament_mm: Mapping[str, float]
+    extruded_filament_mm: Mapping[str, float]
+    moves: int
+    extruding_moves: int
+    lines: int
+    layers: int
+    unknown_commands: Mapping[str, int]
+    warnings: int
+    time_by_feature_s: Mapping[str, float]
+    slicer: str | None = None
+    slicer_time_s: float | None = None
+    slicer_filament_mm: float | None = None
+
+    def as_dict(self) -> dict[str, object]:
+        """The figures as plain JSON-able values (keys in the ``--json`` order)."""
         return {
-            "file": t.source,
-            "printer": self.printer,
-            "firmware": self.timeline.firmware,
-            "total_time_s": float(self.timeline.total_time_s),
-            "net_filament_mm": net,
-            "extruded_filament_mm": extruded,
-            "moves": int(n),
-            "extruding_moves": int(ext_written),
-            "lines": t.n_lines,
-            "layers": int(layers),
-            "unknown_commands": t.unknown_commands,
-            "warnings": len(t.warnings) + len(self.timeline.warnings),
-            "time_by_feature_s": by_feature,
-            "slicer": t.metadata.get("slicer"),
-            "slicer_time_s": t.metadata.get("slicer_time_s"),
-            "slicer_filament_mm": t.metadata.get("slicer_filament_mm"),
+            "file": self.file, "printer": self.printer, "firmware": self.firmware,
+            "total_time_s": self.total_time_s, "net_filament_mm": dict(self.net_filament_mm),
+            "extruded_filament_mm": dict(self.extruded_filament_mm), "moves": self.moves,
+            "extruding_moves": self.extruding_moves, "lines": self.lines,
+            "layers": self.layers, "unknown_commands": dict(self.unknown_commands),
+            "warnings": self.warnings, "time_by_feature_s": dict(self.time_by_feature_s),
+            "slicer": self.slicer, "slicer_time_s": self.slicer_time_s,
+            "slicer_filament_mm": self.slicer_filament_mm,
         }
+
+
+def metadata_number(value: object) -> float | None:
+    """A metadata number as written (``None`` when absent or not a number)."""
+    return value if isinstance(value, float | int) and not isinstance(value, bool) else None
 
 
 def load_printer(printer: PrinterProfile | str | os.PathLike[str] | None) -> PrinterProfile:
@@ -163,3 +218,24 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     if ms.delta is not None:
         table = segment_moves(table, ms.delta)   # Marlin plans a delta's segments
     return PlanResult(table, plan_marlin(table, ms), profile.name, ms)
+
+
+def plan_table(table: MoveTable, settings: KlipperSettings | MarlinSettings, *,
+               printer: str) -> PlanResult:
+    """Plan a move table (read, or made in memory) with given firmware settings.
+
+    Parameters
+    ----------
+    table
+        The moves.
+    settings
+        Klipper's or Marlin's settings (e.g. :attr:`PlanResult.settings` of a plan of the
+        same printer).
+    printer
+        Name of the printer (for the result).
+    """
+    if isinstance(settings, KlipperSettings):
+        return PlanResult(table, plan_klipper(table, settings), printer, settings)
+    if settings.delta is not None:
+        table = segment_moves(table, settings.delta)   # Marlin plans a delta's segments
+    return PlanResult(table, plan_marlin(table, settings), printer, settings)

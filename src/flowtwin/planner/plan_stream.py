@@ -44,7 +44,7 @@ from flowtwin.planner.klipper_config import (
     load_printer_cfg,
 )
 from flowtwin.planner.marlin import MarlinSettings, marlin_settings_from_slicer_config, plan_marlin
-from flowtwin.planner.plan_file import load_printer
+from flowtwin.planner.plan_file import PlanSummary, load_printer, metadata_number
 from flowtwin.planner.timeline import Timeline
 from flowtwin.planner.totals import PlanTotals
 from flowtwin.planner.windows import LEAD_MOVES, PlannedSpan, WindowPlanner
@@ -207,29 +207,25 @@ class PlanStream:
         """Rows of :meth:`flowtwin.planner.plan_file.PlanResult.per_layer`."""
         return self.totals.per_layer(self._table().layer_z)
 
-    def summary(self) -> dict[str, object]:
-        """The figures of :meth:`flowtwin.planner.plan_file.PlanResult.summary` (same keys)."""
+    def summary(self) -> PlanSummary:
+        """The figures of :meth:`flowtwin.planner.plan_file.PlanResult.summary`."""
         t = self._table()
         tot = self.totals
         by_tool = tot.filament_by_tool()
-        return {
-            "file": t.source,
-            "printer": self.printer,
-            "firmware": self.firmware,
-            "total_time_s": float(self.total_time_s),
-            "net_filament_mm": {str(k): w for k, (w, _x) in by_tool.items()},
-            "extruded_filament_mm": {str(k): x for k, (_w, x) in by_tool.items()},
-            "moves": int(tot.moves),
-            "extruding_moves": int(tot.extruding_written),
-            "lines": t.n_lines,
-            "layers": int(tot.layers),
-            "unknown_commands": t.unknown_commands,
-            "warnings": len(t.warnings) + len(self._notes),
-            "time_by_feature_s": tot.time_by_feature(t.features),
-            "slicer": t.metadata.get("slicer"),
-            "slicer_time_s": t.metadata.get("slicer_time_s"),
-            "slicer_filament_mm": t.metadata.get("slicer_filament_mm"),
-        }
+        slicer = t.metadata.get("slicer")
+        return PlanSummary(
+            file=t.source, printer=self.printer, firmware=self.firmware,
+            total_time_s=float(self.total_time_s),
+            net_filament_mm={str(k): w for k, (w, _x) in by_tool.items()},
+            extruded_filament_mm={str(k): x for k, (_w, x) in by_tool.items()},
+            moves=int(tot.moves), extruding_moves=int(tot.extruding_written),
+            lines=t.n_lines, layers=int(tot.layers),
+            unknown_commands=dict(t.unknown_commands),
+            warnings=len(t.warnings) + len(self._notes),
+            time_by_feature_s=tot.time_by_feature(t.features),
+            slicer=slicer if isinstance(slicer, str) else None,
+            slicer_time_s=metadata_number(t.metadata.get("slicer_time_s")),
+            slicer_filament_mm=metadata_number(t.metadata.get("slicer_filament_mm")))
 
 
 def plan_stream(source: str | os.PathLike[str] | bytes | BinaryIO, *,

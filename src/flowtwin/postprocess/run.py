@@ -336,7 +336,7 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
             step("compensate")
             work = Path(tmp) / ("compensated" + "".join(path.suffixes[-2:]))
             comp_report, result = _compensate(path, work, choice, opts)
-            comp_summary = comp_report.summary()
+            comp_summary = comp_report.as_dict()
             comp_summary.pop("slowed_lines", None)
             comp_summary.pop("paced_lines", None)
         if result is None:

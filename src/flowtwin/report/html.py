@@ -231,8 +231,8 @@ def _meta(result: SimulationResult, window_mm: float) -> dict[str, object]:
                                       dtype=np.float64), kind.shape)
     fin = grip[np.isfinite(grip)]
     s = result.summary()
-    return {"file": Path(str(s["file"])).name, "machine": s["machine"],
-            "printer": s["printer"], "firmware": s["firmware"], "window_mm": window_mm,
+    return {"file": Path(s.file).name, "machine": s.machine,
+            "printer": s.printer, "firmware": s.firmware, "window_mm": window_mm,
             "grip_n": float(fin.min()) if fin.size else None}
 
 
@@ -363,6 +363,6 @@ def write_comparison(report: CompensationReport, path: str | os.PathLike[str]) -
                         field="CompensationReport", allowed="a report from compensate()")
     out = Path(path)
     atomic_write_text(out, comparison_html(report.original_result, report.compensated_result,
-                                           report.piece_row, summary=report.summary(),
+                                           report.piece_row, summary=report.as_dict(),
                                            warnings=report.warnings))
     return out

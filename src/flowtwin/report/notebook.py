@@ -42,8 +42,8 @@ def compensation_repr(report: CompensationReport) -> str:
     if report.original_result is None or report.compensated_result is None or \
             report.piece_row is None:
         rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
-                       for k, v in report.summary().items() if not isinstance(v, list | dict))
+                       for k, v in report.as_dict().items() if not isinstance(v, list | dict))
         return f"<table>{rows}</table>"
     return iframe(comparison_html(report.original_result, report.compensated_result,
-                                  report.piece_row, summary=report.summary(),
+                                  report.piece_row, summary=report.as_dict(),
                                   warnings=report.warnings))

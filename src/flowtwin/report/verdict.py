@@ -33,6 +33,7 @@ from flowtwin.simulation.windowed import WindowedFlow
 
 if TYPE_CHECKING:
     from flowtwin.calibration.tuning.advance_settings import AdvanceFit
+    from flowtwin.simulation.summary import SimulationSummary
 
 __all__ = ["FLOW_OK", "FLOW_VISIBLE", "SLIP_NOTABLE", "Advice", "FeatureFlow", "GrindingRisk",
            "Spot", "Verdict", "build_verdict"]
@@ -283,21 +284,18 @@ def build_verdict(result: SimulationResult, *, fit: AdvanceFit | None = None,
     fit_dict = None if fit is None else {
         "k_s": fit.k_s, "command": fit.command, "rms_at_best": fit.rms_at_best,
         "rms_without": fit.rms_without, "peak_at_best": fit.peak_at_best}
-    slip = float(s["mean_slip"])  # type: ignore[arg-type]
+    slip = s.mean_slip
     advice = _advice(result, grinding, over, under, slip, k_lag, fit)
-    headline = _headline(grinding, over, under, float(s["total_time_s"]),  # type: ignore[arg-type]
-                         win.window_mm, bool(np.any(ext)))
+    headline = _headline(grinding, over, under, s.total_time_s, win.window_mm, bool(np.any(ext)))
     return Verdict(
-        file=str(s["file"]), machine=str(s["machine"]), printer=str(s["printer"]),
-        firmware=str(s["firmware"]), pressure_advance=str(s["pressure_advance"]),
-        print_time_s=float(s["total_time_s"]),  # type: ignore[arg-type]
+        file=s.file, machine=s.machine, printer=s.printer, firmware=s.firmware,
+        pressure_advance=s.pressure_advance, print_time_s=s.total_time_s,
         window_mm=win.window_mm, headline=headline, grinding=grinding, over=over,
         under=under, worst_over=spots_over, worst_under=spots_under,
         by_feature=tuple(by_feature),
-        rms_flow_error=float(s["rms_flow_error"]),  # type: ignore[arg-type]
-        volume_error=float(s["volume_error"]),  # type: ignore[arg-type]
-        mean_slip=slip, ooze_mm3=float(s["ooze_volume_mm3"]),  # type: ignore[arg-type]
-        ooze_line=ooze_line, narrow_beads=int(s["narrow_beads"]),  # type: ignore[call-overload]
+        rms_flow_error=s.rms_flow_error, volume_error=s.volume_error,
+        mean_slip=slip, ooze_mm3=s.ooze_volume_mm3,
+        ooze_line=ooze_line, narrow_beads=s.narrow_beads,
         lag_k_s=k_lag, fit=fit_dict, advice=advice)
 
 
@@ -316,7 +314,7 @@ def _nanext(fn: object, a: npt.NDArray[np.float64]) -> float:
     return float(fn(fin)) if fin.size else math.nan  # type: ignore[operator]
 
 
-def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str, object],
+def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: SimulationSummary,
               path: npt.NDArray[np.float64]) -> GrindingRisk:
     tab = result.plan.table
     m = tab.moves
@@ -327,7 +325,7 @@ def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str,
     margin = result.metrics["force_margin_n"]
     fin = np.flatnonzero(np.isfinite(margin))   # every move, as the summary's minimum
     if fin.size == 0:
-        return GrindingRisk("safe", math.nan, math.nan, float(s["max_feed_force_n"]),  # type: ignore[arg-type]
+        return GrindingRisk("safe", math.nan, math.nan, s.max_feed_force_n,
                             math.nan, 0, 0, 0, -1, "", safety, math.nan, math.nan)
     i = int(fin[np.argmin(margin[fin])])
     # force of every printing move: the larger of the predicted peak and the steady
@@ -348,7 +346,7 @@ def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str,
         flow_limit = float(np.min(q_steady_limit[use]))
         j = int(np.argmax(force[use] / grip[use]))
         speed_limit = float(cruise[use][j] * min(1.0, safety * grip[use][j] / force[use][j]))
-    grinding_moves = int(s["grinding_moves"])  # type: ignore[call-overload]
+    grinding_moves = s.grinding_moves
     share = float(margin[i] / grip[i]) if grip[i] > 0 else math.nan
     if grinding_moves > 0:
         level = "grinds"
@@ -363,9 +361,9 @@ def _grinding(result: SimulationResult, ext: npt.NDArray[np.bool_], s: dict[str,
         machine_limit = float(np.min(limits[use & np.isfinite(limits)]))
         flags = result.parameters.over_flow_limit
         over = int(np.count_nonzero(flags & ext)) if flags is not None else 0
-    return GrindingRisk(level, float(margin[i]), share, float(s["max_feed_force_n"]),  # type: ignore[arg-type]
+    return GrindingRisk(level, float(margin[i]), share, s.max_feed_force_n,
                         float(grip[i]), grinding_moves,
-                        int(s["grinding_events"]), int(m["line"][i]),  # type: ignore[call-overload]
+                        s.grinding_events, int(m["line"][i]),
                         int(m["layer"][i]), _name(tab.features, int(m["feature"][i])), safety,
                         flow_limit, speed_limit, machine_limit, over)
 

@@ -9,9 +9,11 @@ bounded memory and keeps the whole-print aggregates (:mod:`flowtwin.simulation.s
 """
 
 from flowtwin.simulation.parameters import MoveParameters, layer_heights_mm, move_parameters
-from flowtwin.simulation.pipeline import DEFAULT_MACHINE, simulate
+from flowtwin.simulation.pipeline import DEFAULT_MACHINE, simulate, simulate_plan
 from flowtwin.simulation.result import METRIC_DTYPE, SimulationResult
 from flowtwin.simulation.stream import StreamResult, simulate_stream
+from flowtwin.simulation.summary import SimulationSummary, StreamSummary
 
 __all__ = ["DEFAULT_MACHINE", "METRIC_DTYPE", "MoveParameters", "SimulationResult",
-           "StreamResult", "layer_heights_mm", "move_parameters", "simulate", "simulate_stream"]
+           "SimulationSummary", "StreamResult", "StreamSummary", "layer_heights_mm",
+           "move_parameters", "simulate", "simulate_plan", "simulate_stream"]

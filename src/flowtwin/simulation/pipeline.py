@@ -10,13 +10,13 @@ from flowtwin.defaults import DEFAULT_MACHINE
 from flowtwin.dynamics import AdvanceSettings, predict, printer_advance
 from flowtwin.errors import GcodeError
 from flowtwin.firmware import Firmware
-from flowtwin.planner.plan_file import plan_gcode
+from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.simulation.parameters import move_parameters
 from flowtwin.simulation.result import SimulationResult, deposition_metrics
 
-__all__ = ["DEFAULT_MACHINE", "simulate"]
+__all__ = ["DEFAULT_MACHINE", "simulate", "simulate_plan"]
 
 
 Progress = Callable[[str], None]
@@ -69,6 +69,39 @@ def simulate(source: str | os.PathLike[str] | bytes | BinaryIO, *,
     if len(plan.table) == 0:
         raise GcodeError("no moves to simulate", source=plan.table.source,
                          allowed="G-code with at least one G0/G1/G2/G3 move")
+    return simulate_plan(plan, machine=m, klipper_config=klipper_config,
+                         pressure_advance=pressure_advance, series_dt_s=series_dt_s,
+                         temperature_c=temperature_c, progress=progress)
+
+
+def simulate_plan(plan: PlanResult, *, machine: Machine,
+                  klipper_config: str | os.PathLike[str] | None = None,
+                  pressure_advance: bool = True, series_dt_s: float | None = None,
+                  temperature_c: float | None = None,
+                  progress: Progress | None = None) -> SimulationResult:
+    """Predict what a read and planned G-code extrudes on ``machine``.
+
+    The part of :func:`simulate` after reading and planning: for a move table made in
+    memory (compensation's drafts) and planned with :func:`flowtwin.planner.plan_file.plan_table`.
+
+    Parameters
+    ----------
+    plan
+        The table and its plan (non-empty).
+    machine
+        The set-up.
+    klipper_config
+        The Klipper ``printer.cfg`` the plan was made with, if any (the firmware's
+        pressure advance is then the cfg's).
+    pressure_advance, series_dt_s, temperature_c, progress
+        As for :func:`simulate`.
+
+    Returns
+    -------
+    SimulationResult
+    """
+    step = progress or (lambda _stage: None)
+    m = machine
     step("physics")
     params = move_parameters(m, plan.table, plan.timeline, temperature_c=temperature_c)
     advance = None

@@ -18,6 +18,7 @@ from flowtwin.planner.plan_file import PlanResult
 from flowtwin.simulation import _summary_kernel as sk
 from flowtwin.simulation._deposit_kernel import bead_metrics
 from flowtwin.simulation.parameters import MoveParameters
+from flowtwin.simulation.summary import SimulationSummary
 
 __all__ = ["METRIC_DTYPE", "GroupTotals", "SimulationResult"]
 
@@ -84,8 +85,8 @@ class SimulationResult:
                        _PRINTING_BITS, out)
         return out
 
-    def summary(self) -> dict[str, object]:
-        """Whole-print figures as plain JSON-able values."""
+    def summary(self) -> SimulationSummary:
+        """Whole-print figures (:class:`~flowtwin.simulation.summary.SimulationSummary`)."""
         d = self.dynamics.moves
         met = self.metrics
         t = sk.print_totals(self.plan.table.moves["kind"], _PRINTING_BITS, d["cmd_mm3"],
@@ -95,31 +96,27 @@ class SimulationResult:
                          met["force_margin_n"], met["narrow"])
         plan = self.plan.summary()
         w = float(t[sk.T_RMS_W])
-        return {
-            "file": plan["file"], "machine": self.machine_name, "printer": plan["printer"],
-            "firmware": plan["firmware"], "pressure_advance": self.advance,
-            "total_time_s": plan["total_time_s"], "moves": plan["moves"],
-            "layers": plan["layers"],
-            "commanded_volume_mm3": float(t[sk.T_CMD]),
-            "delivered_volume_mm3": float(t[sk.T_DELIVERED]),
-            "delivered_in_beads_mm3": float(t[sk.T_EXT_OUT]),
-            "volume_error": _ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
-            "rms_flow_error": math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
-            "peak_overextrusion": float(t[sk.T_OVER]),
-            "peak_underextrusion": float(t[sk.T_UNDER]),
-            "worst_width_error_mm": float(t[sk.T_WIDTH_DEV]),
-            "mean_slip": _share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
-            "max_feed_force_n": float(t[sk.T_FORCE_MAX]),
-            "min_force_margin_n": float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
-            "grinding_events": int(t[sk.T_GRIND_EVENTS]),
-            "grinding_moves": int(t[sk.T_GRIND_MOVES]),
-            "ooze_volume_mm3": float(t[sk.T_OOZE]),
-            "narrow_beads": int(t[sk.T_NARROW]),
-            "moves_over_flow_limit": (0 if self.parameters.over_flow_limit is None else
-                                      int(np.count_nonzero(self.parameters.over_flow_limit))),
-            "net_filament_mm": plan["net_filament_mm"],
-            "warnings": list(self.warnings),
-        }
+        return SimulationSummary(
+            file=plan.file, machine=self.machine_name, printer=plan.printer,
+            firmware=plan.firmware, pressure_advance=self.advance,
+            total_time_s=plan.total_time_s, moves=plan.moves, layers=plan.layers,
+            commanded_volume_mm3=float(t[sk.T_CMD]),
+            delivered_volume_mm3=float(t[sk.T_DELIVERED]),
+            delivered_in_beads_mm3=float(t[sk.T_EXT_OUT]),
+            volume_error=_ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
+            rms_flow_error=math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
+            peak_overextrusion=float(t[sk.T_OVER]),
+            peak_underextrusion=float(t[sk.T_UNDER]),
+            worst_width_error_mm=float(t[sk.T_WIDTH_DEV]),
+            mean_slip=_share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
+            max_feed_force_n=float(t[sk.T_FORCE_MAX]),
+            min_force_margin_n=float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
+            grinding_events=int(t[sk.T_GRIND_EVENTS]),
+            grinding_moves=int(t[sk.T_GRIND_MOVES]),
+            ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
+            moves_over_flow_limit=(0 if self.parameters.over_flow_limit is None else
+                                   int(np.count_nonzero(self.parameters.over_flow_limit))),
+            net_filament_mm=plan.net_filament_mm, warnings=tuple(self.warnings))
 
     def per_layer(self) -> list[dict[str, float | int]]:
         """Commanded and delivered volume, RMS flow error, worst width error per layer."""

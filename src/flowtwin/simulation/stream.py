@@ -79,6 +79,7 @@ from flowtwin.simulation.aggregate import Aggregates
 from flowtwin.simulation.parameters import MoveParameters, move_parameters
 from flowtwin.simulation.pipeline import DEFAULT_MACHINE
 from flowtwin.simulation.result import deposition_metrics
+from flowtwin.simulation.summary import StreamSummary
 
 __all__ = ["MAX_SECTION_FACTOR", "SECTION_MOVES", "STREAM_CHUNK_BYTES", "StreamResult",
            "simulate_stream"]
@@ -122,14 +123,11 @@ class StreamResult:
     cuts_not_at_rest: int
     lines: int
 
-    def summary(self) -> dict[str, object]:
-        """Whole-print figures (the keys of ``SimulationResult.summary()``) and the stream's
+    def summary(self) -> StreamSummary:
+        """Whole-print figures (those of ``SimulationResult.summary()``) and the stream's
         own counts."""
-        out = self.aggregates.summary()
-        out.update({"stream_windows": self.windows, "stream_sections": self.sections,
-                    "unverified_moves": self.unverified_moves,
-                    "cuts_not_at_rest": self.cuts_not_at_rest, "lines": self.lines})
-        return out
+        return StreamSummary(self.aggregates.summary(), self.windows, self.sections,
+                             self.unverified_moves, self.cuts_not_at_rest, self.lines)
 
     def per_layer(self) -> list[dict[str, float | int]]:
         """Rows of ``SimulationResult.per_layer()``."""

@@ -1,0 +1,107 @@
+"""The validation prints: what is sliced, by which slicer, with which settings, for which
+printer — and whether a print belongs to the *dev* set (may be looked at while developing)
+or to the *check* set (run only to report, never tuned on).
+
+Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
+(``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
+``CuraEngine`` 4.13) with speeds of 40–300 mm/s, accelerations of 500–5000 mm/s², layers
+of 0.1–0.3 mm, relative or absolute E, and compensated for a Klipper printer (a
+``printer.cfg`` written from the row's limits, with an E3D Volcano) or a Marlin one (an
+E3D V6). Each slicer is held to the hot end's maximum volumetric flow at the print's layer
+height (``flowtwin limits``: the flow at which 5 % is lost to slip), as a user sets up a
+slicer for a hot end (PrusaSlicer's and Slic3r's ``max_volumetric_speed``; CuraEngine has
+none: its speeds are capped to that flow for its line width): the requested speeds reach
+the fast end of the range where the lines are thin. The dev and check sets use different
+models and different settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["PRINTS", "Print"]
+
+
+@dataclass(frozen=True, slots=True)
+class Print:
+    """One validation print.
+
+    Attributes
+    ----------
+    name
+        File stem.
+    split
+        ``"dev"`` or ``"check"``.
+    model
+        OpenSCAD model in ``models/`` (without ``.scad``).
+    slicer
+        ``"prusa-arachne"``, ``"prusa-classic"``, ``"slic3r"`` or ``"cura"``.
+    layer_mm
+        Layer height, mm.
+    wall_mm_s, infill_mm_s
+        Perimeter and infill speed, mm/s (outer walls, solid and top infill are set from
+        them the way each slicer's defaults relate them).
+    accel_mm_s2
+        Print acceleration the slicer writes, mm/s².
+    relative_e
+        Relative E (``M83``) instead of absolute.
+    printer
+        ``"klipper"`` (a ``printer.cfg`` with ``max_velocity`` ``velocity_mm_s``,
+        ``max_accel`` ``accel_mm_s2`` and ``square_corner_velocity`` ``scv_mm_s``), or a
+        Marlin set-up: ``"marlin-mk25"`` (the twin's Prusa MK2.5, ``tronvoll2019``) or
+        ``"marlin-generic"`` (Marlin 2 stock limits).
+    velocity_mm_s, scv_mm_s
+        Klipper's ``max_velocity`` and ``square_corner_velocity``.
+    """
+
+    name: str
+    split: str
+    model: str
+    slicer: str
+    layer_mm: float
+    wall_mm_s: float
+    infill_mm_s: float
+    accel_mm_s2: float
+    relative_e: bool
+    printer: str
+    velocity_mm_s: float = 300.0
+    scv_mm_s: float = 5.0
+
+
+def _p(split: str, model: str, slicer: str, layer: float, wall: float, infill: float,
+       accel: float, rel: bool, printer: str, velocity: float = 300.0,
+       scv: float = 5.0) -> Print:
+    name = (f"{split}-{model}-{slicer}-{layer:g}mm-{wall:g}-{infill:g}mms-a{accel:g}-"
+            f"{'rel' if rel else 'abs'}-{printer}")
+    return Print(name, split, model, slicer, layer, wall, infill, accel, rel, printer,
+                 velocity, scv)
+
+
+PRINTS: tuple[Print, ...] = (
+    # ---- dev: may be looked at while developing ----------------------------------------
+    _p("dev", "cube", "prusa-arachne", 0.2, 150, 250, 3000, True, "klipper", 300, 5),
+    _p("dev", "ring", "prusa-classic", 0.1, 40, 60, 1000, False, "marlin-mk25"),
+    _p("dev", "star", "slic3r", 0.3, 80, 120, 1500, False, "klipper", 200, 5),
+    _p("dev", "wedge", "cura", 0.2, 60, 80, 2000, False, "marlin-generic"),
+    _p("dev", "cube", "cura", 0.3, 150, 200, 5000, True, "klipper", 300, 8),
+    _p("dev", "ring", "slic3r", 0.2, 150, 250, 3000, True, "marlin-generic"),
+    _p("dev", "star", "prusa-arachne", 0.15, 100, 150, 2000, False, "marlin-mk25"),
+    _p("dev", "wedge", "prusa-arachne", 0.25, 50, 70, 800, True, "klipper", 150, 5),
+    _p("dev", "cube", "slic3r", 0.1, 40, 50, 500, False, "marlin-mk25"),
+    _p("dev", "ring", "cura", 0.15, 150, 250, 3000, False, "klipper", 300, 5),
+    _p("dev", "star", "cura", 0.25, 40, 60, 1000, True, "marlin-generic"),
+    _p("dev", "wedge", "prusa-classic", 0.3, 200, 300, 4000, False, "klipper", 300, 5),
+    # ---- check: run only to report ---------------------------------------------------------
+    _p("check", "gear", "prusa-arachne", 0.2, 120, 200, 2500, False, "klipper", 250, 5),
+    _p("check", "bracket", "cura", 0.2, 70, 100, 1500, True, "marlin-mk25"),
+    _p("check", "tower", "slic3r", 0.15, 60, 90, 1200, True, "klipper", 200, 4),
+    _p("check", "dome", "prusa-classic", 0.25, 100, 160, 3000, True, "marlin-generic"),
+    _p("check", "gear", "cura", 0.12, 50, 70, 800, False, "klipper", 150, 5),
+    _p("check", "bracket", "prusa-arachne", 0.3, 180, 280, 5000, True, "klipper", 300, 6),
+    _p("check", "tower", "prusa-classic", 0.1, 45, 60, 700, False, "marlin-mk25"),
+    _p("check", "dome", "slic3r", 0.2, 120, 180, 2000, False, "klipper", 250, 5),
+    _p("check", "gear", "slic3r", 0.28, 160, 240, 3500, True, "marlin-generic"),
+    _p("check", "bracket", "slic3r", 0.12, 40, 55, 600, False, "marlin-mk25"),
+    _p("check", "tower", "cura", 0.25, 200, 300, 4000, False, "klipper", 300, 5),
+    _p("check", "dome", "cura", 0.18, 90, 140, 2500, True, "marlin-generic"),
+)

@@ -1,0 +1,110 @@
+"""Compensate the validation prints and report the spread of the improvement.
+
+    python -m benchmarks.validation.run --split dev|check [--pace] [--slip] [--only SUBSTR]
+
+For every print of the split (made by :mod:`benchmarks.validation.generate` first when
+missing), ``compensate(advance=True)`` (``--pace``: also the flow pacing; ``--slip``: also
+the slip feed-forward) on the print's machine; per print the RMS flow error and the peak
+over-extrusion over one nozzle diameter of path before and after, their improvement
+factors, the print time before and after and the wall time; then the median and the worst
+of both factors and the prints below 5x. Results go to ``out/results-SPLIT[-pace].json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.validation.generate import OUT, generate, machine_of
+from benchmarks.validation.prints import PRINTS, Print
+
+TARGET = 5.0
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if b > 0 else math.inf
+
+
+def run_print(p: Print, out: Path, *, pace: bool, slip: bool) -> dict[str, object]:
+    """Compensate one print; its figures."""
+    from flowtwin.compensation import compensate
+
+    machine, cfg = machine_of(p, out)
+    src = out / f"{p.name}.gcode"
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        report = compensate(src, Path(tmp) / "out.gcode", machine=machine, klipper_config=cfg,
+                            advance=True, pace=pace or None, slip=slip or None)
+        wall = time.perf_counter() - t0
+    b, a = report.before, report.after
+    return {
+        "name": p.name, "split": p.split, "pace": pace, "slip": slip,
+        "rms_before": b.rms_flow_error, "rms_after": a.rms_flow_error,
+        "rms_x": _ratio(b.rms_flow_error, a.rms_flow_error),
+        "window_before": b.peak_overextrusion_window,
+        "window_after": a.peak_overextrusion_window,
+        "window_x": _ratio(b.peak_overextrusion_window, a.peak_overextrusion_window),
+        "time_before_s": report.time_before_s, "time_after_s": report.time_after_s,
+        "time_cost": report.time_after_s / report.time_before_s - 1.0,
+        "transformations": list(report.transformations), "wall_s": wall,
+        "warnings": list(report.warnings),
+    }
+
+
+def summarise(rows: list[dict[str, object]]) -> dict[str, float]:
+    """Median and worst of both improvement factors, and the share of prints at 5x."""
+    rms = [float(r["rms_x"]) for r in rows]  # type: ignore[arg-type]
+    win = [float(r["window_x"]) for r in rows]  # type: ignore[arg-type]
+    cost = [float(r["time_cost"]) for r in rows]  # type: ignore[arg-type]
+    ok = [r_ >= TARGET and w >= TARGET for r_, w in zip(rms, win, strict=True)]
+    return {"prints": len(rows), "rms_median": statistics.median(rms), "rms_worst": min(rms),
+            "window_median": statistics.median(win), "window_worst": min(win),
+            "time_cost_median": statistics.median(cost), "time_cost_worst": max(cost),
+            "at_target": sum(ok)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--split", choices=["dev", "check"], required=True)
+    parser.add_argument("--pace", action="store_true")
+    parser.add_argument("--slip", action="store_true")
+    parser.add_argument("--only", help="run the prints whose name contains this")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    prints = [p for p in PRINTS if p.split == args.split
+              and (args.only is None or args.only in p.name)]
+    if any(not (args.out / f"{p.name}.gcode").exists() for p in prints):
+        generate(args.split, args.out)
+    rows = []
+    print(f"{'print':<72} {'RMS before→after':>20} {'×':>6} {'peak/0.4mm':>20} {'×':>6} "
+          f"{'time':>7} {'wall':>6}")
+    for p in prints:
+        r = run_print(p, args.out, pace=args.pace, slip=args.slip)
+        rows.append(r)
+        print(f"{p.name:<72} {100 * float(r['rms_before']):8.2f} → "  # type: ignore[arg-type]
+              f"{100 * float(r['rms_after']):6.2f} % {float(r['rms_x']):6.1f} "  # type: ignore[arg-type]
+              f"{100 * float(r['window_before']):8.1f} → "  # type: ignore[arg-type]
+              f"{100 * float(r['window_after']):6.1f} % {float(r['window_x']):6.1f} "  # type: ignore[arg-type]
+              f"{100 * float(r['time_cost']):+6.1f}% {float(r['wall_s']):5.1f}s",  # type: ignore[arg-type]
+              flush=True)
+    s = summarise(rows)
+    print(f"\n{args.split}{' + pace' if args.pace else ''}: {s['prints']} prints, RMS x median "
+          f"{s['rms_median']:.1f} worst {s['rms_worst']:.1f}; windowed peak x median "
+          f"{s['window_median']:.1f} worst {s['window_worst']:.1f}; print time "
+          f"{100 * s['time_cost_median']:+.1f} % median, {100 * s['time_cost_worst']:+.1f} % "
+          f"worst; {s['at_target']} of {s['prints']} at {TARGET:g}x on both")
+    tag = args.split + ("-pace" if args.pace else "") + ("-slip" if args.slip else "")
+    if args.only is None:
+        (args.out / f"results-{tag}.json").write_text(
+            json.dumps({"summary": s, "prints": rows}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

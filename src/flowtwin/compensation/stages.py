@@ -1,0 +1,356 @@
+"""The stages of ``compensate``, each a function from the current draft to the next.
+
+Every stage takes the :class:`Setting` (the machine, the original file simulated, its
+lines and the firmware's limits), the :class:`Current` draft with its simulation, and its
+own options, and returns a typed outcome holding the next :class:`Current` and its
+figures. :func:`flowtwin.compensation.pipeline.compensate` runs them in order:
+trajectory, guard, pace, advance, slip.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
+from flowtwin.compensation.bake import advance_pass
+from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.guard import GuardOptions, guard_feeds
+from flowtwin.compensation.limits import ExtruderLimits
+from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.original import OriginalFile
+from flowtwin.compensation.outcome import AdvancePassSummary
+from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
+from flowtwin.compensation.slip import SlipOptions, slip_feedforward
+from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
+from flowtwin.errors import DataError
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.gcode.reader import ReadOptions
+from flowtwin.planner.klipper_config import KlipperSettings
+from flowtwin.planner.marlin import MarlinSettings
+from flowtwin.planner.plan_file import plan_table
+from flowtwin.profiles.machine import Machine
+from flowtwin.simulation import SimulationResult, simulate, simulate_plan
+
+__all__ = ["AdvanceOutcome", "Current", "GuardOutcome", "PaceOutcome", "Setting",
+           "SlipOutcome", "TrajectoryOutcome", "Twin", "advance_stage", "guard_stage",
+           "pace_stage", "printing_pieces", "slip_stage", "trajectory_stage"]
+
+BoolArray = npt.NDArray[np.bool_]
+
+#: The advance keeps the predicted feed force below this share of the grinding limit.
+_GRIND_MARGIN = 0.9
+
+
+@dataclass(frozen=True, slots=True)
+class Twin:
+    """The machine a draft is simulated on.
+
+    Attributes
+    ----------
+    machine
+        The set-up.
+    klipper_config
+        A Klipper ``printer.cfg`` to plan with instead of the set-up's printer, or ``None``.
+    pressure_advance
+        Simulate the firmware's own pressure advance (by default).
+    settings
+        The firmware settings the original was planned with (drafts are planned with the
+        same), ``None`` until the original is read.
+    printer
+        Name of the printer.
+    """
+
+    machine: Machine
+    klipper_config: str | os.PathLike[str] | None
+    pressure_advance: bool
+    settings: KlipperSettings | MarlinSettings | None = None
+    printer: str = ""
+
+    def simulate(self, path: Path, *, pressure_advance: bool | None = None
+                 ) -> SimulationResult:
+        """Simulate a G-code file (with the firmware's advance unless told otherwise)."""
+        pa = self.pressure_advance if pressure_advance is None else pressure_advance
+        return simulate(path, machine=self.machine, klipper_config=self.klipper_config,
+                        pressure_advance=pa)
+
+    def simulate_table(self, table: MoveTable, *, pressure_advance: bool | None = None
+                       ) -> SimulationResult:
+        """Plan a move table with the original's firmware settings and simulate it."""
+        if self.settings is None:
+            raise DataError("the twin has no firmware settings yet", field="settings",
+                            allowed="a twin made from the original's plan")
+        pa = self.pressure_advance if pressure_advance is None else pressure_advance
+        plan = plan_table(table, self.settings, printer=self.printer)
+        return simulate_plan(plan, machine=self.machine, klipper_config=self.klipper_config,
+                             pressure_advance=pa)
+
+    def simulate_draft(self, draft: Draft, *, pressure_advance: bool | None = None
+                       ) -> SimulationResult:
+        """Simulate the draft as its written file would read (its move table, in memory)."""
+        return self.simulate_table(draft.to_table(), pressure_advance=pressure_advance)
+
+
+@dataclass(frozen=True, slots=True)
+class Setting:
+    """What every stage reads and none changes.
+
+    Attributes
+    ----------
+    twin
+        The machine and the work file.
+    original
+        The original file simulated (the intent every figure is measured against).
+    original
+        The original file's text and the modes of its rows.
+    limits
+        The firmware's extruder limits.
+    read_options
+        How the original was read (the written file is read the same way).
+    """
+
+    twin: Twin
+    original: SimulationResult
+    original_file: OriginalFile
+    limits: ExtruderLimits
+    read_options: ReadOptions
+
+
+@dataclass(frozen=True, slots=True)
+class Current:
+    """A draft and its simulation (the draft's rendered file, with the twin's default
+    pressure advance)."""
+
+    draft: Draft
+    sim: SimulationResult
+
+
+@dataclass(frozen=True, slots=True)
+class TrajectoryOutcome:
+    """The bent draft and the trajectory figures."""
+
+    current: Current
+    report: TrajectoryReport
+
+
+@dataclass(frozen=True, slots=True)
+class GuardOutcome:
+    """The guarded draft, the original rows it slowed and the print time it cost, s."""
+
+    current: Current
+    slowed: BoolArray
+    time_cost_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class PaceOutcome:
+    """The paced draft, the pacing figures and the print time it cost, s (0 when nothing
+    was paced)."""
+
+    current: Current
+    report: PaceReport
+    time_cost_s: float
+
+    @property
+    def applied(self) -> bool:
+        """Some piece was paced."""
+        return bool(self.report.paced_rows.size)
+
+
+@dataclass(frozen=True, slots=True)
+class AdvanceOutcome:
+    """The advanced draft (or the one before, when no pass was kept), every pass tried,
+    and the warnings."""
+
+    current: Current
+    passes: tuple[AdvancePassSummary, ...]
+    applied: bool
+    warnings: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class SlipOutcome:
+    """The slip-corrected draft (or the one before, when refused), the E it added on
+    printing pieces (grid units) and the warnings."""
+
+    current: Current
+    added_grid: int
+    applied: bool
+    warnings: tuple[str, ...]
+
+
+def printing_pieces(sim: SimulationResult, draft: Draft) -> BoolArray:
+    """Pieces that print: of a printing original move, with XY motion and positive E."""
+    kind = sim.plan.table.moves["kind"]
+    orig = eligible_rows(draft.table, draft.row_e)
+    return orig[draft.row] & ((kind & MoveKind.XY) != 0) & (draft.e_grid > 0)
+
+
+def trajectory_stage(setting: Setting, current: Current,
+                     options: TrajectoryOptions) -> TrajectoryOutcome:
+    """Nozzle paths that lay the intended road (:mod:`flowtwin.compensation.trajectory`)."""
+    draft, report = bend_paths(current.draft, current.sim, options)
+    return TrajectoryOutcome(Current(draft, setting.twin.simulate_draft(draft)), report)
+
+
+def guard_stage(setting: Setting, current: Current, options: GuardOptions) -> GuardOutcome:
+    """Slow the moves that would grind, in up to ``options.iterations`` rounds
+    (:mod:`flowtwin.compensation.guard`)."""
+    time0 = current.sim.plan.timeline.total_time_s
+    slowed = np.zeros(setting.original.plan.table.moves.shape[0], dtype=bool)
+    for _ in range(options.iterations):
+        draft, now = _guard_step(current, setting.original_file, options)
+        if not np.any(now):
+            break
+        slowed |= now
+        current = Current(draft, setting.twin.simulate_draft(draft))
+    return GuardOutcome(current, slowed, current.sim.plan.timeline.total_time_s - time0)
+
+
+def _guard_step(current: Current, original: OriginalFile,
+                options: GuardOptions) -> tuple[Draft, BoolArray]:
+    draft, sim = current.draft, current.sim
+    d = sim.dynamics.moves
+    ph = sim.plan.timeline.phases
+    printing = printing_pieces(sim, draft)
+    length = np.maximum(sim.plan.timeline.move_time_s, 0.0)
+    mv = sim.plan.table.moves
+    path = np.hypot(np.diff(np.concatenate(([sim.plan.table.start_xyze[0]], mv["x"]))),
+                    np.diff(np.concatenate(([sim.plan.table.start_xyze[1]], mv["y"]))))
+    cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        flow = np.where((path > 0) & (length > 0), d["cmd_mm3"] / path * cruise, 0.0)
+    speed_factor = original.speed_factor
+    pp = sim.parameters.params
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_e = np.where(path > 0, draft.e_grid * original.e_unit / path * cruise, 0.0)
+    steady = np.asarray(pp.lag_k_s, dtype=np.float64) * v_e / np.asarray(
+        pp.compliance_mm_per_n, dtype=np.float64)
+    return guard_feeds(draft, cruise, d["peak_force_n"], steady, pp.max_feed_force_n, flow,
+                       printing, speed_factor, options)
+
+
+def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> PaceOutcome:
+    """Flow pacing on the current draft with the twin's lag factors and the plan's speeds
+    (:mod:`flowtwin.compensation.pace`)."""
+    draft, sim = current.draft, current.sim
+    time0 = sim.plan.timeline.total_time_s
+    ph = sim.plan.timeline.phases
+    start = draft.start_xyz()
+    length = np.sqrt(np.sum((draft.xyz_mm - start) ** 2, axis=1))
+    cmd = np.asarray(sim.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        area = np.where(length > 0, cmd / length, 0.0)
+    speed_factor = setting.original_file.speed_factor[draft.row]
+    limits = setting.limits
+    push = (float(setting.twin.machine.filament.area_mm2)
+            * min(limits.jump_mm_s, limits.max_e_speed_mm_s))
+    paced, report = pace_feeds(
+        draft, printing=printing_pieces(sim, draft), cross_section_mm2=area,
+        lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
+        volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
+        cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
+        end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
+        t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
+        t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
+        speed_factor=speed_factor, push_mm3_s=push, options=options)
+    if not report.paced_rows.size:
+        return PaceOutcome(Current(paced, sim), report, 0.0)
+    after = setting.twin.simulate_draft(paced)
+    return PaceOutcome(Current(paced, after), report, after.plan.timeline.total_time_s - time0)
+
+
+def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *,
+                  passes: int) -> AdvanceOutcome:
+    """Pressure advance baked into the E, in ``passes`` passes
+    (:mod:`flowtwin.compensation.bake`).
+
+    Every pass after the first is tried with the twin's correction of the model, and
+    again without it when that raised the twin's RMS flow error; a pass that raises it
+    all the same is dropped and ends the stage. The advance is computed and judged on
+    the file without the firmware's own advance.
+    """
+    twin = setting.twin
+    cur = (current.sim if not twin.pressure_advance
+           else twin.simulate_draft(current.draft, pressure_advance=False))
+    kept = Current(current.draft, cur)
+    kept_rms = flow_figures(setting.original, cur, current.draft.row).rms_flow_error
+    draft = current.draft
+    attempts = [(k, ilc) for k in range(passes) for ilc in ((True, False) if k else (False,))]
+    done: set[int] = set()
+    summaries: list[AdvancePassSummary] = []
+    warnings: list[str] = []
+    for k, ilc in attempts:
+        if k in done:
+            continue
+        draft, rep = advance_pass(
+            draft, cur.plan.table, cur.plan.timeline, cur.parameters.params.lag_k_s,
+            setting.limits, options, e_unit_mm=setting.original_file.e_unit, split=k == 0,
+            relief=(k == 0 and options.relief), state_max=_grinding_state(cur, setting),
+            delivered=_delivered_grid(setting.original, cur, draft) if ilc else None)
+        cur = twin.simulate_draft(draft, pressure_advance=False)
+        rms = flow_figures(setting.original, cur, draft.row).rms_flow_error
+        retry = ilc and rms > kept_rms
+        fail = not retry and not rms <= kept_rms
+        summaries.append(AdvancePassSummary.of(rep, rms_flow_error=rms, twin_correction=ilc,
+                                               kept=not (retry or fail)))
+        if retry:  # the same pass again, without the correction
+            draft, cur = kept.draft, kept.sim
+            continue
+        done.add(k)
+        if fail:
+            warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
+                            f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
+                            "its result is not used")
+            break
+        kept, kept_rms = Current(draft, cur), rms
+    applied = kept.draft is not current.draft
+    sim = kept.sim if not twin.pressure_advance else twin.simulate_draft(kept.draft)
+    return AdvanceOutcome(Current(kept.draft, sim), tuple(summaries), applied,
+                          tuple(warnings))
+
+
+def _grinding_state(sim: SimulationResult, setting: Setting) -> npt.NDArray[np.float64]:
+    """Compression at which the feed force reaches the grinding limit (with the margin),
+    E grid units, per row of ``sim``."""
+    pp = sim.parameters.params
+    return (_GRIND_MARGIN * np.asarray(pp.max_feed_force_n, dtype=np.float64)
+            * np.asarray(pp.compliance_mm_per_n, dtype=np.float64)
+            / setting.original_file.e_unit)
+
+
+def _delivered_grid(original: SimulationResult, sim: SimulationResult,
+                    draft: Draft) -> npt.NDArray[np.float64]:
+    """Melt the twin predicts every original row delivers in ``sim`` without the drive's
+    slip, in E grid units of the row's intent (``delivered/commanded · row E``)."""
+    d = sim.dynamics.moves
+    out = np.asarray(d["out_mm3"], dtype=np.float64) + np.asarray(d["slip_loss_mm3"],
+                                                                   dtype=np.float64)
+    delivered = np.bincount(draft.row, weights=out, minlength=draft.n_rows)
+    cmd = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(cmd > 0, delivered / cmd * draft.row_e, draft.row_e.astype(float))
+
+
+def slip_stage(setting: Setting, current: Current, options: SlipOptions) -> SlipOutcome:
+    """Slip feed-forward (:mod:`flowtwin.compensation.slip`), ``options.iterations``
+    fixed-point rounds; refused when it raises the twin's RMS flow error."""
+    draft, sim = current.draft, current.sim
+    base = draft.e_grid.copy()
+    printing = printing_pieces(sim, draft)
+    rms0 = flow_figures(setting.original, sim, draft.row).rms_flow_error
+    for _ in range(options.iterations):
+        draft = slip_feedforward(draft, base, printing, sim.dynamics.moves["slip"], options)
+        sim = setting.twin.simulate_draft(draft)
+    rms1 = flow_figures(setting.original, sim, draft.row).rms_flow_error
+    if rms1 > rms0:
+        return SlipOutcome(current, 0, False, (
+            f"the slip feed-forward raised the twin's RMS flow error (to {100 * rms1:.2f} % "
+            f"from {100 * rms0:.2f} %; the drive is near grinding, try --guard): it is not "
+            "used",))
+    added = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
+    return SlipOutcome(Current(draft, sim), added, True, ())
