@@ -112,7 +112,7 @@ def draw_cases(n: int, seed: int, layouts: tuple[str, ...]) -> list[Case]:
     return out
 
 
-def analyse_case(case: Case) -> dict[str, Any]:
+def analyse_case(case: Case, method: str = "area") -> dict[str, Any]:
     """Render and read one case; its errors or its refusal."""
     pat = make_pattern(case.layout)
     marks, tests = scene_from_pattern(pat, lag_s=case.lag_s, accel_mm_s2=ACCEL)
@@ -126,7 +126,7 @@ def analyse_case(case: Case) -> dict[str, Any]:
             from flowtwin.calibration.image.chevron_read import analyse_chevron_photo
             res: Any = analyse_chevron_photo(photo.image, pat, machine=MACHINE)
         else:
-            res = analyse_line_photo(photo.image, pat, machine=MACHINE)
+            res = analyse_line_photo(photo.image, pat, machine=MACHINE, method=method)
     except FlowtwinError as exc:
         row.update(refused=str(exc), seconds=time.perf_counter() - t0)
         return row
@@ -183,6 +183,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--layouts", default=",".join(LAYOUTS))
     ap.add_argument("--only", default="", help="comma-separated case indices")
     ap.add_argument("--out", default="")
+    ap.add_argument("--method", default="area", help="width measurement (line layouts)")
     args = ap.parse_args(argv)
     layouts = tuple(x for x in args.layouts.split(",") if x)
     cases = draw_cases(args.n, args.seed, layouts)
@@ -193,7 +194,7 @@ def main(argv: list[str]) -> int:
     print(f"{'#':>3} {'layout':12} {'lag':>7} {'best':>7} {'steps':>6} {'cross':>7} "
           f"{'twin':>7} {'±':>7} {'s':>4}  conditions / refusal", flush=True)
     for case in cases:
-        row = analyse_case(case)
+        row = analyse_case(case, args.method)
         rows.append(row)
         c = case.conditions
         what = (f"{c.px_per_mm:.1f}px/mm tilt {c.tilt_deg:.0f} roll {c.roll_deg:.0f} "

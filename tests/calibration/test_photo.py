@@ -195,6 +195,18 @@ def test_photo_known_answer(case: str) -> None:
     assert res.reprojection_rms_mm < 0.3
 
 
+def test_photo_wide_bead_level_widths_on_an_even_render() -> None:
+    """``method="area-global"`` (one bead level for the photo, the sheet from the strip's
+    outer fifths; kept to compare with the local-contrast widths, docs/calibration.md)
+    reads an evenly lit render as well: best line within one step, lag within 15 %."""
+    name, lag, cond, params = CASES["kline, dark on light, upside down"]
+    pat, img = _photo(name, lag, cond, params)
+    res = analyse_line_photo(img, pat, machine=MACHINE, method="area-global")
+    assert abs(res.k_best_line_s - lag) <= dict(params)["k_step"] + 1e-9
+    assert res.lag is not None, res.lag_problem
+    assert abs(res.lag.k_s - lag) <= 0.15 * lag
+
+
 def test_one_faint_test_line_missing() -> None:
     """A test line the finder does not see (here: not printed) is placed where the fitted
     layout puts it and reported as unmeasured; when which line is missing cannot be told

@@ -68,8 +68,9 @@ def from_image_cmd(
     polarity: Annotated[str, _opt("auto, light or dark beads (auto: from the image).")
                         ] = "auto",
     view: Annotated[str, _opt("auto, top, or mirrored (scanned face down).")] = "auto",
-    method: Annotated[str, _opt("Width from the bead's integrated contrast (area) or its "
-                                "edges.")] = "area",
+    method: Annotated[str, _opt("Width from the bead's integrated contrast against the "
+                                "local sheet (area), with one bead level for the photo "
+                                "(area-global), or from its edges.")] = "area",
     step: Annotated[float, _opt("Width sample spacing along a line, mm.")] = 0.25,
     fit_dead_time: Annotated[bool, _opt("Also fit a dead time.")] = False,
     annotate: Annotated[Path | None, _opt("Write an annotated copy of the photo here "

@@ -28,7 +28,14 @@ import numpy.typing as npt
 from flowtwin.calibration.fits.kfit import pattern_firmware
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
 from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
-from flowtwin.calibration.image.beadwidth import Strip, edge_widths, window_widths
+from flowtwin.calibration.image.beadwidth import (
+    Strip,
+    area_widths,
+    dark_level,
+    edge_widths,
+    sample_strip,
+    window_widths,
+)
 from flowtwin.calibration.image.bestline import best_line, zero_crossing
 from flowtwin.calibration.image.detect import LineSet, detect_lines
 from flowtwin.calibration.image.direction import choose_by_twin
@@ -143,7 +150,10 @@ def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model:
     """Widths and scores of every test line; the mean bead contrast across and its spacing.
 
     ``"area"``: the contrast relative to the local sheet integrated over the bead's band
-    (:mod:`.widths`); ``"edges"``: the bead's edges
+    (:mod:`.widths`); ``"area-global"``: the integrated darkness with one bead level for
+    the photo and the sheet from the strip's outer fifths
+    (:func:`flowtwin.calibration.image.beadwidth.area_widths`, beads made dark; worse on the
+    independent renderer, docs/calibration.md); ``"edges"``: the bead's edges
     (:func:`flowtwin.calibration.image.beadwidth.edge_widths`, beads made dark).
     """
     dv = 0.5 / reading.px_per_mm
@@ -153,11 +163,22 @@ def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model:
                              ln.vertices_xy_mm[-1], light=light, step_mm=step_mm,
                              band_mm=band, half_span_mm=half, dv_mm=dv) for ln in model.lines]
     bead = bead_contrast(strips) if method == "area" else math.nan
+    dark_strips: list[Strip] = []
+    dark = math.nan
+    if method == "area-global":
+        g_dark = np.asarray(255.0 - gray32 if light else gray32, dtype=np.float32)
+        dark_strips = [sample_strip(g_dark, reading.homography, ln.vertices_xy_mm[0],
+                                    ln.vertices_xy_mm[-1], step_mm=step_mm,
+                                    half_span_mm=min(0.4 * pitch_mm, 3.0), dv_mm=dv)
+                       for ln in model.lines]
+        dark = dark_level(dark_strips)
     out: list[LineReading] = []
     profiles = []
-    for line, cs in zip(model.lines, strips, strict=True):
+    for i, (line, cs) in enumerate(zip(model.lines, strips, strict=True)):
         if method == "area":
             cols = contrast_widths(cs, bead)
+        elif method == "area-global":
+            cols = area_widths(dark_strips[i], dark)
         else:
             vals = cs.strip.values if not light else 255.0 - cs.strip.values
             cols = edge_widths(Strip(np.asarray(vals, dtype=np.float32), cs.strip.dv_mm,
@@ -215,7 +236,8 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     view
         ``"auto"``, ``"top"`` or ``"mirrored"`` (scanned face down).
     step_mm, method
-        Width sample spacing along the lines; ``"area"`` or ``"edges"``.
+        Width sample spacing along the lines; ``"area"`` (contrast against the local
+        sheet), ``"area-global"`` (one bead level for the photo) or ``"edges"``.
     fit, fit_dead_time, fit_gain, end_margin_mm
         The lag fit (see :func:`flowtwin.calibration.fits.lagfit.fit_lag`).
 
@@ -235,9 +257,9 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     if mm_per_px is not None and not (0.0 < mm_per_px < 10.0):
         raise CalibrationError("image resolution out of range", field="mm_per_px",
                                value=mm_per_px, allowed="0 < mm/px < 10 (25.4/dpi)")
-    if method not in ("area", "edges"):
+    if method not in ("area", "area-global", "edges"):
         raise CalibrationError("unknown width measurement", field="method", value=method,
-                               allowed="area, edges")
+                               allowed="area, area-global, edges")
     if not (0.05 <= step_mm <= 5.0):
         raise CalibrationError("sample step out of range", field="step_mm", value=step_mm,
                                allowed="0.05 .. 5 mm")
