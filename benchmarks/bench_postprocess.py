@@ -9,7 +9,12 @@ Prints, on the PrusaSlicer 2.7.1 Benchy of the corpus (180 k lines, 112 k moves;
   ``--klipper-config`` (the Klipper planner) and on the file stored as ``.bgcode``;
 * the process's CPU time and peak resident memory (``wait4``), and the same on a file three
   times as long (the Benchy's moves repeated) to show how memory grows with the file;
-* one run with ``--advance --slip`` (as fast as ``compensate`` is).
+* one run with ``--advance --slip`` (as fast as ``compensate`` is);
+* the streamed pass (``--stream``, bounded memory: what files above 32 MB get on their own)
+  on the Benchy and on the file three times as long;
+* ``--gigabyte``: ``flowtwin postprocess`` on the ~1 GB print of
+  :func:`benchmarks.bigprint.gigabyte_print` (streamed by size; issue #21.3: < 1 GB of
+  memory), wall time and peak resident memory.
 
 Goal (issue #16): ≤ 1 s wall for times + verdict on the Benchy, memory flat in file size.
 """
@@ -146,6 +151,16 @@ def run(quick: bool = False) -> dict[str, object]:
         results["rss_growth"] = (float(results["triple"]["peak_rss_mb"])  # type: ignore[index]
                                  / float(results["times_and_verdict"]["peak_rss_mb"]))  # type: ignore[index]
         print(f"peak memory, 3 x the file / 1 x: {results['rss_growth']:.2f}")
+        results["stream"] = _series(
+            "postprocess --stream, 180 k lines", ["postprocess", "--stream"], text, folder,
+            env, runs)
+        results["stream_triple"] = _series(
+            "postprocess --stream, 3 x the Benchy", ["postprocess", "--stream"], triple,
+            folder, env, max(1, runs // 3))
+        results["stream_rss_growth"] = (
+            float(results["stream_triple"]["peak_rss_mb"])  # type: ignore[index]
+            / float(results["stream"]["peak_rss_mb"]))  # type: ignore[index]
+        print(f"streamed peak memory, 3 x the file / 1 x: {results['stream_rss_growth']:.2f}")
         if not quick:
             results["advance_slip"] = _series(
                 "postprocess --advance --slip", ["postprocess", "--advance", "--slip"], text,
@@ -153,5 +168,31 @@ def run(quick: bool = False) -> dict[str, object]:
     return results
 
 
+def gigabyte(size_bytes: int = 1_000_000_000) -> dict[str, object]:
+    """``flowtwin postprocess`` on a ~1 GB G-code (a copy: the command edits in place), in a
+    fresh process without slicer variables (settings from the embedded configuration):
+    wall, CPU, peak resident memory."""
+    import shutil
+
+    from benchmarks.bigprint import gigabyte_print
+
+    src = gigabyte_print(size_bytes=size_bytes)
+    out: dict[str, object] = {"file": src.name, "bytes": src.stat().st_size,
+                              "load_average": os.getloadavg()}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SLIC3R_")}
+    with tempfile.TemporaryDirectory(prefix="flowtwin-bench-pp-gb-") as tmp:
+        gcode = Path(tmp) / src.name
+        shutil.copyfile(src, gcode)
+        wall, cpu, mb = _run(["postprocess"], gcode, env)
+    out.update({"wall_s": wall, "cpu_s": cpu, "peak_rss_mb": mb,
+                "load_average_end": os.getloadavg()})
+    print(f"postprocess on {int(out['bytes']) / 1e9:.2f} GB: {wall:.0f} s wall, {cpu:.0f} s "
+          f"CPU, peak {mb:.0f} MB (goal < 1000 MB); load {out['load_average']}")
+    return out
+
+
 if __name__ == "__main__":
-    run(quick="--quick" in sys.argv)
+    if "--gigabyte" in sys.argv:
+        gigabyte()
+    else:
+        run(quick="--quick" in sys.argv)

@@ -60,6 +60,10 @@ def register(app: typer.Typer) -> None:
             "--fail-on", help="Stop the export (exit 1, G-code untouched) when the twin "
                               "predicts: grinding, melt-limit, or none (repeat or "
                               "comma-separate).")] = None,
+        stream: Annotated[bool | None, typer.Option(
+            "--stream/--no-stream", help="Bounded memory: times and a verdict from "
+            "whole-print and per-move figures (no windowed places, no compensation or "
+            "report; default: for files over 32 MB).")] = None,
         json_out: Annotated[bool, typer.Option(
             "--json", help="Print the sidecar's JSON object on stdout.")] = False,
     ) -> None:
@@ -75,7 +79,7 @@ def register(app: typer.Typer) -> None:
         opts = PostprocessOptions(
             setup=profile, klipper_config=klipper_config, moonraker=moonraker,
             advance=advance, slip=slip, pace=pace, guard=guard, report=report,
-            fail_on=_fail_on(fail_on or []))
+            fail_on=_fail_on(fail_on or []), stream=stream)
         result = postprocess(gcode, opts)
         for line in result.stderr_lines():
             typer.echo(line, err=True)

@@ -70,6 +70,9 @@ class PostprocessOptions:
         Also write the HTML report.
     fail_on
         Conditions that stop the export (``"grinding"``, ``"melt-limit"``).
+    stream
+        Bounded memory (:mod:`flowtwin.postprocess.stream`): ``None`` streams files above
+        :data:`~flowtwin.planner.plan_stream.STREAM_ABOVE_BYTES`.
     """
 
     setup: str | None = None
@@ -81,6 +84,7 @@ class PostprocessOptions:
     guard: bool = False
     report: bool = False
     fail_on: frozenset[str] = frozenset()
+    stream: bool | None = None
 
     def __post_init__(self) -> None:
         bad = sorted(set(self.fail_on) - set(FAIL_ON))
@@ -133,6 +137,8 @@ class PostprocessResult:
         Notes on the printer and the planner's and simulation's warnings.
     sidecar_written
         False when the sidecar could not be written (the reason is the last warning).
+    streamed
+        The file was processed in bounded memory (the verdict without windowed places).
     """
 
     gcode: Path
@@ -151,6 +157,7 @@ class PostprocessResult:
     report: Path | None
     warnings: tuple[str, ...] = field(default_factory=tuple)
     sidecar_written: bool = True
+    streamed: bool = False
 
     def as_dict(self) -> dict[str, object]:
         """The sidecar's content."""
@@ -160,6 +167,7 @@ class PostprocessResult:
         return {
             "flowtwin": __version__,
             "gcode": str(self.gcode), "output": str(self.output), "written": self.written,
+            "streamed": self.streamed,
             "failed": bool(self.failures), "failures": list(self.failures),
             "slicer": {"host": self.slicer.host, "output_name": self.slicer.output_name,
                        "settings": self.settings_source},
@@ -320,14 +328,28 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
             from flowtwin.postprocess.moonraker import moonraker_printer_cfg
 
             cfg, cfg_source = moonraker_printer_cfg(opts.moonraker, tmp), opts.moonraker
+        from flowtwin.planner.plan_stream import is_large
+
+        streamed = opts.stream if opts.stream is not None else is_large(path)
         settings = ctx.settings(None)
-        if settings is None:
+        if settings is None and streamed:
+            from flowtwin.postprocess.stream import slicer_config_streamed
+
+            settings = ctx.settings(slicer_config_streamed(path))
+        elif settings is None:
             from flowtwin.gcode.reader import read_gcode
 
             settings = ctx.settings(read_gcode(path).metadata.get("slicer_config")  # type: ignore[arg-type]
                                     )
         choice = resolve_printer(setup=opts.setup, klipper_config=cfg, settings=settings,
                                  config_source=cfg_source)
+        if streamed:
+            from flowtwin.postprocess.stream import check_stream
+
+            streamed = check_stream(path, choice, opts)
+        settings_source = settings.source if settings else "none"
+        if streamed:
+            return _finish_streamed(path, output, ctx, choice, settings_source, opts, step)
         work = path
         comp_summary = None
         comp_report = None
@@ -384,14 +406,54 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
         settings_source=settings.source if settings else "none",
         compensation=comp_summary, sidecar=sidecar_path(output), report=report,
         warnings=tuple(str(w) for w in warnings))
+    return _with_sidecar(out)
+
+
+def _with_sidecar(out: PostprocessResult) -> PostprocessResult:
+    """``out`` after writing its sidecar (a sidecar that cannot be written is noted: the
+    G-code is done, not worth failing for it)."""
     problem = _write_sidecar(out)
     if problem is not None:
-        # the G-code is done; a sidecar that cannot be written is not worth failing it
         from dataclasses import replace
 
         out = replace(out, sidecar_written=False,
                       warnings=(*out.warnings, f"sidecar not written: {problem}"))
     return out
+
+
+def _finish_streamed(path: Path, output: Path, ctx: SlicerContext, choice: PrinterChoice,
+                     settings_source: str, opts: PostprocessOptions,
+                     step: Progress) -> PostprocessResult:
+    """The bounded-memory pass (:mod:`flowtwin.postprocess.stream`): times, verdict,
+    ``--fail-on``, the rewrite and the sidecar."""
+    from flowtwin.gcode.writer import rewrite_gcode
+    from flowtwin.postprocess.stream import streamed_failures, streamed_pass
+
+    sp = streamed_pass(path, choice, lambda t: _header(t, choice, settings_source, ()), step)
+    failures = streamed_failures(opts.fail_on, sp.verdict, sp.melt, sp.lines)
+    if not failures:
+        step("write")
+        rewrite_gcode(path, path, sp.edits.edits)
+    t, slicer_time = sp.times, sp.slicer_time_s
+    times_out: dict[str, object] = {
+        "total_s": t.total_s, "first_layer_s": t.first_layer_s,
+        "before_first_layer_s": t.before_first_layer_s,
+        "silent_total_s": None if sp.silent is None else sp.silent.total_s,
+        "slicer_estimate_s": slicer_time,
+        "slicer_estimate": (None if not isinstance(slicer_time, int | float)
+                            else format_dhms(float(slicer_time))),
+        "rewritten": sp.edits.rewritten, "progress_added": sp.edits.progress_added,
+        "per_layer": sp.per_layer,
+    }
+    out = PostprocessResult(
+        gcode=path, output=output, written=not failures, failures=tuple(failures),
+        verdict=remap_lines(sp.verdict, sp.lines),  # type: ignore[arg-type]
+        sentences=tuple(remap_lines(sp.sentences, sp.lines)),  # type: ignore[arg-type]
+        melt=sp.melt, times=times_out, choice=choice, slicer=ctx,
+        settings_source=settings_source, compensation=None, sidecar=sidecar_path(output),
+        report=None, warnings=tuple(str(w) for w in (*choice.notes, *sp.warnings)),
+        streamed=True)
+    return _with_sidecar(out)
 
 
 #: Commands that set Marlin-style machine limits.

@@ -64,6 +64,11 @@ class Aggregates:
     moves: int = 0
     total_time_s: float = 0.0
     over_flow_limit: int = 0
+    #: The move furthest above its machine flow limit (largest flow / limit; ties to the
+    #: earlier move): ``move``, ``line``, ``layer``, ``feature`` (index), ``flow_mm3_s``,
+    #: ``limit_mm3_s``; ``None`` while no move is above.
+    worst_over_flow: dict[str, float | int] | None = None
+    _over_ratio: float = -math.inf
     max_layer: int = -1
     net_filament_mm: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -118,6 +123,7 @@ class Aggregates:
         """Accumulate one simulated section (the moves after those added before)."""
         if params.over_flow_limit is not None:
             self.over_flow_limit += int(np.count_nonzero(params.over_flow_limit))
+            self._rank_over_flow(moves, dyn.moves, params)
         d = dyn.moves
         kind = moves["kind"]
         self._grinding = bool(sk.add_totals(
@@ -131,6 +137,24 @@ class Aggregates:
         self._features.add(moves["feature"], kind, d, metrics)
         self._rank(moves, d, metrics)
         self.moves += len(moves)
+
+    def _rank_over_flow(self, moves: npt.NDArray[np.void], d: npt.NDArray[np.void],
+                        params: MoveParameters) -> None:
+        """Keep the move furthest above its flow limit (flow = commanded volume / duration)."""
+        over, limit = params.over_flow_limit, params.flow_limit_mm3_s
+        if over is None or limit is None or not np.any(over):
+            return
+        dur = np.asarray(d["duration_s"], dtype=np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            flow = np.where(dur > 0, np.asarray(d["cmd_mm3"], dtype=np.float64) / dur, 0.0)
+            ratio = np.where(over, flow / limit, 0.0)
+        i = int(np.nanargmax(ratio))
+        if float(ratio[i]) > self._over_ratio:
+            self._over_ratio = float(ratio[i])
+            self.worst_over_flow = {
+                "move": self.moves + i, "line": int(moves["line"][i]),
+                "layer": int(moves["layer"][i]), "feature": int(moves["feature"][i]),
+                "flow_mm3_s": float(flow[i]), "limit_mm3_s": float(limit[i])}
 
     def _rank(self, moves: npt.NDArray[np.void], d: npt.NDArray[np.void],
               met: npt.NDArray[np.void]) -> None:
