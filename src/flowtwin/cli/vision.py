@@ -105,7 +105,7 @@ def measure_cmd(
     csv: Path | None = typer.Option(None, "--csv", help="Write the series as CSV."),
     parquet: Path | None = typer.Option(None, "--parquet", help="Write the series as Parquet."),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG plot."),
-    strict: bool = typer.Option(False, "--strict", help="Exit with status 3 when the "
+    strict: bool = typer.Option(False, "--strict", help="Exit with status 1 when the "
                                 "summary has warnings (e.g. few valid gear steps)."),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
 ) -> None:
@@ -162,7 +162,7 @@ def measure_cmd(
             console.print(f"wrote {kind}: {path}")
     if strict and s.warnings:
         err_console.print(f"[bold red]--strict:[/] {len(s.warnings)} warning(s)")
-        raise typer.Exit(code=3)
+        raise typer.Exit(code=1)
 
 
 @vision_app.command("inspect")
