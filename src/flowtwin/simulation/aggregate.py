@@ -37,13 +37,6 @@ _IGNORED = re.compile(r"^(?P<what>.+ ignored )(?P<n>\d+)x: .*$", re.S)
 WORST_KEPT = 20
 
 
-def _ratio(a: float, b: float) -> float:
-    return a / b - 1.0 if b > 0 else 0.0
-
-
-def _share(part: float, whole: float) -> float:
-    return part / whole if whole > 0 else 0.0
-
 
 def _new_totals() -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     s = np.zeros(sk.N_TOTALS)
@@ -187,28 +180,11 @@ class Aggregates:
     # -- results ----------------------------------------------------------------------------
     def summary(self) -> SimulationSummary:
         """The figures of ``SimulationResult.summary()``."""
-        t = sk.fold_totals(self._s, self._c)
-        w = float(t[sk.T_RMS_W])
-        return SimulationSummary(
-            file=self.file, machine=self.machine, printer=self.printer,
-            firmware=self.firmware, pressure_advance=self.advance,
+        return SimulationSummary.from_totals(
+            sk.fold_totals(self._s, self._c), file=self.file, machine=self.machine,
+            printer=self.printer, firmware=self.firmware, pressure_advance=self.advance,
             total_time_s=self.total_time_s, moves=self.moves, layers=self.max_layer + 1,
-            commanded_volume_mm3=float(t[sk.T_CMD]),
-            delivered_volume_mm3=float(t[sk.T_DELIVERED]),
-            delivered_in_beads_mm3=float(t[sk.T_EXT_OUT]),
-            volume_error=_ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
-            rms_flow_error=math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
-            peak_overextrusion=float(t[sk.T_OVER]),
-            peak_underextrusion=float(t[sk.T_UNDER]),
-            worst_width_error_mm=float(t[sk.T_WIDTH_DEV]),
-            mean_slip=_share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
-            max_feed_force_n=float(t[sk.T_FORCE_MAX]),
-            min_force_margin_n=float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
-            grinding_events=int(t[sk.T_GRIND_EVENTS]),
-            grinding_moves=int(t[sk.T_GRIND_MOVES]),
-            ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
-            moves_over_flow_limit=self.over_flow_limit,
-            net_filament_mm=dict(self.net_filament_mm),
+            moves_over_flow_limit=self.over_flow_limit, net_filament_mm=self.net_filament_mm,
             warnings=tuple(self.warning_texts()))
 
     def rows(self, name: str) -> list[dict[str, float | int]]:

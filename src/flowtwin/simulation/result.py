@@ -95,27 +95,12 @@ class SimulationResult:
                          met["flow_error"], met["width_mean_mm"], met["width_nominal_mm"],
                          met["force_margin_n"], met["narrow"])
         plan = self.plan.summary()
-        w = float(t[sk.T_RMS_W])
-        return SimulationSummary(
-            file=plan.file, machine=self.machine_name, printer=plan.printer,
+        flags = self.parameters.over_flow_limit
+        return SimulationSummary.from_totals(
+            t, file=plan.file, machine=self.machine_name, printer=plan.printer,
             firmware=plan.firmware, pressure_advance=self.advance,
             total_time_s=plan.total_time_s, moves=plan.moves, layers=plan.layers,
-            commanded_volume_mm3=float(t[sk.T_CMD]),
-            delivered_volume_mm3=float(t[sk.T_DELIVERED]),
-            delivered_in_beads_mm3=float(t[sk.T_EXT_OUT]),
-            volume_error=_ratio(float(t[sk.T_DELIVERED]), float(t[sk.T_CMD])),
-            rms_flow_error=math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
-            peak_overextrusion=float(t[sk.T_OVER]),
-            peak_underextrusion=float(t[sk.T_UNDER]),
-            worst_width_error_mm=float(t[sk.T_WIDTH_DEV]),
-            mean_slip=_share(float(t[sk.T_SLIP_LOSS]), float(t[sk.T_FED_FWD])),
-            max_feed_force_n=float(t[sk.T_FORCE_MAX]),
-            min_force_margin_n=float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
-            grinding_events=int(t[sk.T_GRIND_EVENTS]),
-            grinding_moves=int(t[sk.T_GRIND_MOVES]),
-            ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
-            moves_over_flow_limit=(0 if self.parameters.over_flow_limit is None else
-                                   int(np.count_nonzero(self.parameters.over_flow_limit))),
+            moves_over_flow_limit=0 if flags is None else int(np.count_nonzero(flags)),
             net_filament_mm=plan.net_filament_mm, warnings=tuple(self.warnings))
 
     def per_layer(self) -> list[dict[str, float | int]]:
@@ -248,13 +233,6 @@ class GroupTotals:
             })
         return rows
 
-
-def _share(part: float, whole: float) -> float:
-    return part / whole if whole > 0 else 0.0
-
-
-def _ratio(a: float, b: float) -> float:
-    return a / b - 1.0 if b > 0 else 0.0
 
 
 def deposition_metrics(plan: PlanResult, dyn: DynamicsResult, params: MoveParameters

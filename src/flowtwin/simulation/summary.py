@@ -8,8 +8,14 @@ section) return a :class:`SimulationSummary`; :meth:`SimulationSummary.as_dict` 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.simulation import _summary_kernel as sk
 
 __all__ = ["SimulationSummary", "StreamSummary"]
 
@@ -111,6 +117,35 @@ class SimulationSummary:
             "net_filament_mm": dict(self.net_filament_mm),
             "warnings": list(self.warnings),
         }
+
+    @classmethod
+    def from_totals(cls, t: npt.NDArray[np.float64], *, file: str, machine: str, printer: str,
+                    firmware: str, pressure_advance: str, total_time_s: float, moves: int,
+                    layers: int, moves_over_flow_limit: int,
+                    net_filament_mm: Mapping[str, float], warnings: tuple[str, ...]
+                    ) -> SimulationSummary:
+        """The figures from the compiled print totals ``t`` (``_summary_kernel``'s ``T_*``
+        slots, whole table or folded sections) and what the totals do not hold."""
+        w = float(t[sk.T_RMS_W])
+        cmd, delivered = float(t[sk.T_CMD]), float(t[sk.T_DELIVERED])
+        fed = float(t[sk.T_FED_FWD])
+        return cls(
+            file=file, machine=machine, printer=printer, firmware=firmware,
+            pressure_advance=pressure_advance, total_time_s=total_time_s, moves=moves,
+            layers=layers, commanded_volume_mm3=cmd, delivered_volume_mm3=delivered,
+            delivered_in_beads_mm3=float(t[sk.T_EXT_OUT]),
+            volume_error=delivered / cmd - 1.0 if cmd > 0 else 0.0,
+            rms_flow_error=math.sqrt(float(t[sk.T_RMS_WEE]) / w) if w > 0.0 else 0.0,
+            peak_overextrusion=float(t[sk.T_OVER]), peak_underextrusion=float(t[sk.T_UNDER]),
+            worst_width_error_mm=float(t[sk.T_WIDTH_DEV]),
+            mean_slip=float(t[sk.T_SLIP_LOSS]) / fed if fed > 0 else 0.0,
+            max_feed_force_n=float(t[sk.T_FORCE_MAX]),
+            min_force_margin_n=float(t[sk.T_MARGIN_MIN]) if t[sk.T_MARGIN_N] > 0 else None,
+            grinding_events=int(t[sk.T_GRIND_EVENTS]),
+            grinding_moves=int(t[sk.T_GRIND_MOVES]),
+            ooze_volume_mm3=float(t[sk.T_OOZE]), narrow_beads=int(t[sk.T_NARROW]),
+            moves_over_flow_limit=moves_over_flow_limit,
+            net_filament_mm=dict(net_filament_mm), warnings=warnings)
 
 
 @dataclass(frozen=True, slots=True)
