@@ -2,8 +2,8 @@
 
 Each worker process makes documents of every target in proportion to its weight, writes
 each to a scratch file, and runs the target on it. A document that raises anything but a
-:class:`~flowtwin.errors.FlowtwinError` (or ``KeyboardInterrupt``) is a failure, grouped by
-signature (exception type and the innermost flowtwin frame); the first document of each
+:class:`~flowtwin.errors.FlowtwinError` is a failure (Ctrl-C or SIGTERM stops the campaign),
+grouped by signature (exception type and the innermost flowtwin frame); the first document of each
 signature is minimised and saved under ``--out`` with its traceback. The summary (documents
 per target and stage, failures) is printed and written to ``OUT/summary.json``; the exit
 status is 1 when anything failed.

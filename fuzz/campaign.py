@@ -45,7 +45,7 @@ def run_worker(args: tuple[int, int, int, int, str, list[str]]) -> dict[str, Any
         run_rng = random.Random(rng.random())
         try:
             target.run(path, run_rng)
-        except (FlowtwinError, KeyboardInterrupt):
+        except FlowtwinError:
             pass
         except Exception as exc:
             sig = f"{target.name}:{_signature(exc)}"

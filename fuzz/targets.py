@@ -14,6 +14,7 @@ import contextlib
 import io
 import os
 import random
+import signal
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -114,12 +115,17 @@ def _cli(argv: list[str]) -> None:
     from flowtwin.cli.main import main
 
     os.environ["FLOWTWIN_DEBUG"] = "1"  # internal errors raise instead of printing
+    # the CLI turns SIGTERM into an interrupt while it runs; the campaign itself must stay
+    # stoppable, so the worker's own handler comes back afterwards
+    handler = signal.getsignal(signal.SIGTERM)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         try:
             main(argv)
         except SystemExit as exc:
             if exc.code not in (None, 0, 1, 2):
                 raise RuntimeError(f"CLI exit status {exc.code}") from None
+        finally:
+            signal.signal(signal.SIGTERM, handler)
 
 
 def bgcode_target(seed: int) -> Target:
