@@ -39,7 +39,6 @@ Lag from a measured width profile::
 
 from typing import TYPE_CHECKING, Any
 
-from flowtwin.calibration.csvdata import Column, Table, read_table, read_table_text
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern, pattern_params
 from flowtwin.calibration.patterns.pattern import (
@@ -49,18 +48,15 @@ from flowtwin.calibration.patterns.pattern import (
     TestSegment,
     write_pattern,
 )
-from flowtwin.calibration.tuning.adaptive_pa import (
-    AdaptivePaTable,
-    append_measurement,
-    parse_orca_model,
-    read_orca_model,
-    table_from_measurements,
-    write_orca_model,
-)
 
 #: The fits that need the dynamics, scipy, OpenCV or the test stand load on first use, so
 #: that importing the package (and ``flowtwin calibrate --help``) stays fast.
 _LAZY = {
+    "Column": "csvdata", "Table": "csvdata", "read_table": "csvdata",
+    "read_table_text": "csvdata",
+    "AdaptivePaTable": "tuning.adaptive_pa", "append_measurement": "tuning.adaptive_pa",
+    "parse_orca_model": "tuning.adaptive_pa", "read_orca_model": "tuning.adaptive_pa",
+    "table_from_measurements": "tuning.adaptive_pa", "write_orca_model": "tuning.adaptive_pa",
     "StrandCalibration": "fits.strand_fit", "fit_strand": "fits.strand_fit",
     "ViscosityFit": "fits.viscosity_fit", "ViscositySweep": "fits.viscosity_fit",
     "apparent_viscosity_pa_s": "fits.viscosity_fit", "fit_viscosity_law": "fits.viscosity_fit",
@@ -82,6 +78,7 @@ _LAZY = {
 }
 
 if TYPE_CHECKING:
+    from flowtwin.calibration.csvdata import Column, Table, read_table, read_table_text
     from flowtwin.calibration.fits.kfit import fit_k, kline_for_machine
     from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag, read_width_profiles
     from flowtwin.calibration.fits.lagmodel import LagModel, LagParams, TestLine, lag_model
@@ -101,6 +98,14 @@ if TYPE_CHECKING:
         render_pattern_image,
     )
     from flowtwin.calibration.patterns.verify import PatternCheck, SegmentCheck, verify_pattern
+    from flowtwin.calibration.tuning.adaptive_pa import (
+        AdaptivePaTable,
+        append_measurement,
+        parse_orca_model,
+        read_orca_model,
+        table_from_measurements,
+        write_orca_model,
+    )
     from flowtwin.calibration.tuning.advance_settings import (
         AdvanceFit,
         adaptive_pa_table,

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING, Annotated, Literal
 
 import typer
 
-from flowtwin.calibration.csvdata import read_table
 from flowtwin.calibration.fragment import render_fragment, write_fragment
 from flowtwin.calibration.guide import (
     ADAPTIVE_HELP,
@@ -24,12 +23,6 @@ from flowtwin.calibration.guide import (
 )
 from flowtwin.calibration.patterns.kline import KLineParams
 from flowtwin.calibration.patterns.pattern import PrintSettings
-from flowtwin.calibration.tuning.adaptive_pa import (
-    ADAPTIVE_PA_COLUMNS,
-    append_measurement,
-    table_from_measurements,
-    write_orca_model,
-)
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.cli.calibrate_image import from_image_cmd
 from flowtwin.cli.calibrate_pattern import register_patterns
@@ -86,6 +79,7 @@ def _fit_viscosity_cmd(
                                                 help="Write the TOML fragment here.")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.csvdata import read_table
     from flowtwin.calibration.fits.viscosity_fit import (
         VISCOSITY_COLUMNS,
         fit_viscosity_law,
@@ -155,6 +149,8 @@ def _fit_strand_cmd(
     if not height_mm > 0:
         raise CalibrationError("nozzle height must be positive", field="--height-mm",
                                value=height_mm, allowed="> 0 mm")
+    from flowtwin.calibration.csvdata import read_table
+
     x, z = strand_points(read_table(data, STRAND_COLUMNS, min_rows=4))
     cal = fit_strand(x, z, height_mm=height_mm, model=strand_model)
     errors = {**cal.stderr, "lag_mm": cal.lag_stderr_mm}
@@ -188,6 +184,13 @@ def _adaptive_pa_cmd(
         "--at", help="Also report the interpolated K at FLOW,ACCEL (repeatable).")] = None,
     json_out: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
+    from flowtwin.calibration.csvdata import read_table
+    from flowtwin.calibration.tuning.adaptive_pa import (
+        ADAPTIVE_PA_COLUMNS,
+        table_from_measurements,
+        write_orca_model,
+    )
+
     table = table_from_measurements(read_table(measurements, ADAPTIVE_PA_COLUMNS))
     queries: list[tuple[float, float]] = []
     for item in at or []:
@@ -326,6 +329,8 @@ def _fit_k_cmd(
         write_fragment(output, text)
     appended = None
     if append_to is not None:
+        from flowtwin.calibration.tuning.adaptive_pa import append_measurement
+
         appended = append_measurement(append_to, fit.measurement_row())
     if json_out:
         print_json({**fit.summary(), "output": None if output is None else str(output),
