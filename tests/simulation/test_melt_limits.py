@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,3 +145,18 @@ def test_retraction_pairs_do_not_cool_the_melt(tmp_path) -> None:
     assert printing_a.size == printing_b.size == 39  # the first sits on the start point
     assert np.all(tb[printing_b] >= ta[printing_a] - 1e-9)
     assert rb.summary().moves_over_flow_limit == 0
+
+
+def test_a_move_feeding_more_than_a_spool_is_refused_with_its_line(tmp_path: Path) -> None:
+    """``make fuzz`` found a 5 kB file with ``E1e9`` moves (1000 km of filament) that the
+    integrator would have followed for 4·10⁷ s of print time: refused with the line."""
+    from flowtwin.errors import DataError
+    from flowtwin.simulation import simulate
+    from flowtwin.simulation.parameters import MAX_MOVE_FILAMENT_MM
+
+    path = tmp_path / "huge.gcode"
+    path.write_text("M83\nG1 X10 Y10 F3000\nG1 Z0.3 E1000000000 F1500\nG1 X20 E1 F1200\n")
+    with pytest.raises(DataError, match=r"huge.gcode:3 \[E\].*1e\+09 mm of filament"):
+        simulate(path, machine="tronvoll2019")
+    path.write_text(f"M83\nG1 X10 Y10 F3000\nG1 E{MAX_MOVE_FILAMENT_MM:.0f} F6000\n")
+    assert simulate(path, machine="tronvoll2019").summary().moves == 2

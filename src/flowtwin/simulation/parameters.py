@@ -18,6 +18,7 @@ import numpy.typing as npt
 from numba import njit
 
 from flowtwin.dynamics import ExtrusionParams, move_temperatures
+from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.physics.compliance import bowden_compliance_mm_per_n, compliance_mm_per_n
 from flowtwin.physics.lag import lag_factor_s
@@ -40,6 +41,11 @@ from flowtwin.profiles.material import (
 
 __all__ = ["THIN_LAYER_FRACTION", "MoveParameters", "OperatingPoint", "layer_heights_mm",
            "move_parameters", "operating_point", "thin_layer_moves", "viscosity_pa_s"]
+
+#: The most filament one move may feed or pull back, mm (100 m: a 1 kg spool of 1.75 mm
+#: PLA holds about 330 m; no print feeds a third of a spool in one move). Beyond it the
+#: twin refuses the file instead of integrating years of extrusion.
+MAX_MOVE_FILAMENT_MM = 1.0e5
 
 #: Eq. 8 of [000] holds for pinch forces of 80–130 N only [000 §4.2].
 _EQ8_PINCH_RANGE_N = (80.0, 130.0)
@@ -208,6 +214,18 @@ def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
     return np.concatenate((np.zeros(1, dtype=np.int64), change)).astype(np.int64)
 
 
+def _check_filament_per_move(table: MoveTable) -> None:
+    """Refuse a move that feeds or pulls back more than :data:`MAX_MOVE_FILAMENT_MM`."""
+    de = np.abs(np.asarray(table.moves["de"], dtype=np.float64))
+    big = np.flatnonzero(de > MAX_MOVE_FILAMENT_MM)
+    if big.size:
+        i = int(big[0])
+        raise DataError(f"a move feeds {float(table.moves['de'][i]):.6g} mm of filament; "
+                        f"{big.size} move(s) beyond the limit", source=table.source,
+                        line=int(table.moves["line"][i]), field="E", value=float(de[i]),
+                        allowed=f"at most {MAX_MOVE_FILAMENT_MM:g} mm per move (100 m)")
+
+
 def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
                     temperature_c: float | None = None, melt_start: MeltState | None = None,
                     flag_flow_limit: bool = True) -> MoveParameters:
@@ -232,6 +250,7 @@ def move_parameters(machine: Machine, table: MoveTable, timeline: Timeline, *,
     MoveParameters
     """
     n = len(table)
+    _check_filament_per_move(table)
     warnings: list[str] = []
     hot = machine.hotend
     mat = machine.material
