@@ -12,6 +12,9 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+#: A document whose run takes longer than this (wall clock, s) is recorded as a finding.
+SLOW_DOCUMENT_S = 30.0
+
 
 def _signature(exc: BaseException) -> str:
     frames = traceback.extract_tb(exc.__traceback__)
@@ -43,6 +46,7 @@ def run_worker(args: tuple[int, int, int, int, str, list[str]]) -> dict[str, Any
         path = scratch / f"doc{target.suffix}"
         path.write_bytes(data)
         run_rng = random.Random(rng.random())
+        started = time.monotonic()
         try:
             target.run(path, run_rng)
         except FlowtwinError:
@@ -81,6 +85,21 @@ def run_worker(args: tuple[int, int, int, int, str, list[str]]) -> dict[str, Any
                              "original_bytes": len(data), "minimised_bytes": len(small)}
             print(f"[worker {index}] FAILURE {sig} -> {folder / digest}{target.suffix}",
                   flush=True)
+        took = time.monotonic() - started
+        if took > SLOW_DOCUMENT_S:
+            # a document that takes this long is a finding too (a compiled kernel cannot be
+            # interrupted, so a document that never ends stops its worker: watch the log)
+            sig = f"{target.name}:slow"
+            slow = failures.setdefault(sig, {"count": 0, "file": "", "seconds": 0.0})
+            slow["count"] += 1
+            if took > slow["seconds"]:
+                folder = Path(out) / "failures" / target.name
+                folder.mkdir(parents=True, exist_ok=True)
+                digest = hashlib.sha256(data).hexdigest()[:12]
+                (folder / f"slow-{digest}{target.suffix}").write_bytes(data)
+                slow.update(file=str(folder / f"slow-{digest}{target.suffix}"),
+                            seconds=round(took, 1))
+            print(f"[worker {index}] SLOW {target.name} document: {took:.1f} s", flush=True)
         if index == 0 and (i + 1) % 5000 == 0:
             rate = (i + 1) / (time.monotonic() - t0)
             print(f"[worker 0] {i + 1:,}/{share:,} documents, {rate:,.0f}/s", flush=True)
