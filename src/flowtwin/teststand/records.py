@@ -250,7 +250,9 @@ def _check_numbers(texts: list[str], lines: list[int], spec: ColumnSpec,
         values = np.empty(0)
     if not fast_ok:
         for text, line in zip(texts, lines, strict=True):
-            if _NUMBER_RE.fullmatch(text.strip()) is None:
+            # blanks around a number are fine; other "whitespace" (control characters such
+            # as \x1f, which str.strip would remove) is not a number
+            if _NUMBER_RE.fullmatch(text.strip(" \t\r")) is None:
                 raise _bad(source, line, spec.name, text, "not a number", spec.allowed)
         values = np.array(texts, dtype=np.float64)
     ok = spec.ok(values)
