@@ -49,6 +49,7 @@ from flowtwin.compensation.relief import (
     row_start_states,
     travel_interims,
 )
+from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.planner.timeline import Timeline
 
@@ -239,6 +240,7 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
             model, pieces, start_e, intent, row_group[pieces.row[law.sel]], law.c_min,
             law.c_max, options.refine, state_max=cap, target=target,
             jump=None if split else law.jump, precharge=(pc_first, y_max))
+        _check_finite(e_run, precharge, table, pieces.row[law.sel])
         states = model.states(e_run / np.maximum(pieces.length_mm[law.sel], 1e-12),
                               (pc_first, precharge))
         start_state = row_start_states(model, states, n)
@@ -318,6 +320,21 @@ def _held_precharge(model: LagModel, ratios: FloatArray, first_vars: IntArray,
         ends = row_start_states(model, model.states(ratios, (first_vars, y)), n_rows)[hold]
         y[k0:] = np.maximum(np.nan_to_num(ends) - short, 0.0)
     return y
+
+
+def _check_finite(e_run: FloatArray, precharge: FloatArray, table: MoveTable,
+                  rows: IntArray) -> None:
+    """The refinement's solution must be finite; a solver failure is refused with the first
+    line it concerns, never written."""
+    bad = np.flatnonzero(~np.isfinite(e_run))
+    if bad.size == 0 and np.all(np.isfinite(precharge)):
+        return
+    line = int(table.moves["line"][int(rows[bad[0]])]) if bad.size else None
+    raise DataError("the advance's refinement found no finite solution here (a solver "
+                    "failure on this file: compensate without --advance, and please report "
+                    "the file)", source=table.source, line=line, field="--advance",
+                    value=f"{bad.size} of {e_run.size} pieces",
+                    allowed="a finite solution")
 
 
 def round_total(e: FloatArray, total: int) -> IntArray:

@@ -20,7 +20,10 @@ __all__ = ["ParsedLine", "parse_line"]
 
 _CLASSIC = re.compile(r"([A-Z])([0-9]+(?:\.[0-9]+)?)")
 _WORD = re.compile(r"([A-Z])\s*([^A-Z\s]*)")
-_ALL_WORDS = re.compile(r"(?:\s*[A-Z]\s*[^A-Z\s]*)*\s*")
+#: possessive quantifiers: the words' whitespace can be split between them in many ways, and a
+#: line that does not match (a 4.6 kB line of CR-separated commands) made the backtracking
+#: search exponential; the greedy split is the only one that matters
+_ALL_WORDS = re.compile(r"(?:\s*+[A-Z]\s*+[^A-Z\s]*+)*+\s*+")
 _EXTENDED = re.compile(r"[A-Z_][A-Z0-9_]*")
 _NLINE = re.compile(r"N\s*[0-9]+\s*")
 

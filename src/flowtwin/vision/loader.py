@@ -106,7 +106,13 @@ def read_grey_image(path: str | os.PathLike[str]) -> U8Image:
     name = os.fspath(path)
     if not os.path.isfile(name):
         raise VisionError("no such image file", source=name)
-    image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
+    try:
+        image = cv2.imread(name, cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:   # OpenCV refuses some headers outright (e.g. > 2^20 px wide)
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "decoder error"
+        raise VisionError(f"not a readable image ({reason})", source=name,
+                          allowed="PNG, JPEG, BMP, TIFF or PNM images within OpenCV's "
+                                  "size limits") from None
     if image is None:
         raise VisionError("not a readable image", source=name,
                           allowed="PNG, JPEG, BMP, TIFF or PNM images")

@@ -29,7 +29,7 @@ from scipy.optimize import minimize_scalar
 
 from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
 from flowtwin.dynamics import AdvanceSettings, predict
-from flowtwin.errors import CalibrationError, GcodeError
+from flowtwin.errors import CalibrationError, DataError, GcodeError
 from flowtwin.firmware import (
     DEFAULT_SMOOTH_TIME_S,
     AdvanceAlgorithm,
@@ -142,6 +142,10 @@ class _Scorer:
         plan, params = self._plan(0.0)
         mv = plan.table.moves
         ext = ((mv["kind"] & MoveKind.EXTRUDE) != 0) & ((mv["kind"] & MoveKind.XY) != 0)
+        if not np.any(ext):
+            raise DataError("no printing moves (extruding XY moves) to fit the advance on",
+                            source=plan.table.source, field="moves", value=0,
+                            allowed="at least one extruding XY move")
         k = params.params.lag_k_s[ext]  # type: ignore[attr-defined]
         w = np.maximum(mv["de"][ext], 0.0)
         mean = float(np.sum(k * w) / np.sum(w)) if np.sum(w) > 0 else float(np.mean(k))
