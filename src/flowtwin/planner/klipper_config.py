@@ -35,6 +35,9 @@ __all__ = [
 
 #: Largest nozzle or filament diameter the twin accepts from a printer.cfg, mm.
 MAX_DIAMETER_MM = 10.0
+#: Smallest, mm (Klipper takes any positive value; squares of denormal diameters such as
+#: 1e-320 underflow to zero and no nozzle is finer than 10 µm).
+MIN_DIAMETER_MM = 0.01
 
 #: Every kinematics the planner models (Klipper's names; one module each in
 #: :mod:`flowtwin.planner.kinematics`).
@@ -323,7 +326,8 @@ def load_printer_cfg(path: str | os.PathLike[str]) -> KlipperSettings:
             break
         ex = cfg.section(name)
         # no firmware bound; the twin needs diameters a hot end can have (mm)
-        nozzle = ex.getfloat("nozzle_diameter", above=0.0, maxval=MAX_DIAMETER_MM)
+        nozzle = ex.getfloat("nozzle_diameter", minval=MIN_DIAMETER_MM,
+                             maxval=MAX_DIAMETER_MM)
         filament = ex.getfloat("filament_diameter", minval=nozzle, maxval=MAX_DIAMETER_MM)
         def_cross = 4.0 * nozzle ** 2
         def_ratio = def_cross / (math.pi * (filament * 0.5) ** 2)
