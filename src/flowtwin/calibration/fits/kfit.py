@@ -29,11 +29,31 @@ from flowtwin.errors import CalibrationError
 from flowtwin.firmware import Firmware
 from flowtwin.profiles.machine import Machine, load_machine
 
-__all__ = ["fit_k", "kline_for_machine", "pattern_firmware"]
+__all__ = ["fit_k", "kline_for_machine", "machine_for_pattern", "pattern_firmware"]
 
 def pattern_firmware(machine: Machine) -> Firmware:
     """The firmware a pattern for ``machine`` is written for: its printer's."""
     return machine.printer.firmware
+
+
+def machine_for_pattern(pattern: Pattern,
+                        machine: Machine | str | os.PathLike[str] | None) -> Machine:
+    """The set-up a printed ``pattern`` is read against (object, built-in name or default).
+
+    Raises
+    ------
+    CalibrationError
+        The pattern was written for another firmware than the set-up's printer (its advance
+        commands would have been ignored on that printer).
+    """
+    m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
+    if pattern.settings.firmware is not pattern_firmware(m):
+        raise CalibrationError("the pattern is written for another firmware than the "
+                               "machine's printer: its advance commands would be ignored",
+                               field="firmware", value=pattern.settings.firmware.value,
+                               allowed=f"{pattern_firmware(m).value} (printer "
+                                       f"{m.printer.name})")
+    return m
 
 
 def kline_for_machine(machine: Machine, settings: PrintSettings, params: KLineParams

@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.kfit import machine_for_pattern
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
-from flowtwin.calibration.fits.lagmodel import DEFAULT_MACHINE, LagModel, lag_model
+from flowtwin.calibration.fits.lagmodel import LagModel, lag_model
 from flowtwin.calibration.image.beadwidth import (
     Strip,
     area_widths,
@@ -51,7 +51,7 @@ from flowtwin.calibration.image.widths import (
 )
 from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
-from flowtwin.profiles.machine import Machine, load_machine
+from flowtwin.profiles.machine import Machine
 
 __all__ = ["PhotoResult", "analyse_line_photo"]
 
@@ -263,13 +263,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     if not (0.05 <= step_mm <= 5.0):
         raise CalibrationError("sample step out of range", field="step_mm", value=step_mm,
                                allowed="0.05 .. 5 mm")
-    m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
-    if pattern.settings.firmware is not pattern_firmware(m):
-        raise CalibrationError("the pattern is written for another firmware than the "
-                               "machine's printer: its advance commands would be ignored",
-                               field="firmware", value=pattern.settings.firmware.value,
-                               allowed=f"{pattern_firmware(m).value} (printer "
-                                       f"{m.printer.name})")
+    m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
     full = lag_model(pattern.text().encode(), None, machine=m)
     geo, k_index = layout_geometry(pattern, full)

@@ -48,10 +48,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.calibration.fits.kfit import pattern_firmware
+from flowtwin.calibration.fits.kfit import machine_for_pattern
 from flowtwin.calibration.fits.lagfit import LagFit, WidthProfile, fit_lag
 from flowtwin.calibration.fits.lagmodel import (
-    DEFAULT_MACHINE,
     LagModel,
     TestLine,
     lag_model,
@@ -72,7 +71,7 @@ from flowtwin.calibration.image.linefind import (
 )
 from flowtwin.calibration.patterns.pattern import Pattern
 from flowtwin.errors import CalibrationError, VisionError
-from flowtwin.profiles.machine import Machine, load_machine
+from flowtwin.profiles.machine import Machine
 from flowtwin.vision.loader import load_grey
 
 __all__ = ["KLineImageResult", "LineReading", "analyse_kline_image", "load_grey",
@@ -367,13 +366,7 @@ def analyse_kline_image(image: str | os.PathLike[str] | npt.NDArray[Any], patter
     if not (0.05 <= step_mm <= 5.0):
         raise CalibrationError("sample step out of range", field="step_mm", value=step_mm,
                                allowed="0.05 .. 5 mm")
-    m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
-    if pattern.settings.firmware is not pattern_firmware(m):
-        raise CalibrationError("the pattern is written for another firmware than the "
-                               "machine's printer: its advance commands would be ignored",
-                               field="firmware", value=pattern.settings.firmware.value,
-                               allowed=f"{pattern_firmware(m).value} (printer "
-                                       f"{m.printer.name})")
+    m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
     firsts = [next(s.line for s in pattern.segments if s.group == g)
               for g in range(len(pattern.values))]
