@@ -2,73 +2,85 @@
 
 Solves ::
 
-    minimise   ½·xᵀHx + gᵀx
+    minimise   ½·xᵀHx + ½·Σ_k w_k·(R_k·x)² + gᵀx
     subject to lo ≤ C·x + d ≤ hi          (lo finite; hi may be +inf)
 
-with ``H`` symmetric positive (semi)definite and ``H + Cᵀ·D·C`` positive definite for
-positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
+with ``H`` symmetric positive (semi)definite, ``w > 0`` and ``H + Cᵀ·D·C`` positive
+definite for positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
 ``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``
 (centring ``σ = min(1, (μ_aff/μ)³)``, one step length for primal and dual);
-every Newton step solves ``(H + Cᵀ(z/s + w/t)C)·Δx = r``, which keeps the sparsity
-(banded for the lag model). Nocedal & Wright, *Numerical Optimization* (2nd ed.), §16.6.
+every Newton step solves ``(H + Rᵀ·W·R + Cᵀ(z/s + w/t)C)·Δx = r``. Nocedal & Wright,
+*Numerical Optimization* (2nd ed.), §16.6.
 
-The program falls apart into **independent blocks** wherever no entry of ``H`` and no row
-of ``C`` joins a variable to the next one (the lag model's runs between relieved travels:
-their states do not carry over). Every block is solved on its own by a compiled
-interior-point loop (:func:`_solve_blocks`), whose steps factorise ``H + Cᵀ·D·C`` in
-envelope storage (:func:`envelope_cholesky`: a move cut into many pieces widens only its
-own rows), so the cost is linear in the number of variables; the blocks are solved in
-parallel.
+The squared rows ``R_k`` are kept as rows: a row reading ``ℓ`` variables (a move of the
+lag model cut into ``ℓ`` pieces) would put a dense ``ℓ × ℓ`` block into ``Rᵀ·W·R``. The
+step instead solves the equivalent quasi-definite system
+``[[H + Cᵀ·D·C, Rᵀ], [R, −W⁻¹]]·[Δx; ν] = [r; 0]`` (``ν = W·R·Δx``), every ``ν_k`` ordered
+right after the last variable its row reads; its ``L·D·Lᵀ`` factor (Vanderbei, *SIAM J.
+Optim.* 5 (1995): a quasi-definite matrix has one in every symmetric order) fills only the
+envelope, which grows with ``ℓ``, not ``ℓ²``.
+
+The program falls apart into **independent blocks** wherever no entry of ``H``, no row of
+``C`` and no squared row joins a variable to the next one (the lag model's runs between
+relieved travels: their states do not carry over). Every block is solved on its own by a
+compiled interior-point loop (:func:`_solve_blocks`), whose steps factorise in envelope
+storage (:func:`envelope_ldl`), so the cost is linear in the number of variables; the
+blocks are solved in parallel.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 from numba import njit, prange
 
-__all__ = ["envelope_cholesky", "envelope_solve", "qp_blocks", "solve_box_qp"]
+__all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_box_qp"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
 @njit(cache=True)
-def envelope_cholesky(first: IntArray, ptr: IntArray, m: FloatArray, out: FloatArray) -> bool:
-    """Lower Cholesky factor ``M = L·Lᵀ`` of a symmetric matrix in envelope storage.
+def envelope_ldl(first: IntArray, ptr: IntArray, m: FloatArray, sign: npt.NDArray[np.int8],
+                 out: FloatArray) -> bool:
+    """``M = L·D·Lᵀ`` (``L`` unit lower) of a symmetric matrix in envelope storage.
 
     Row ``i`` of the lower triangle holds columns ``first[i] … i`` at
     ``m[ptr[i] : ptr[i + 1]]`` (so ``M[i, j] = m[ptr[i] + j − first[i]]``); the factor
-    fills no entry outside the envelope and is stored the same way in ``out``. The work
-    is ``Σ (i − first[i])²/2``: a move cut into many pieces widens the envelope of its
-    own rows only. Returns ``False`` when ``M`` is not (numerically) positive definite.
+    fills no entry outside the envelope and is stored the same way in ``out``, ``D`` on the
+    diagonal. The work is ``Σ (i − first[i])²/2``: a move cut into many pieces widens the
+    envelope of its own rows only. ``M`` must be *quasi-definite* with the pivot signs
+    ``sign`` (``+1``: positive, ``−1``: negative; Vanderbei 1995: such a matrix has this
+    factorisation in every symmetric ordering); returns ``False`` when a pivot has the
+    wrong sign or is zero (numerically).
     """
     n = first.shape[0]
+    u = np.empty(n)  # L[i, k]·D[k] of the current row
     for i in range(n):
         fi = first[i]
         pi = ptr[i] - fi
-        for j in range(fi, i + 1):
+        for j in range(fi, i):
             fj = first[j]
             pj = ptr[j] - fj
             s = m[pi + j]
             for k in range(max(fi, fj), j):
-                s -= out[pi + k] * out[pj + k]
-            if j < i:
-                out[pi + j] = s / out[pj + j]
-            else:
-                if not s > 0.0:
-                    return False
-                out[pi + i] = math.sqrt(s)
+                s -= u[k] * out[pj + k]
+            u[j] = s
+            out[pi + j] = s / out[pj + j]
+        s = m[pi + i]
+        for k in range(fi, i):
+            s -= u[k] * out[pi + k]
+        if not s * sign[i] > 0.0:
+            return False
+        out[pi + i] = s
     return True
 
 
 @njit(cache=True)
-def envelope_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArray,
-                   out: FloatArray) -> None:
-    """Solve ``L·Lᵀ·x = rhs`` with the factor of :func:`envelope_cholesky`."""
+def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArray,
+                       out: FloatArray) -> None:
+    """Solve ``L·D·Lᵀ·x = rhs`` with the factor of :func:`envelope_ldl`."""
     n = first.shape[0]
     for i in range(n):  # L y = rhs
         fi = first[i]
@@ -76,11 +88,12 @@ def envelope_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArra
         s = rhs[i]
         for k in range(fi, i):
             s -= f[pi + k] * out[k]
-        out[i] = s / f[pi + i]
-    for i in range(n - 1, -1, -1):  # Lᵀ x = y
+        out[i] = s
+    for i in range(n):  # D z = y
+        out[i] /= f[ptr[i + 1] - 1]
+    for i in range(n - 1, -1, -1):  # Lᵀ x = z
         fi = first[i]
         pi = ptr[i] - fi
-        out[i] /= f[pi + i]
         xi = out[i]
         for k in range(fi, i):
             out[k] -= f[pi + k] * xi
@@ -98,12 +111,75 @@ def _step(v: FloatArray, dv: FloatArray, mask: npt.NDArray[np.bool_]) -> float:
 
 
 @njit(cache=True)
+def _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr, c_col, r0, r1,  # type: ignore[no-untyped-def]
+                        r_ptr, r_col, q0, q1):
+    """Order and envelope of a block's step matrix with one extra row per squared row.
+
+    Variable ``i`` of the block (``a ≤ a + i < e``) goes to ``pos[i]``; squared row
+    ``q0 + k`` to ``pos_r[k]``, right after the last variable it reads (rows sorted by
+    that variable). Returns ``pos, pos_r, first, ptr, sign``.
+    """
+    n = e - a
+    nr = q1 - q0
+    pos = np.empty(n, dtype=np.int64)
+    pos_r = np.empty(nr, dtype=np.int64)
+    big = n + nr
+    sign = np.ones(big, dtype=np.int8)
+    last = np.empty(nr, dtype=np.int64)
+    for k in range(nr):
+        last[k] = -1
+        for t in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
+            last[k] = max(last[k], r_col[t] - a)
+    k = 0
+    p = 0
+    for i in range(n):
+        pos[i] = p
+        p += 1
+        while k < nr and last[k] <= i:
+            pos_r[k] = p
+            sign[p] = -1
+            p += 1
+            k += 1
+    first = np.arange(big)
+    for t in range(h_ptr0, h_ptr1):
+        lo_c = pos[min(h_r[t], h_c[t]) - a]
+        hi_c = pos[max(h_r[t], h_c[t]) - a]
+        if lo_c < first[hi_c]:
+            first[hi_c] = lo_c
+    for q in range(r0, r1):
+        mn = big
+        for t in range(c_ptr[q], c_ptr[q + 1]):
+            mn = min(mn, pos[c_col[t] - a])
+        for t in range(c_ptr[q], c_ptr[q + 1]):
+            cj = pos[c_col[t] - a]
+            if mn < first[cj]:
+                first[cj] = mn
+    for k in range(nr):
+        for t in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
+            cj = pos[r_col[t] - a]
+            if cj < first[pos_r[k]]:
+                first[pos_r[k]] = cj
+    ptr = np.empty(big + 1, dtype=np.int64)
+    ptr[0] = 0
+    for i in range(big):
+        ptr[i + 1] = ptr[i] + i - first[i] + 1
+    return pos, pos_r, first, ptr, sign
+
+
+@njit(cache=True)
 def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r1, d, lo, hi,  # type: ignore[no-untyped-def]
-                 a, e, max_iterations, tolerance):
-    """Interior-point loop on variables ``a:e`` and constraint rows ``r0:r1``; ``x``
-    (the whole vector) is updated in place. Returns the iterations."""
+                 r_ptr, r_col, r_val, r_w, q0, q1, a, e, max_iterations, tolerance):
+    """Interior-point loop on variables ``a:e``, constraint rows ``r0:r1`` and squared rows
+    ``q0:q1``; ``x`` (the whole vector) is updated in place. Returns the iterations.
+
+    The step matrix ``H + Rᵀ·W·R + Cᵀ·D·C`` is never formed: with ``ν = W·R·Δx`` the step
+    solves the quasi-definite system ``[[H + Cᵀ·D·C, Rᵀ], [R, −W⁻¹]]`` (one ``ν`` per
+    squared row, ordered after the last variable it reads), whose envelope grows with the
+    length of a row, not with its square.
+    """
     n = e - a
     m = r1 - r0
+    nr = q1 - q0
     fin = np.empty(m, dtype=np.bool_)
     ones = np.ones(m, dtype=np.bool_)
     s = np.empty(m)
@@ -140,36 +216,25 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     for q in range(m):
         mu0 += s[q] * z[q] + t[q] * w[q]
     mu0 = max(mu0 / max(n_c, 1), 1e-300)
-    # envelope of the step matrix H + Cᵀ·D·C: row i from the lowest column joined to it
-    first = np.arange(n)
+    pos, pos_r, first, ptr, sign = _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr,
+                                                       c_col, r0, r1, r_ptr, r_col, q0, q1)
+    big = n + nr
+    size = ptr[big]
+    hb = np.zeros(size)  # the constant part: H, R and −W⁻¹
     for p in range(h_ptr0, h_ptr1):
-        lo_c = min(h_r[p], h_c[p]) - a
-        hi_c = max(h_r[p], h_c[p]) - a
-        if lo_c < first[hi_c]:
-            first[hi_c] = lo_c
-    for q in range(m):
-        i = r0 + q
-        mn = n
-        for p in range(c_ptr[i], c_ptr[i + 1]):
-            mn = min(mn, c_col[p] - a)
-        for p in range(c_ptr[i], c_ptr[i + 1]):
-            cj = c_col[p] - a
-            if mn < first[cj]:
-                first[cj] = mn
-    ptr = np.empty(n + 1, dtype=np.int64)
-    ptr[0] = 0
-    for i in range(n):
-        ptr[i + 1] = ptr[i] + i - first[i] + 1
-    size = ptr[n]
-    hb = np.zeros(size)
-    for p in range(h_ptr0, h_ptr1):
-        lo_c = min(h_r[p], h_c[p]) - a
-        hi_c = max(h_r[p], h_c[p]) - a
+        lo_c = pos[min(h_r[p], h_c[p]) - a]
+        hi_c = pos[max(h_r[p], h_c[p]) - a]
         hb[ptr[hi_c] + lo_c - first[hi_c]] += h_v[p]
+    for k in range(nr):
+        row = pos_r[k]
+        for p in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
+            hb[ptr[row] + pos[r_col[p] - a] - first[row]] += r_val[p]
+        hb[ptr[row + 1] - 1] -= 1.0 / r_w[q0 + k]
     ab = np.empty(size)
     uf = np.empty(size)
     r_d = np.empty(n)
-    rhs = np.empty(n)
+    rhs = np.zeros(big)
+    sol = np.empty(big)
     dx = np.empty(n)
     cdx = np.empty(m)
     ds = np.empty(m)
@@ -191,6 +256,13 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             r_d[i] += h_v[p] * xl[j]
             if i != j:
                 r_d[j] += h_v[p] * xl[i]
+        for k in range(nr):  # Rᵀ W R x
+            v = 0.0
+            for p in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
+                v += r_val[p] * xl[r_col[p] - a]
+            v *= r_w[q0 + k]
+            for p in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
+                r_d[r_col[p] - a] += r_val[p] * v
         mu = 0.0
         pmax = 0.0
         for q in range(m):
@@ -215,7 +287,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
         if pmax < tolerance * (1.0 + lomax) and (mu < tolerance or mu < 1e-12 * mu0):
             if dual < tolerance * gmax or (mu < 1e-3 * tolerance and dual < 1e-3 * gmax):
                 break
-        # the step matrix H + Cᵀ·diag(z/s + w/t)·C, factorised
+        # the step matrix [[H + Cᵀ·diag(z/s + w/t)·C, Rᵀ], [R, −W⁻¹]], factorised
         for q in range(m):
             dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)
         for k in range(size):
@@ -223,26 +295,26 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
         for q in range(m):
             i = r0 + q
             for p in range(c_ptr[i], c_ptr[i + 1]):
-                ci = c_col[p] - a
+                ci = pos[c_col[p] - a]
                 for p2 in range(c_ptr[i], c_ptr[i + 1]):
-                    cj = c_col[p2] - a
+                    cj = pos[c_col[p2] - a]
                     if ci <= cj:
                         ab[ptr[cj] + ci - first[cj]] += dd[q] * c_val[p] * c_val[p2]
         diag_max = 0.0
         for i in range(n):
-            v = abs(ab[ptr[i + 1] - 1])
+            v = abs(ab[ptr[pos[i] + 1] - 1])
             if v > diag_max:
                 diag_max = v
         delta = 1e-13 * diag_max
         ok = False
         for _ in range(4):
             for i in range(n):
-                ab[ptr[i + 1] - 1] += delta
-            if envelope_cholesky(first, ptr, ab, uf):
+                ab[ptr[pos[i] + 1] - 1] += delta
+            if envelope_ldl(first, ptr, ab, sign, uf):
                 ok = True
                 break
             for i in range(n):
-                ab[ptr[i + 1] - 1] -= delta
+                ab[ptr[pos[i] + 1] - 1] -= delta
             delta = max(delta * 1e3, 1e-300)
         if not ok:
             break
@@ -254,15 +326,17 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 rc_u[q] = (t[q] * w[q] - sigma_mu + (dt[q] * dw[q] if corr else 0.0)
                            if fin[q] else 0.0)
             for i in range(n):
-                rhs[i] = -r_d[i]
+                rhs[pos[i]] = -r_d[i]
             for q in range(m):
                 i = r0 + q
                 v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
                 if fin[q]:
                     v -= (-rc_u[q] - w[q] * r_u[q]) / t[q]
                 for p in range(c_ptr[i], c_ptr[i + 1]):
-                    rhs[c_col[p] - a] += c_val[p] * v
-            envelope_solve(first, ptr, uf, rhs, dx)
+                    rhs[pos[c_col[p] - a]] += c_val[p] * v
+            envelope_ldl_solve(first, ptr, uf, rhs, sol)
+            for i in range(n):
+                dx[i] = sol[pos[i]]
             for q in range(m):
                 i = r0 + q
                 v = 0.0
@@ -303,11 +377,13 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
 
 @njit(cache=True, parallel=True)
 def _solve_blocks(x, block_a, block_e, h_ptr, h_r, h_c, h_v, g, row_ptr,  # type: ignore[no-untyped-def]
-                  c_ptr, c_col, c_val, d, lo, hi, max_iterations, tolerance, iters):
+                  c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val, r_w,
+                  max_iterations, tolerance, iters):
     for k in prange(block_a.shape[0]):
         iters[k] = _solve_block(x, h_ptr[k], h_ptr[k + 1], h_r, h_c, h_v, g, c_ptr, c_col,
-                                c_val, row_ptr[k], row_ptr[k + 1], d, lo, hi, block_a[k],
-                                block_e[k], max_iterations, tolerance)
+                                c_val, row_ptr[k], row_ptr[k + 1], d, lo, hi, r_ptr, r_col,
+                                r_val, r_w, sq_ptr[k], sq_ptr[k + 1], block_a[k], block_e[k],
+                                max_iterations, tolerance)
 
 
 def qp_blocks(n: int, h_r: IntArray, h_c: IntArray, row_lo: IntArray, row_hi: IntArray
@@ -330,9 +406,24 @@ def qp_blocks(n: int, h_r: IntArray, h_c: IntArray, row_lo: IntArray, row_hi: In
     return starts, ends
 
 
+def _row_spans(ptr: IntArray, col: IntArray) -> tuple[IntArray, IntArray]:
+    """Lowest and highest column of every row of a CSR pattern (``0, 0`` for an empty row,
+    which joins nothing)."""
+    m = ptr.size - 1
+    row_lo = np.zeros(m, dtype=np.int64)
+    row_hi = np.zeros(m, dtype=np.int64)
+    nonempty = np.flatnonzero(np.diff(ptr) > 0)
+    if nonempty.size:
+        row_lo[nonempty] = np.minimum.reduceat(col, ptr[nonempty])
+        row_hi[nonempty] = np.maximum.reduceat(col, ptr[nonempty])
+    return row_lo, row_hi
+
+
 def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, lo: FloatArray,
                  hi: FloatArray, *, max_iterations: int = 60, tolerance: float = 1e-9,
-                 x0: FloatArray | None = None) -> tuple[FloatArray, int, float]:
+                 x0: FloatArray | None = None,
+                 squares: tuple[sp.spmatrix, FloatArray] | None = None
+                 ) -> tuple[FloatArray, int, float]:
     """Solve the program of the module docstring.
 
     Parameters
@@ -353,6 +444,11 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     x0
         Starting point (default: least squares towards the middle of the bounds); the
         slacks start at least 0.1 % of each bound interval inside.
+    squares
+        ``(R, w)``: the Hessian is ``H + Rᵀ·diag(w)·R`` (``R`` sparse ``(k, n)``,
+        ``w > 0``), given as rows instead of their product: a row reading ``ℓ`` variables
+        adds ``ℓ²`` entries to the product, but only ``ℓ`` to the steps' factor (see
+        :func:`_solve_block`).
 
     Returns
     -------
@@ -392,16 +488,22 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     h_c = hu.col.astype(np.int64)
     h_v = hu.data.astype(np.float64)
     m = c.shape[0]
-    c_ptr = c.indptr.astype(np.int64)
-    c_col = c.indices.astype(np.int64)
-    row_lo = np.zeros(m, dtype=np.int64)  # an empty row (a constant bound) joins nothing
-    row_hi = np.zeros(m, dtype=np.int64)
-    nonempty = np.flatnonzero(np.diff(c_ptr) > 0)
-    if nonempty.size:
-        row_lo[nonempty] = np.minimum.reduceat(c_col, c_ptr[nonempty])
-        row_hi[nonempty] = np.maximum.reduceat(c_col, c_ptr[nonempty])
-    starts, ends = qp_blocks(n, h_r, h_c, row_lo.astype(np.int64), row_hi.astype(np.int64))
-    # H entries and constraint rows ordered by block
+    row_lo, row_hi = _row_spans(c.indptr.astype(np.int64), c.indices.astype(np.int64))
+    if squares is None:
+        rq = sp.csr_matrix((0, n))
+        wq = np.zeros(0)
+    else:
+        rq = sp.csr_matrix(squares[0], dtype=np.float64)
+        rq.sum_duplicates()
+        rq.eliminate_zeros()
+        wq = np.asarray(squares[1], dtype=np.float64)
+        used = (wq > 0) & (np.diff(rq.indptr) > 0)  # an empty row is a constant
+        rq, wq = rq[used], wq[used]
+    sq_lo, sq_hi = _row_spans(rq.indptr.astype(np.int64), rq.indices.astype(np.int64))
+    starts, ends = qp_blocks(n, h_r, h_c, np.concatenate((row_lo, sq_lo)),
+                             np.concatenate((row_hi, sq_hi)))
+    # H entries, constraint rows and squared rows ordered by block (squared rows by their
+    # last variable)
     h_block = np.searchsorted(starts, h_r, side="right") - 1
     order = np.argsort(h_block, kind="stable")
     h_r, h_c, h_v = h_r[order], h_c[order], h_v[order]
@@ -410,10 +512,16 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     rorder = np.argsort(row_block, kind="stable")
     c2 = c[rorder] if m else c
     row_ptr = np.searchsorted(row_block[rorder], np.arange(starts.size + 1)).astype(np.int64)
+    sorder = np.argsort(sq_hi, kind="stable")
+    rq, wq = rq[sorder], wq[sorder]
+    sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi[sorder], side="right") - 1,
+                             np.arange(starts.size + 1)).astype(np.int64)
     iters = np.zeros(starts.size, dtype=np.int64)
     _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
                   row_ptr, c2.indptr.astype(np.int64), c2.indices.astype(np.int64),
                   c2.data.astype(np.float64), d[rorder] if m else d,
-                  lo[rorder] if m else lo, hi[rorder] if m else hi, int(max_iterations),
-                  float(tolerance), iters)
+                  lo[rorder] if m else lo, hi[rorder] if m else hi, sq_ptr,
+                  rq.indptr.astype(np.int64), rq.indices.astype(np.int64),
+                  rq.data.astype(np.float64), wq, int(max_iterations), float(tolerance),
+                  iters)
     return x, int(iters.max(initial=0)), 0.0

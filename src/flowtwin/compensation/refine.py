@@ -14,9 +14,10 @@ segment of constant acceleration)::
 
 over the ratio box ``c_min ≤ c ≤ c_max`` (no piece below ``min_flow_fraction`` of its
 intent, none above the firmware's limits). With the states after the pieces as unknowns
-the problem is a banded convex QP, solved by an interior-point method
-(:func:`refine_qp`). Retractions hold the state (no backflow [001 Fig. 8]); gaps and
-travels let it decay (ooze); a pressure-relief travel leaves it relaxed.
+the problem is a banded convex QP plus one squared row per move, solved by an
+interior-point method (:func:`refine_qp`). Retractions hold the state (no backflow
+[001 Fig. 8]); gaps and travels let it decay (ooze); a pressure-relief travel leaves it
+relaxed.
 """
 
 from __future__ import annotations
@@ -427,11 +428,15 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     v = options.track_weight * l_p ** 2 * inv[grp]
     v_y = options.track_weight * inv[grp[after_v]]
     c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
-    h = r_mat.T @ sp.diags(w) @ r_mat + c_mat.T @ sp.diags(v) @ c_mat
+    # the Hessian is h + Rᵀ·diag(w)·R; the solver takes R's rows as they are (a move cut
+    # into many pieces would make its block of Rᵀ·W·R dense)
+    h = c_mat.T @ sp.diags(v) @ c_mat
     if k_y:
         h = h + sp.csr_matrix((v_y, (n + y_idx, n + y_idx)), shape=(n + k_y, n + k_y))
+    r_mat = sp.csr_matrix(r_mat)
     g = r_mat.T @ (w * r0) + c_mat.T @ (v * (c0 - c_hat))
-    scale = float(np.mean(np.abs(h.diagonal()))) or 1.0
+    r_diag = np.asarray(r_mat.multiply(r_mat).T @ w).ravel()
+    scale = float(np.mean(np.abs(h.diagonal() + r_diag))) or 1.0
     hi = np.where(np.isfinite(c_max), np.maximum(c_max, c_min * (1 + 1e-6) + 1e-9), np.inf)
 
     def objective(x: FloatArray) -> float:  # x: [states; pre-charges]
@@ -484,6 +489,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     # each pre-charge just before the piece it feeds: the band stays narrow
     order = np.argsort(np.concatenate((idx, after_v - 0.5)), kind="stable")
     h = sp.csr_matrix(h)[order][:, order] if k_y else h
+    r_sq = r_mat[:, order] if k_y else r_mat
     x = np.empty(n + k_y)
     iterations = 0
     for with_cap in (False, True):
@@ -501,7 +507,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
                                    sp.csr_matrix(con)[:, order] if k_y else con,
                                    d_con, lo_con, hi_con,
                                    max_iterations=options.max_iterations,
-                                   x0=x_start[order])
+                                   x0=x_start[order], squares=(r_sq, w / scale))
         iterations = max(iterations, its)
         x[order] = z
     c = np.clip(c_mat @ x + c0, c_min, hi)
