@@ -487,7 +487,6 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     h_r = hu.row.astype(np.int64)
     h_c = hu.col.astype(np.int64)
     h_v = hu.data.astype(np.float64)
-    m = c.shape[0]
     row_lo, row_hi = _row_spans(c.indptr.astype(np.int64), c.indices.astype(np.int64))
     if squares is None:
         rq = sp.csr_matrix((0, n))
@@ -509,18 +508,19 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     h_r, h_c, h_v = h_r[order], h_c[order], h_v[order]
     h_ptr = np.searchsorted(h_block[order], np.arange(starts.size + 1)).astype(np.int64)
     row_block = np.searchsorted(starts, row_lo, side="right") - 1
-    rorder = np.argsort(row_block, kind="stable")
-    c2 = c[rorder] if m else c
-    row_ptr = np.searchsorted(row_block[rorder], np.arange(starts.size + 1)).astype(np.int64)
-    sorder = np.argsort(sq_hi, kind="stable")
-    rq, wq = rq[sorder], wq[sorder]
-    sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi[sorder], side="right") - 1,
+    if np.any(row_block[1:] < row_block[:-1]):  # (copies only when out of order)
+        rorder = np.argsort(row_block, kind="stable")
+        c, d, lo, hi, row_block = c[rorder], d[rorder], lo[rorder], hi[rorder], row_block[rorder]
+    row_ptr = np.searchsorted(row_block, np.arange(starts.size + 1)).astype(np.int64)
+    if np.any(sq_hi[1:] < sq_hi[:-1]):
+        sorder = np.argsort(sq_hi, kind="stable")
+        rq, wq, sq_hi = rq[sorder], wq[sorder], sq_hi[sorder]
+    sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
                              np.arange(starts.size + 1)).astype(np.int64)
     iters = np.zeros(starts.size, dtype=np.int64)
     _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
-                  row_ptr, c2.indptr.astype(np.int64), c2.indices.astype(np.int64),
-                  c2.data.astype(np.float64), d[rorder] if m else d,
-                  lo[rorder] if m else lo, hi[rorder] if m else hi, sq_ptr,
+                  row_ptr, c.indptr.astype(np.int64), c.indices.astype(np.int64),
+                  c.data.astype(np.float64), d, lo, hi, sq_ptr,
                   rq.indptr.astype(np.int64), rq.indices.astype(np.int64),
                   rq.data.astype(np.float64), wq, int(max_iterations), float(tolerance),
                   iters)

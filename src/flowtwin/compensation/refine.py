@@ -423,6 +423,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     s_last = sp.hstack([s_last, sp.csr_matrix((m, k_y))], format="csr")
     r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
     r0 = g_mat @ (l_p * c0) + s_first @ kappa - (intent if target is None else target)
+    del g_mat, s_last, s_first, p_mat, y_x, c_y, rows, cols, vals  # held through the solve
     inv = 1.0 / np.maximum(intent, 1e-9)
     w = inv + options.peak_weight * float(np.mean(intent)) * inv * inv
     v = options.track_weight * l_p ** 2 * inv[grp]

@@ -345,6 +345,7 @@ def slip_stage(setting: Setting, current: Current, options: SlipOptions) -> Slip
     rms0 = flow_figures(setting.original, sim, draft.row).rms_flow_error
     for _ in range(options.iterations):
         draft = slip_feedforward(draft, base, printing, sim.dynamics.moves["slip"], options)
+        sim = current.sim  # the last round's simulation is not held through the next one
         sim = setting.twin.simulate_draft(draft)
     rms1 = flow_figures(setting.original, sim, draft.row).rms_flow_error
     if rms1 > rms0:
