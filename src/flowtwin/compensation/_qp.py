@@ -230,6 +230,40 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
         for p in range(r_ptr[q0 + k], r_ptr[q0 + k + 1]):
             hb[ptr[row] + pos[r_col[p] - a] - first[row]] += r_val[p]
         hb[ptr[row + 1] - 1] -= 1.0 / r_w[q0 + k]
+    p_0 = c_ptr[r0]
+    nnz = c_ptr[r1] - p_0
+    lcol = np.empty(nnz, dtype=np.int64)  # local column and position of every entry
+    lpos = np.empty(nnz, dtype=np.int64)
+    for p in range(p_0, c_ptr[r1]):
+        lcol[p - p_0] = c_col[p] - a
+        lpos[p - p_0] = pos[c_col[p] - a]
+    n_pairs = 0
+    for q in range(m):
+        i = r0 + q
+        for p in range(c_ptr[i], c_ptr[i + 1]):
+            for p2 in range(c_ptr[i], c_ptr[i + 1]):
+                if lpos[p - p_0] <= lpos[p2 - p_0]:
+                    n_pairs += 1
+    pair_at = np.empty(n_pairs, dtype=np.int64)  # C^T D C: entry of the envelope, both
+    pair_p = np.empty(n_pairs, dtype=np.int64)   # constraint entries and the row
+    pair_p2 = np.empty(n_pairs, dtype=np.int64)
+    pair_q = np.empty(n_pairs, dtype=np.int64)
+    k = 0
+    for q in range(m):
+        i = r0 + q
+        for p in range(c_ptr[i], c_ptr[i + 1]):
+            ci = lpos[p - p_0]
+            for p2 in range(c_ptr[i], c_ptr[i + 1]):
+                cj = lpos[p2 - p_0]
+                if ci <= cj:
+                    pair_at[k] = ptr[cj] + ci - first[cj]
+                    pair_p[k] = p
+                    pair_p2[k] = p2
+                    pair_q[k] = q
+                    k += 1
+    diag_at = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        diag_at[i] = ptr[pos[i] + 1] - 1
     ab = np.empty(size)
     uf = np.empty(size)
     r_d = np.empty(n)
@@ -269,11 +303,11 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             i = r0 + q
             v = d[i]
             for p in range(c_ptr[i], c_ptr[i + 1]):
-                v += c_val[p] * xl[c_col[p] - a]
+                v += c_val[p] * xl[lcol[p - p_0]]
             y[q] = v
             zw = z[q] - w[q]
             for p in range(c_ptr[i], c_ptr[i + 1]):
-                r_d[c_col[p] - a] -= c_val[p] * zw
+                r_d[lcol[p - p_0]] -= c_val[p] * zw
             r_l[q] = v - lo[i] - s[q]
             r_u[q] = hi[i] - v - t[q] if fin[q] else 0.0
             mu += s[q] * z[q] + t[q] * w[q]
@@ -292,29 +326,23 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)
         for k in range(size):
             ab[k] = hb[k]
-        for q in range(m):
-            i = r0 + q
-            for p in range(c_ptr[i], c_ptr[i + 1]):
-                ci = pos[c_col[p] - a]
-                for p2 in range(c_ptr[i], c_ptr[i + 1]):
-                    cj = pos[c_col[p2] - a]
-                    if ci <= cj:
-                        ab[ptr[cj] + ci - first[cj]] += dd[q] * c_val[p] * c_val[p2]
+        for k in range(n_pairs):
+            ab[pair_at[k]] += dd[pair_q[k]] * c_val[pair_p[k]] * c_val[pair_p2[k]]
         diag_max = 0.0
         for i in range(n):
-            v = abs(ab[ptr[pos[i] + 1] - 1])
+            v = abs(ab[diag_at[i]])
             if v > diag_max:
                 diag_max = v
         delta = 1e-13 * diag_max
         ok = False
         for _ in range(4):
             for i in range(n):
-                ab[ptr[pos[i] + 1] - 1] += delta
+                ab[diag_at[i]] += delta
             if envelope_ldl(first, ptr, ab, sign, uf):
                 ok = True
                 break
             for i in range(n):
-                ab[ptr[pos[i] + 1] - 1] -= delta
+                ab[diag_at[i]] -= delta
             delta = max(delta * 1e3, 1e-300)
         if not ok:
             break
@@ -333,7 +361,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 if fin[q]:
                     v -= (-rc_u[q] - w[q] * r_u[q]) / t[q]
                 for p in range(c_ptr[i], c_ptr[i + 1]):
-                    rhs[pos[c_col[p] - a]] += c_val[p] * v
+                    rhs[lpos[p - p_0]] += c_val[p] * v
             envelope_ldl_solve(first, ptr, uf, rhs, sol)
             for i in range(n):
                 dx[i] = sol[pos[i]]
@@ -341,7 +369,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 i = r0 + q
                 v = 0.0
                 for p in range(c_ptr[i], c_ptr[i + 1]):
-                    v += c_val[p] * dx[c_col[p] - a]
+                    v += c_val[p] * dx[lcol[p - p_0]]
                 cdx[q] = v
                 ds[q] = v + r_l[q]
                 dt[q] = -v + r_u[q] if fin[q] else 0.0
