@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import brentq
 
 from flowtwin.errors import ProfileError
 from flowtwin.physics import defaults
@@ -43,6 +42,7 @@ from flowtwin.profiles.material import (
     MaterialProfile,
     WlfViscosity,
 )
+from flowtwin.scalar_search import bracketed_root
 
 __all__ = ["DELIVERED_MIN", "FlowFlags", "FlowLimit", "SteadyExtrusion", "flow_flags",
            "flow_limit", "flow_limit_table", "melt_model", "steady_extrusion"]
@@ -273,16 +273,17 @@ class FlowLimit:
                 "melt_model": self.melt_model}
 
 
-def _first_crossing(values: list[float], grid: npt.NDArray[np.float64], fn: object
-                    ) -> float | None:
+def _first_crossing(values: list[float], grid: npt.NDArray[np.float64],
+                    fn: Callable[[float], float]) -> float | None:
     """Smallest ``q`` with ``fn(q) ≤ 0`` (``fn`` decreasing in ``q``) from its values on
-    ``grid``, refined by Brent's method; ``None`` if it stays positive."""
+    ``grid``, refined by :func:`~flowtwin.scalar_search.bracketed_root`; ``None`` if it stays
+    positive."""
     for i, v in enumerate(values):
         if v <= 0.0:
             if i == 0:
                 return float(grid[0])
-            return float(brentq(fn, float(grid[i - 1]), float(grid[i]),  # type: ignore[arg-type]
-                                xtol=1e-9, rtol=1e-10))
+            return bracketed_root(fn, float(grid[i - 1]), float(grid[i]),
+                                  xtol=1e-9, rtol=1e-10)
     return None
 
 
