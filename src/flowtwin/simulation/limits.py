@@ -158,6 +158,20 @@ def _max_force(machine: Machine) -> float:
     return fit.max_feed_force_n(machine.drive.pinch_force_n) if fit is not None else math.inf
 
 
+@functools.lru_cache(maxsize=256)
+def _unit_resistance(machine: Machine, layer_height_mm: float | None) -> float:
+    """The hot end's hydraulic resistance at 1 Pa·s, MPa·s/mm³: every resistance term is
+    linear in the viscosity, ``R_hyd = μ·R(1 Pa·s)``; one value per machine and layer height
+    (``Machine`` is frozen and hashable), asked for by every steady state of a flow limit."""
+    hot = machine.hotend
+    return float(hydraulic_resistance_mpa_s_per_mm3(
+        pa_s_to_mpa_s(1.0), capillary_length_mm=hot.land_length_mm,
+        nozzle_radius_mm=hot.nozzle_radius_mm, bore_radius_mm=hot.bore_diameter_mm / 2.0,
+        cone_half_angle_deg=hot.cone_half_angle_deg, layer_height_mm=layer_height_mm,
+        back_pressure_length_mm=hot.back_pressure_length_mm,
+        back_pressure_exponent=hot.back_pressure_exponent))
+
+
 def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: float | None = None,
                      layer_height_mm: float | None = None, melt: bool = True
                      ) -> SteadyExtrusion:
@@ -183,7 +197,6 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
     if not (flow_mm3_s >= 0.0 and math.isfinite(flow_mm3_s)):
         raise ProfileError("the flow must be finite and >= 0", field="flow_mm3_s",
                            value=flow_mm3_s, allowed=">= 0 mm³/s")
-    hot = machine.hotend
     mat = machine.material
     area = machine.filament.area_mm2
     t_set = machine.temperature_c if temperature_c is None else float(temperature_c)
@@ -191,13 +204,7 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
     lo, hi = mat.viscosity.t_min_c, mat.viscosity.t_max_c
     grad = _slip_gradient(machine, flow_mm3_s / area)
 
-    # every resistance term is linear in the viscosity: R_hyd = μ·R(1 Pa·s)
-    r_unit = float(hydraulic_resistance_mpa_s_per_mm3(
-        pa_s_to_mpa_s(1.0), capillary_length_mm=hot.land_length_mm,
-        nozzle_radius_mm=hot.nozzle_radius_mm, bore_radius_mm=hot.bore_diameter_mm / 2.0,
-        cone_half_angle_deg=hot.cone_half_angle_deg, layer_height_mm=layer_height_mm,
-        back_pressure_length_mm=hot.back_pressure_length_mm,
-        back_pressure_exponent=hot.back_pressure_exponent))
+    r_unit = _unit_resistance(machine, layer_height_mm)
 
     # scalar forms of steady_melt_temperature_c and the viscosity law (same formulas,
     # without the array checks: this runs thousands of times per limit)
