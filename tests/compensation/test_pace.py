@@ -356,3 +356,25 @@ def test_pacing_does_not_slow_a_start_into_a_held_blob(tmp_path: Path) -> None:
     assert before > 0.5  # the held blob is there
     # same planned moves, same twin: equal to rounding (the E of line 19 is not touched)
     assert after <= before + 1e-3
+
+
+def test_pulling_back_makes_the_falling_envelope_steeper(thin_gcode: Path, tmp_path: Path
+                                                         ) -> None:
+    """With the advance pulling back at up to r times the intent while the head slows, the
+    outflow falls as d ln Q/dt >= -m(1 + r)/K: the paced speeds are never lower, and the
+    paced file is faster to print; compensate passes the advance's retract_ratio."""
+    draft, sim, _unit = _draft(thin_gcode)
+    alone, _ = _pace(draft, sim, PaceOptions(rise=False))
+    pulled, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0))
+    t_alone = simulate_draft_time(alone, tmp_path / "alone.gcode")
+    t_pulled = simulate_draft_time(pulled, tmp_path / "pulled.gcode")
+    t0 = sim.plan.timeline.total_time_s
+    assert t0 < t_pulled < t_alone
+    with pytest.raises(ProfileError):
+        PaceOptions(pull_ratio=-1.0)
+
+
+def simulate_draft_time(draft: Draft, path: Path) -> float:
+    """Planned print time of a draft's rendered file, s."""
+    draft.render(path)
+    return float(simulate(path, pressure_advance=False).plan.timeline.total_time_s)
