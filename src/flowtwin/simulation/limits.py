@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import brentq
 
 from flowtwin.errors import ProfileError
 from flowtwin.physics import defaults
@@ -43,6 +42,7 @@ from flowtwin.profiles.material import (
     MaterialProfile,
     WlfViscosity,
 )
+from flowtwin.scalar_search import bracketed_root
 
 __all__ = ["DELIVERED_MIN", "FlowFlags", "FlowLimit", "SteadyExtrusion", "flow_flags",
            "flow_limit", "flow_limit_table", "melt_model", "steady_extrusion"]
@@ -212,17 +212,20 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
         mu = law(min(max(t_melt, lo), hi))
         return t_melt, mu, mu * r_unit
 
-    slip = 0.0
-    t_melt, mu, r_hyd = at(flow_mm3_s)
-    for _ in range(200):
-        force0 = r_hyd * flow_mm3_s * area
-        kp = machine.drive.k_p      # [000 Eq. 6] with F ∝ delivered flow (steady_state_slip)
-        new = (kp + grad * force0) / (1.0 + grad * force0)
-        converged = abs(new - slip) <= 1e-11
-        slip = new
-        if converged or model is None:
-            break
-        t_melt, mu, r_hyd = at(flow_mm3_s * (1.0 - slip))
+    kp = machine.drive.k_p
+
+    def slip_at(s: float) -> float:
+        """[000 Eq. 6] with F ∝ delivered flow (steady_state_slip), the melt temperature
+        (hence viscosity) set by the filament fed at slip ``s``."""
+        force0 = at(flow_mm3_s * (1.0 - s))[2] * flow_mm3_s * area
+        return (kp + grad * force0) / (1.0 + grad * force0)
+
+    slip = slip_at(0.0)
+    if model is not None and slip > 0.0:
+        # the slip is the fixed point s = slip_at(s): slip_at falls as s rises (less fed,
+        # hotter melt, lower force), so s - slip_at(s) has one root in [0, 1)
+        slip = bracketed_root(lambda s: slip_at(s) - s, 0.0, 1.0, xtol=1e-13, rtol=0.0)
+    t_melt, mu, r_hyd = at(flow_mm3_s * (1.0 - slip))
     force = r_hyd * flow_mm3_s * (1.0 - slip) * area
     return SteadyExtrusion(flow_mm3_s=float(flow_mm3_s), temperature_c=t_set,
                            melt_temperature_c=t_melt, viscosity_pa_s=mu, feed_force_n=force,
@@ -273,16 +276,17 @@ class FlowLimit:
                 "melt_model": self.melt_model}
 
 
-def _first_crossing(values: list[float], grid: npt.NDArray[np.float64], fn: object
-                    ) -> float | None:
+def _first_crossing(values: list[float], grid: npt.NDArray[np.float64],
+                    fn: Callable[[float], float]) -> float | None:
     """Smallest ``q`` with ``fn(q) ≤ 0`` (``fn`` decreasing in ``q``) from its values on
-    ``grid``, refined by Brent's method; ``None`` if it stays positive."""
+    ``grid``, refined by :func:`~flowtwin.scalar_search.bracketed_root`; ``None`` if it stays
+    positive."""
     for i, v in enumerate(values):
         if v <= 0.0:
             if i == 0:
                 return float(grid[0])
-            return float(brentq(fn, float(grid[i - 1]), float(grid[i]),  # type: ignore[arg-type]
-                                xtol=1e-9, rtol=1e-10))
+            return bracketed_root(fn, float(grid[i - 1]), float(grid[i]),
+                                  xtol=1e-9, rtol=1e-10)
     return None
 
 
