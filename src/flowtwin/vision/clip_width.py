@@ -136,11 +136,14 @@ class ClipWidth:
     _scatter: list[tuple[float, float]] = field(default_factory=list)
 
     def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
-        """Width of one frame's ``before`` crop (with the clip's blur once it is fixed;
-        the limb shapes are fitted per frame until :meth:`finish`)."""
+        """Width of one frame's ``before`` crop. Until the clip's blur is fixed, the
+        silhouettes are fitted here (blur free); after, the frame's edges are found and
+        its profiles taken, and the fit is left to :meth:`finish`, which fits all those
+        frames in one vectorised pass (status ``"pending"`` until then)."""
         return measure_width_px(crop, sigma_px=self.sigma_px,
                                 min_edge_dn_px=self.min_edge_dn_px,
-                                expected_px=self.expected_px, blur_px=self.blur_px)
+                                expected_px=self.expected_px, blur_px=self.blur_px,
+                                fit=self.blur_px is None)
 
     def scan_frame(self, image: npt.NDArray[np.uint8]) -> None:
         """The filament's width elsewhere in the frame: the ROI's columns (±20 px) in
@@ -188,6 +191,13 @@ class ClipWidth:
             return
         if self.blur_px is None:
             self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
+        # the frames measured after the blur was fixed: each frame's own fit (limb
+        # shapes free) at that blur, all in one pass
+        todo = [i for i, (_, em) in enumerate(self._stored) if em.status == "pending"]
+        fitted = refit_widths([self._stored[i][1] for i in todo], self.blur_px, self.roi.h,
+                              self.expected_px)
+        for i, em in zip(todo, fitted, strict=True):
+            self._stored[i] = (self._stored[i][0], em)
         ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
         pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
         sils = [em.silhouette for em in pick if em.silhouette is not None]

@@ -110,7 +110,8 @@ class Pipeline:
     gear_tracker, filament_tracker
         The two trackers (their ``last_points`` / ``last_kept`` show the last step).
     last_width
-        Width measurement of the last processed frame (None before the first).
+        Width measurement of the last processed frame (None before the first; its
+        status is ``"pending"`` once the clip's blur is fixed: fitted in :meth:`result`).
     """
 
     def __init__(self, config: VisionConfig, frame_size: tuple[int, int], gear: GearSetup,
@@ -190,7 +191,10 @@ class Pipeline:
                              Quality.GEAR_STALE)
         flags |= _step_flags(f, Quality.FILAMENT_LOW_TEXTURE, Quality.FILAMENT_TRACKING,
                              Quality.FILAMENT_STALE)
-        ok = em.ok
+        # a pending width (edges found, fit left to the end of the run) is provisionally
+        # NaN without a flag; result() fits it or refuses it
+        ok = em.ok or em.status == "pending"
+        stale = False
         if not ok:
             flags |= Quality.WIDTH_INVALID
             if em.status == "ambiguous":
@@ -198,12 +202,12 @@ class Pipeline:
         elif (self.check_stale and self._prev is not None
               and is_stale(before_crop, self._prev[before.slices])):
             flags |= Quality.WIDTH_INVALID
-            ok = False
+            ok, stale = False, True
         width = (em.width_px, em.left_px + before.x, em.right_px + before.x) if ok \
             else no_width
         self.rows.add(frame.index, t_rel, NAN if dt is None else dt, flags, _step_tuple(g),
                       _step_tuple(f), width)
-        if not (flags & Quality.WIDTH_INVALID) or not em.ok:
+        if not stale:
             self.widths.record(len(self.rows.t) - 1, em)
         self._prev = img
         self._t_last = frame.t_s
