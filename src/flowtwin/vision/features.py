@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
 
-__all__ = ["detect_features", "is_stale", "min_eigenvalue_map", "noise_sigma_dn",
-           "robust_mean"]
+__all__ = ["detect_features", "is_stale", "min_eigenvalue_at", "min_eigenvalue_map",
+           "noise_sigma_dn", "robust_mean"]
 
 U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
@@ -114,6 +114,45 @@ def min_eigenvalue_map(gray: U8, *, block: int = _BLOCK) -> F32:
     return np.asarray(0.5 * (a + c) - np.sqrt(half * half + b * b), dtype=np.float32)
 
 
+def min_eigenvalue_at(gray: U8, xy: npt.NDArray[np.float64], *, block: int = _BLOCK) -> F32:
+    """:func:`min_eigenvalue_map` at the pixels nearest to points ``xy`` only (the same
+    gradients and reflected border; the windows summed at those points instead of
+    box-filtering the whole map).
+
+    Parameters
+    ----------
+    gray
+        Image, shape ``(H, W)``, uint8.
+    xy
+        Points ``(x, y)``, shape ``(N, 2)``, px.
+    block
+        Averaging window side, px (odd).
+
+    Returns
+    -------
+    numpy.ndarray
+        Scores, shape ``(N,)``, (DN/px)².
+    """
+    img = gray.astype(np.float32)
+    half = block // 2
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    gx = cv2.copyMakeBorder(gx, half, half, half, half, cv2.BORDER_REFLECT_101)
+    gy = cv2.copyMakeBorder(gy, half, half, half, half, cv2.BORDER_REFLECT_101)
+    ix = np.clip(np.rint(xy[:, 0]).astype(np.intp), 0, gray.shape[1] - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(np.intp), 0, gray.shape[0] - 1)
+    offs = np.arange(block)
+    rows = (iy[:, None] + offs[None, :])[:, :, None]
+    cols = (ix[:, None] + offs[None, :])[:, None, :]
+    wx, wy = gx[rows, cols], gy[rows, cols]                       # (N, block, block)
+    n = float(block * block)
+    a = (wx * wx).sum(axis=(1, 2)) / n
+    b = (wx * wy).sum(axis=(1, 2)) / n
+    c = (wy * wy).sum(axis=(1, 2)) / n
+    h2 = 0.5 * (a - c)
+    return np.asarray(0.5 * (a + c) - np.sqrt(h2 * h2 + b * b), dtype=np.float32)
+
+
 def noise_sigma_dn(gray: U8) -> float:
     """Standard deviation of the pixel noise of an image, DN (Immerkaer's estimator).
 
@@ -183,7 +222,4 @@ def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
         noise_region = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
     sigma = noise_sigma_dn(gray if noise_region is None else gray[noise_region])
     floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
-    eig = min_eigenvalue_map(gray)
-    ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, gray.shape[1] - 1)
-    iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, gray.shape[0] - 1)
-    return xy[eig[iy, ix] >= floor]
+    return xy[min_eigenvalue_at(gray, xy) >= floor]
