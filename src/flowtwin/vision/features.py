@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
 
-__all__ = ["detect_features", "is_stale", "min_eigenvalue_at", "min_eigenvalue_map",
-           "noise_sigma_dn", "robust_mean"]
+__all__ = ["FeatureMemo", "detect_features", "is_stale", "min_eigenvalue_at", "min_eigenvalue_map",
+           "noise_sigma_dn", "robust_mean", "window_std_at"]
 
 U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
@@ -153,6 +153,36 @@ def min_eigenvalue_at(gray: U8, xy: npt.NDArray[np.float64], *, block: int = _BL
     return np.asarray(0.5 * (a + c) - np.sqrt(h2 * h2 + b * b), dtype=np.float32)
 
 
+def window_std_at(img: U8, xy: npt.NDArray[np.float64], win: int) -> npt.NDArray[np.float64]:
+    """Standard deviation of the grey levels in the ``win × win`` window around the pixel
+    nearest to each point (reflected border, as ``cv2.boxFilter``), DN.
+
+    Parameters
+    ----------
+    img
+        Image, shape ``(H, W)``, uint8.
+    xy
+        Points ``(x, y)``, shape ``(N, 2)``, px.
+    win
+        Window side, px (odd).
+
+    Returns
+    -------
+    numpy.ndarray
+        Standard deviations, shape ``(N,)``.
+    """
+    if len(xy) == 0:
+        return np.zeros(0)
+    half = win // 2
+    f = cv2.copyMakeBorder(img, half, half, half, half, cv2.BORDER_REFLECT_101)
+    ix = np.clip(np.rint(xy[:, 0]).astype(np.intp), 0, img.shape[1] - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(np.intp), 0, img.shape[0] - 1)
+    offs = np.arange(win)
+    v = f[(iy[:, None] + offs[None, :])[:, :, None],
+          (ix[:, None] + offs[None, :])[:, None, :]].reshape(len(ix), -1).astype(np.float64)
+    return np.asarray(np.std(v, axis=1), dtype=np.float64)
+
+
 def noise_sigma_dn(gray: U8) -> float:
     """Standard deviation of the pixel noise of an image, DN (Immerkaer's estimator).
 
@@ -218,8 +248,35 @@ def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
         return np.zeros((0, 2), np.float64)
     xy = pts[:, 0, :].astype(np.float64)
     if noise_region is None and mask is not None:
-        ys, xs = np.nonzero(mask)
-        noise_region = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+        bx, by, bw, bh = cv2.boundingRect(mask)
+        noise_region = (slice(by, by + bh), slice(bx, bx + bw))
     sigma = noise_sigma_dn(gray if noise_region is None else gray[noise_region])
     floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
     return xy[min_eigenvalue_at(gray, xy) >= floor]
+
+
+class FeatureMemo:
+    """:func:`detect_features` of the same frames with the same mask, remembered: the
+    axis estimate makes keyframes of the same frames in several passes.
+
+    Parameters
+    ----------
+    params
+        Tracking parameters.
+    mask
+        Where features may be (non-zero), shape ``(H, W)``, uint8.
+    """
+
+    def __init__(self, params: TrackingParams, mask: U8) -> None:
+        self.params = params
+        self.mask = mask
+        bx, by, bw, bh = cv2.boundingRect(mask)
+        self.box = (slice(by, by + bh), slice(bx, bx + bw))
+        self._found: dict[int, npt.NDArray[np.float64]] = {}
+
+    def __call__(self, index: int, crop: U8) -> npt.NDArray[np.float64]:
+        """Features of frame ``index`` (its crop ``crop``), detected once."""
+        if index not in self._found:
+            self._found[index] = detect_features(crop, self.params, mask=self.mask,
+                                                 noise_region=self.box)
+        return self._found[index].copy()
