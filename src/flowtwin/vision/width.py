@@ -219,7 +219,8 @@ def _subpixel(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> F64:
     return km + np.clip(off, -0.5, 0.5)
 
 
-def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
+def measure_width_px(crop: npt.NDArray[np.uint8] | npt.NDArray[np.float32], *,
+                     sigma_px: float = 0.7,
                      min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5,
                      expected_px: Sequence[tuple[float, float]] | None = None,
                      blur_px: float | None = None, mix: tuple[float, float] | None = None,
@@ -229,8 +230,9 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     Parameters
     ----------
     crop
-        Grey image of the ``before`` ROI, shape ``(H, W)``, uint8, filament roughly
-        vertical with background on both sides.
+        Grey image of the ``before`` ROI, shape ``(H, W)``, uint8 (or float32, e.g. a
+        mean of several frames), filament roughly vertical with background on both
+        sides.
     sigma_px
         Gaussian smoothing across the filament before differentiation, px.
     min_edge_dn_px
