@@ -272,15 +272,15 @@ class ClipWidth:
             return
         if self.blur_px is None:
             self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
-        # the frames measured after the blur was fixed: each frame's own fit (limb
-        # shapes free) at that blur, all in one pass
-        todo = [i for i, (_, em) in enumerate(self._stored) if em.status == "pending"]
-        fitted = refit_widths([self._stored[i][1] for i in todo], self.blur_px, self.roi.h,
-                              self.expected_px)
-        for i, em in zip(todo, fitted, strict=True):
-            self._stored[i] = (self._stored[i][0], em)
         sils = self._shape_silhouettes()
         if len(sils) < 2:
+            # too few frame groups: single frames, each with its own fit (limb shapes
+            # free) at the running blur
+            todo = [i for i, (_, em) in enumerate(self._stored) if em.status == "pending"]
+            fitted = refit_widths([self._stored[i][1] for i in todo], self.blur_px,
+                                  self.roi.h, self.expected_px)
+            for i, em in zip(todo, fitted, strict=True):
+                self._stored[i] = (self._stored[i][0], em)
             ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
             pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
             sils = [em.silhouette for em in pick if em.silhouette is not None]
