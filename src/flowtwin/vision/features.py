@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
 
-__all__ = ["FeatureMemo", "detect_features", "is_stale", "min_eigenvalue_at", "min_eigenvalue_map",
-           "noise_sigma_dn", "robust_mean", "window_std_at"]
+__all__ = ["FeatureMemo", "detect_features", "is_stale", "min_eigenvalue_at",
+           "min_eigenvalue_map", "noise_sigma_dn", "robust_mean", "window_std_at"]
 
 U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
@@ -46,8 +46,12 @@ def is_stale(crop: U8, previous: U8) -> bool:
     -------
     bool
     """
-    same = np.all(crop == previous, axis=1) & (crop.max(axis=1) > crop.min(axis=1))
-    return int(same.sum()) >= max(4, int(0.05 * crop.shape[0]))
+    need = max(4, int(0.05 * crop.shape[0]))
+    same = np.all(crop == previous, axis=1)
+    if int(same.sum()) < need:
+        return False
+    same &= crop.max(axis=1) > crop.min(axis=1)
+    return int(same.sum()) >= need
 
 
 def robust_mean(values: npt.NDArray[np.float64], scale: npt.NDArray[np.float64] | None = None,
