@@ -1,10 +1,12 @@
 """Compensate the validation prints and report the spread of the improvement.
 
-    python -m benchmarks.validation.run --split dev|check [--pace] [--slip] [--only SUBSTR]
+    python -m benchmarks.validation.run --split dev|check [--pace [--pull-ratio R]] [--slip]
+                                        [--only SUBSTR]
 
 For every print of the split (made by :mod:`benchmarks.validation.generate` first when
 missing), ``compensate(advance=True)`` (``--pace``: also the flow pacing; ``--slip``: also
-the slip feed-forward) on the print's machine; per print the RMS flow error and the peak
+the slip feed-forward; ``--pull-ratio``: the pacing's ``PaceOptions.pull_ratio``) on the
+print's machine; per print the RMS flow error and the peak
 over-extrusion over one nozzle diameter of path before and after, their improvement
 factors, the print time before and after and the wall time; then the median and the worst
 of both factors and the prints below 5x. Results go to ``out/results-SPLIT[-pace].json``.
@@ -31,20 +33,23 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else math.inf
 
 
-def run_print(p: Print, out: Path, *, pace: bool, slip: bool) -> dict[str, object]:
+def run_print(p: Print, out: Path, *, pace: bool, slip: bool,
+              pull_ratio: float = 0.0) -> dict[str, object]:
     """Compensate one print; its figures."""
     from flowtwin.compensation import compensate
+    from flowtwin.compensation.pace import PaceOptions
 
     machine, cfg = machine_of(p, out)
     src = out / f"{p.name}.gcode"
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         report = compensate(src, Path(tmp) / "out.gcode", machine=machine, klipper_config=cfg,
-                            advance=True, pace=pace or None, slip=slip or None)
+                            advance=True, pace=PaceOptions(pull_ratio=pull_ratio) if pace
+                            else None, slip=slip or None)
         wall = time.perf_counter() - t0
     b, a = report.before, report.after
     return {
-        "name": p.name, "split": p.split, "pace": pace, "slip": slip,
+        "name": p.name, "split": p.split, "pace": pace, "slip": slip, "pull_ratio": pull_ratio,
         "rms_before": b.rms_flow_error, "rms_after": a.rms_flow_error,
         "rms_x": _ratio(b.rms_flow_error, a.rms_flow_error),
         "window_before": b.peak_overextrusion_window,
@@ -74,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", choices=["dev", "check"], required=True)
     parser.add_argument("--pace", action="store_true")
     parser.add_argument("--slip", action="store_true")
+    parser.add_argument("--pull-ratio", type=float, default=0.0,
+                        help="PaceOptions.pull_ratio with --pace (default 0)")
     parser.add_argument("--only", help="run the prints whose name contains this")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
@@ -85,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'print':<72} {'RMS before→after':>20} {'×':>6} {'peak/0.4mm':>20} {'×':>6} "
           f"{'time':>7} {'wall':>6}")
     for p in prints:
-        r = run_print(p, args.out, pace=args.pace, slip=args.slip)
+        r = run_print(p, args.out, pace=args.pace, slip=args.slip, pull_ratio=args.pull_ratio)
         rows.append(r)
         print(f"{p.name:<72} {100 * float(r['rms_before']):8.2f} → "  # type: ignore[arg-type]
               f"{100 * float(r['rms_after']):6.2f} % {float(r['rms_x']):6.1f} "  # type: ignore[arg-type]
@@ -99,7 +106,9 @@ def main(argv: list[str] | None = None) -> int:
           f"{s['window_median']:.1f} worst {s['window_worst']:.1f}; print time "
           f"{100 * s['time_cost_median']:+.1f} % median, {100 * s['time_cost_worst']:+.1f} % "
           f"worst; {s['at_target']} of {s['prints']} at {TARGET:g}x on both")
-    tag = args.split + ("-pace" if args.pace else "") + ("-slip" if args.slip else "")
+    tag = (args.split + ("-pace" if args.pace else "")
+           + (f"-pull{args.pull_ratio:g}" if args.pace and args.pull_ratio else "")
+           + ("-slip" if args.slip else ""))
     if args.only is None:
         (args.out / f"results-{tag}.json").write_text(
             json.dumps({"summary": s, "prints": rows}, indent=1) + "\n")

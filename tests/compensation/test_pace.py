@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from flowtwin.compensation import compensate
+from flowtwin.compensation.advance import AdvanceOptions
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.original import read_original
 from flowtwin.compensation.pace import (
@@ -265,28 +266,41 @@ def test_no_paced_piece_prints_nothing(tmp_path: Path) -> None:
 
 def test_pacing_and_advance_fix_thin_transitions(thin_gcode: Path, tmp_path: Path) -> None:
     """A thin transition move between two full-speed walls dumps the stored volume K·Q:
-    the advance alone cannot take it out (no negative extrusion), pacing first lets it."""
+    the advance with E above zero cannot take it out, pacing first lets it, and so does
+    the advance pulling back while the head slows down (``retract_ratio``)."""
     src = thin_gcode
+    no_pull = compensate(src, tmp_path / "no-pull.gcode",
+                         advance=AdvanceOptions(retract_ratio=0.0))
     plain = compensate(src, tmp_path / "plain.gcode", advance=True)
-    paced = compensate(src, tmp_path / "paced.gcode", advance=True, pace=True)
-    b, a0, a1 = plain.before, plain.after, paced.after
+    paced = compensate(src, tmp_path / "paced.gcode", advance=AdvanceOptions(retract_ratio=0.0),
+                       pace=True)
+    b, a0, a_pull, a1 = no_pull.before, no_pull.after, plain.after, paced.after
     print(f"\nthin transitions: window peak {b.peak_overextrusion_window:.3f} -> "
-          f"{a0.peak_overextrusion_window:.3f} (advance) -> "
-          f"{a1.peak_overextrusion_window:.3f} (pace + advance); RMS {b.rms_flow_error:.4f} "
-          f"-> {a0.rms_flow_error:.4f} -> {a1.rms_flow_error:.4f}; time "
-          f"{paced.time_before_s:.2f} -> {paced.time_after_s:.2f} s")
+          f"{a0.peak_overextrusion_window:.3f} (advance, E > 0) -> "
+          f"{a_pull.peak_overextrusion_window:.3f} (advance pulling back) -> "
+          f"{a1.peak_overextrusion_window:.3f} (pace + advance, E > 0); RMS "
+          f"{b.rms_flow_error:.4f} -> {a0.rms_flow_error:.4f} -> {a_pull.rms_flow_error:.4f} "
+          f"-> {a1.rms_flow_error:.4f}; time {paced.time_before_s:.2f} -> "
+          f"{paced.time_after_s:.2f} s (paced), {plain.time_after_s:.2f} s (pulling back)")
     assert "pace" in paced.transformations and paced.paced_moves
     assert paced.pace_time_cost_s > 0
     s = paced.as_dict()
     cost = s["pace_time_cost_s"]
     assert s["paced_moves"] == len(paced.paced_moves) and isinstance(cost, float) and cost > 0
     assert b.peak_overextrusion_window > 1.0  # the problem is there: > +100 %
-    # measured: windowed peak +33 % (advance alone) -> -1.6 % (no window over-extrudes),
-    # RMS 0.051 -> 0.022 (2.3x); asserted with margin
+    # measured: windowed peak +33 % (advance, E > 0) -> -1.6 % (paced: no window
+    # over-extrudes), RMS 0.051 -> 0.022 (2.3x); asserted with margin
+    assert a0.peak_overextrusion_window > 0.2
     assert a1.peak_overextrusion_window * 4.0 <= a0.peak_overextrusion_window
     assert a1.rms_flow_error * 1.5 <= a0.rms_flow_error
-    assert paced.commanded_e_after_mm == pytest.approx(paced.commanded_e_before_mm,
-                                                       rel=1e-9)
+    # pulling back while slowing down (measured -2.3 %, RMS 0.025, 0.4 % print time)
+    # takes it out without the pacing's time
+    assert a_pull.peak_overextrusion_window * 4.0 <= a0.peak_overextrusion_window
+    assert a_pull.rms_flow_error * 1.5 <= a0.rms_flow_error
+    assert plain.time_after_s < paced.time_after_s
+    assert any(p.pull_pieces > 0 for p in plain.advance)
+    for r in (paced, plain):
+        assert r.commanded_e_after_mm == pytest.approx(r.commanded_e_before_mm, rel=1e-9)
 
 
 def test_pace_off_is_byte_identical(example: Path, tmp_path: Path) -> None:
@@ -342,3 +356,25 @@ def test_pacing_does_not_slow_a_start_into_a_held_blob(tmp_path: Path) -> None:
     assert before > 0.5  # the held blob is there
     # same planned moves, same twin: equal to rounding (the E of line 19 is not touched)
     assert after <= before + 1e-3
+
+
+def test_pulling_back_makes_the_falling_envelope_steeper(thin_gcode: Path, tmp_path: Path
+                                                         ) -> None:
+    """With the advance pulling back at up to r times the intent while the head slows, the
+    outflow falls as d ln Q/dt >= -m(1 + r)/K: the paced speeds are never lower, and the
+    paced file is faster to print; compensate passes the advance's retract_ratio."""
+    draft, sim, _unit = _draft(thin_gcode)
+    alone, _ = _pace(draft, sim, PaceOptions(rise=False))
+    pulled, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0))
+    t_alone = simulate_draft_time(alone, tmp_path / "alone.gcode")
+    t_pulled = simulate_draft_time(pulled, tmp_path / "pulled.gcode")
+    t0 = sim.plan.timeline.total_time_s
+    assert t0 < t_pulled < t_alone
+    with pytest.raises(ProfileError):
+        PaceOptions(pull_ratio=-1.0)
+
+
+def simulate_draft_time(draft: Draft, path: Path) -> float:
+    """Planned print time of a draft's rendered file, s."""
+    draft.render(path)
+    return float(simulate(path, pressure_advance=False).plan.timeline.total_time_s)

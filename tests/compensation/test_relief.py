@@ -7,9 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flowtwin.compensation.advance import eligible_rows
+from flowtwin.compensation import compensate
+from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.original import read_original
-from flowtwin.compensation.relief import relief_amounts, retraction_interims
+from flowtwin.compensation.relief import relief_amounts, retraction_interims, start_gap
+from flowtwin.errors import ProfileError
 from flowtwin.simulation import simulate
 
 
@@ -39,6 +41,67 @@ def test_a_hold_starts_at_the_retraction_not_at_the_travel_before_it(tmp_path: P
     assert e[hold] < 0 and e[hold - 1] == 0  # the retraction, after the travel
     assert elig[hold - 2]                      # ... which follows run 1
     assert e[push] > 0 and elig[push + 1]      # the push-back right before run 2
+
+
+def _primed(path: Path) -> Path:
+    """Cura's start: a prime of 3 mm at 200 mm/min, a retraction held over the travel to
+    the skirt, its push-back, then the skirt (0.6 mm moves at 30 mm/s)."""
+    lines = ["G21", "G90", "M82", "M104 S215", "G92 E0", "G1 F200 E3", "G92 E0",
+             "G1 F1500 E-6.5", "G0 F6000 X100 Y100 Z0.2", "G1 F1500 E0"]
+    e = 0.0
+    for k in range(1, 40):
+        e += 0.02
+        lines.append(f"G1 F1800 X{100 + 0.6 * k:.3f} Y100 E{e:.5f}")
+    lines += [f"G1 F1500 E{e - 6.5:.5f}", "M104 S0"]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_the_prime_held_over_the_start_is_relieved(tmp_path: Path) -> None:
+    """The rows before the first run are a retracting interim: the prime's compression,
+    held by the retraction, no longer lands on the skirt's first move (Cura 4.13's wedge:
+    +211 % after the advance, +0.8 % with the start relieved)."""
+    path = _primed(tmp_path / "primed.gcode")
+    res = simulate(path, pressure_advance=False)
+    table = res.plan.table
+    e = read_original(path, table).row_e
+    elig = eligible_rows(table, e)
+    first = int(np.flatnonzero(elig)[0])
+    assert start_gap(elig) == [(0, first)]
+    assert start_gap(np.zeros(4, dtype=bool)) == [] and start_gap(np.ones(4, dtype=bool)) == []
+    kind = np.asarray(table.moves["kind"], dtype=np.uint8)
+    found = retraction_interims(elig, kind, e, table.moves["tool"], res.plan.timeline,
+                                np.zeros(len(table)))
+    assert found and e[found[0][0]] < 0 and found[0][1] == first - 1
+    report = compensate(path, tmp_path / "out.gcode", advance=True)
+    assert report.before.peak_overextrusion_window > 0.5      # the prime's pressure: +1xx %
+    assert report.after.peak_overextrusion_window * 5 <= report.before.peak_overextrusion_window
+    assert report.advance[0].relief_retractions >= 1
+    assert report.commanded_e_after_mm == pytest.approx(report.commanded_e_before_mm,
+                                                        rel=1e-9)
+
+
+def test_pulling_back_keeps_the_column_and_the_volume(thin_gcode: Path, tmp_path: Path) -> None:
+    """Pieces that pull back while slowing are written as XY moves with negative E inside
+    their printing moves; the file keeps its E, and without the refinement (which keeps the
+    column at x >= 0) nothing pulls."""
+    report = compensate(thin_gcode, tmp_path / "out.gcode", advance=True)
+    assert any(p.pull_pieces > 0 and p.pull_mm > 0 for p in report.advance)
+    res = report.compensated_result
+    assert res is not None and report.piece_row is not None
+    moves = res.plan.table.moves
+    pulling = (moves["de"] < 0) & ((moves["kind"] & 8) != 0)
+    orig = report.original_result
+    assert orig is not None
+    printing = orig.plan.table.moves["de"][report.piece_row] > 0
+    assert np.any(pulling & printing)
+    assert report.commanded_e_after_mm == pytest.approx(report.commanded_e_before_mm,
+                                                        rel=1e-9)
+    plain = compensate(thin_gcode, tmp_path / "law.gcode",
+                       advance=AdvanceOptions(refine=None, relief=False))
+    assert all(p.pull_pieces == 0 for p in plain.advance)
+    with pytest.raises(ProfileError):
+        AdvanceOptions(retract_ratio=-1.0)
 
 
 @pytest.mark.parametrize(("x", "y", "back"), [(1000.4, 0.0, 2001 + 1 - 1000),

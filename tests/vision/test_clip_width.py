@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from flowtwin.vision import Quality, Roi, RoiSet, VisionConfig, measure
-from flowtwin.vision.clip_width import contact_rows, is_clean
+from flowtwin.vision.clip_width import FrameGroups, contact_rows, is_clean
 
 from .realcam import DriveProfile, RigSpec, render_clip, write_mpeg4
 
@@ -31,6 +31,24 @@ def test_clean_edges_and_rough_ones() -> None:
     assert is_clean((0.44, 0.35)) and is_clean((0.67, 0.55)) and is_clean((0.95, 0.75))
     assert not is_clean((0.63, 0.18)) and not is_clean((1.1, 0.19))
     assert not is_clean((1.6, 0.8)) and not is_clean((2.3, 1.0))
+
+
+def test_frame_groups_average_consecutive_frames_whose_edges_stay_put() -> None:
+    lines = ((0.0, 10.0), (0.0, 50.0))
+    moved = ((0.0, 10.0), (0.0, 50.8))          # right edge 0.8 px away: a new group
+    groups = FrameGroups(size=4, keep=2)
+    for k in range(4):                            # one full group: the mean of 0..3
+        groups.add(np.full((6, 60), k, np.uint8), lines)
+    assert len(groups.means) == 1 and np.all(groups.means[0] == 1.5)
+    groups.add(np.full((6, 60), 10, np.uint8), lines)
+    groups.add(np.full((6, 60), 20, np.uint8), lines)
+    groups.add(np.full((6, 60), 40, np.uint8), moved)   # closes 10, 20 (half a group)
+    assert len(groups.means) == 2 and np.all(groups.means[1] == 15.0)
+    groups.close()                                       # a single frame: dropped
+    assert len(groups.means) == 2
+    for k in range(12):                                  # more than 2·keep: thinned out
+        groups.add(np.full((6, 60), k, np.uint8), lines)
+    assert 2 <= len(groups.means) <= 4
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ import pytest
 from flowtwin.vision.config import TrackingParams
 from flowtwin.vision.features import (
     detect_features,
+    min_eigenvalue_at,
     min_eigenvalue_map,
     noise_sigma_dn,
     robust_mean,
@@ -40,6 +41,14 @@ def test_min_eigenvalue_of_a_known_pattern() -> None:
     assert np.median(lam) == pytest.approx(a * a * math.sin(k) ** 2 / 2, rel=0.02)
     ramp = np.tile(np.arange(70, dtype=np.uint8) * 3, (70, 1))      # one direction only
     assert float(np.max(min_eigenvalue_map(ramp)[10:-10, 10:-10])) < 1e-3
+    # at points only (what detect_features uses): the map's values, borders included
+    rng = np.random.default_rng(3)
+    xy = np.column_stack([rng.uniform(-0.5, 69.4, 300), rng.uniform(-0.5, 69.4, 300)])
+    noisy = np.clip(img + rng.normal(0, 4, img.shape), 0, 255).astype(np.uint8)
+    full = min_eigenvalue_map(noisy)
+    at = min_eigenvalue_at(noisy, xy)
+    assert np.allclose(at, full[np.rint(xy[:, 1]).astype(int), np.rint(xy[:, 0]).astype(int)],
+                       rtol=1e-5, atol=1e-4)
 
 
 def test_noise_estimate_and_no_features_in_pure_noise() -> None:

@@ -39,19 +39,16 @@ Lag from a measured width profile::
 
 from typing import TYPE_CHECKING, Any
 
-from flowtwin.calibration.fragment import render_fragment, write_fragment
-from flowtwin.calibration.patterns.catalog import PATTERN_KINDS, generate_pattern, pattern_params
-from flowtwin.calibration.patterns.pattern import (
-    PaSetting,
-    Pattern,
-    PrintSettings,
-    TestSegment,
-    write_pattern,
-)
-
-#: The fits that need the dynamics, scipy, OpenCV or the test stand load on first use, so
-#: that importing the package (and ``flowtwin calibrate --help``) stays fast.
+#: Every name loads on first use: the fits need the dynamics, scipy, OpenCV or the test
+#: stand, the patterns the firmware model and numpy; importing the package (or one of its
+#: small modules, such as ``fragment``, as ``flowtwin calibrate --help`` does) stays fast.
 _LAZY = {
+    "render_fragment": "fragment", "write_fragment": "fragment",
+    "PATTERN_KINDS": "patterns.catalog", "generate_pattern": "patterns.catalog",
+    "pattern_params": "patterns.catalog",
+    "PaSetting": "patterns.pattern", "Pattern": "patterns.pattern",
+    "PrintSettings": "patterns.pattern", "TestSegment": "patterns.pattern",
+    "write_pattern": "patterns.pattern",
     "Column": "csvdata", "Table": "csvdata", "read_table": "csvdata",
     "read_table_text": "csvdata",
     "AdaptivePaTable": "tuning.adaptive_pa", "append_measurement": "tuning.adaptive_pa",
@@ -91,11 +88,24 @@ if TYPE_CHECKING:
         fit_viscosity_law,
         sweep_from_table,
     )
+    from flowtwin.calibration.fragment import render_fragment, write_fragment
     from flowtwin.calibration.image.kimage import KLineImageResult, LineReading, analyse_kline_image
     from flowtwin.calibration.image.twin_render import (
         ImageConditions,
         RenderedImage,
         render_pattern_image,
+    )
+    from flowtwin.calibration.patterns.catalog import (
+        PATTERN_KINDS,
+        generate_pattern,
+        pattern_params,
+    )
+    from flowtwin.calibration.patterns.pattern import (
+        PaSetting,
+        Pattern,
+        PrintSettings,
+        TestSegment,
+        write_pattern,
     )
     from flowtwin.calibration.patterns.verify import PatternCheck, SegmentCheck, verify_pattern
     from flowtwin.calibration.tuning.adaptive_pa import (

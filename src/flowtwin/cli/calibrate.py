@@ -18,19 +18,20 @@ from flowtwin.calibration.guide import (
     FIT_K_HELP,
     FIT_SLIP_HELP,
     FROM_IMAGE_HELP,
+    PATTERN_HELP,
     STRAND_HELP,
     VISCOSITY_HELP,
 )
-from flowtwin.calibration.patterns.kline import KLineParams
-from flowtwin.calibration.patterns.pattern import PrintSettings
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
 from flowtwin.cli.calibrate_image import from_image_cmd
-from flowtwin.cli.calibrate_pattern import register_patterns
+from flowtwin.cli.lazy_group import lazy_group
 from flowtwin.errors import CalibrationError
 
 if TYPE_CHECKING:
     from flowtwin.calibration.fits.lagfit import LagFit
     from flowtwin.calibration.fits.viscosity_fit import ViscosityLawName
+    from flowtwin.calibration.patterns.kline import KLineParams
+    from flowtwin.calibration.patterns.pattern import PrintSettings
     from flowtwin.physics.strand import StrandModel
     from flowtwin.profiles.drive import DriveProfile
     from flowtwin.profiles.hotend import HotendProfile
@@ -231,6 +232,9 @@ def _kline_parts(k_start: float, k_end: float, k_step: float, slow_speed: float,
                  layer_height: float | None, line_width: float, nozzle_diameter: float,
                  filament_diameter: float, accel: float | None, mark_every: int
                  ) -> tuple[PrintSettings, KLineParams]:
+    from flowtwin.calibration.patterns.kline import KLineParams
+    from flowtwin.calibration.patterns.pattern import PrintSettings
+
     return (PrintSettings(nozzle_diameter_mm=nozzle_diameter,
                           filament_diameter_mm=filament_diameter, line_width_mm=line_width,
                           layer_height_mm=0.2 if layer_height is None else layer_height,
@@ -373,10 +377,13 @@ def _fit_slip_cmd(
 def register(app: typer.Typer) -> None:
     """Add ``flowtwin calibrate`` (pattern, fit-k, from-image, fit-viscosity, fit-strand,
     fit-slip, adaptive-pa)."""
+    # ``pattern`` builds its options from every pattern's parameters (firmware model, numpy):
+    # listed here, loaded when used
+    listing = {"pattern": ("calibrate_pattern", PATTERN_HELP.split("\n\n")[0].strip())}
     sub = typer.Typer(name="calibrate", no_args_is_help=True, add_completion=False,
+                      cls=lazy_group("calibrate", listing),
                       help="Calibration: test patterns, fits of measurements, profile "
                            "fragments, adaptive pressure-advance tables.")
-    register_patterns(sub)
     sub.command("fit-k", help=FIT_K_HELP)(_fit_k_cmd)
     sub.command("from-image", help=FROM_IMAGE_HELP)(from_image_cmd)
     sub.command("fit-viscosity", help=VISCOSITY_HELP)(_fit_viscosity_cmd)

@@ -25,7 +25,7 @@ from flowtwin.calibration.patterns.tower import TowerParams
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.firmware import Firmware
 
-__all__ = ["register_patterns"]
+__all__ = ["register", "register_patterns"]
 
 
 def _default(params_type: type[Any], name: str) -> Any:
@@ -258,3 +258,7 @@ def register_patterns(calibrate: typer.Typer) -> None:
         group.command(kind, help=PATTERN_KIND_HELP.get(kind, entry.description))(
             _command(kind))
     calibrate.add_typer(group, name="pattern")
+
+
+#: What :class:`~flowtwin.cli.lazy_group.LazyGroup` calls to load ``flowtwin calibrate pattern``.
+register = register_patterns

@@ -74,7 +74,8 @@ def render_report(report: CompensationReport) -> None:
         kept = "" if p.kept else " (not kept)"
         notes.append(f"advance pass: {p.pieces:,} pieces in {p.runs:,} runs, "
                      f"{p.relief_travels} relief retractions added, "
-                     f"{p.relief_precharge_mm:.3f} mm pre-charge{kept}")
+                     f"{p.relief_precharge_mm:.3f} mm pre-charge, "
+                     f"{p.pull_pieces:,} pieces pulling back while slowing{kept}")
     if report.trajectory is not None:
         t = report.trajectory
         notes.append(f"trajectory: L = {t.lag_mm:.3f} mm, {t.pivots} pivots, laid road "

@@ -10,17 +10,16 @@ exit status (never a traceback to a user).
 
 from __future__ import annotations
 
-import importlib
 import os
 import signal
 import sys
 import threading
-from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Protocol, cast
+from typing import TYPE_CHECKING, Annotated, NoReturn, Protocol, cast
 
 import typer
-from typer.core import TyperGroup
 
 from flowtwin import __version__
+from flowtwin.cli.lazy_group import lazy_group
 from flowtwin.errors import FlowtwinError, file_access_error
 
 if TYPE_CHECKING:
@@ -71,37 +70,8 @@ EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
 
 
-class _Listed(typer.core.TyperCommand):
-    """A command known by name and help line only: what ``flowtwin --help`` lists."""
-
-    def __init__(self, name: str, module: str, help_line: str) -> None:
-        super().__init__(name=name, help=help_line, short_help=help_line)
-        self.module = module
-
-
-class LazyGroup(TyperGroup):
-    """The ``flowtwin`` group: lists :data:`COMMANDS` without importing them; a command's
-    module is imported when the command is resolved (to run it or show its help)."""
-
-    def __init__(self, **attrs: Any) -> None:
-        super().__init__(**attrs)
-        for name, (module, help_line) in COMMANDS.items():
-            self.commands.setdefault(name, _Listed(name, module, help_line))
-
-    def resolve_command(self, ctx: Any, args: list[str]) -> tuple[str | None, Any, list[str]]:
-        name, cmd, rest = super().resolve_command(ctx, args)
-        if isinstance(cmd, _Listed):
-            cmd = self.load(cmd.module)[cmd.name or ""]
-        return name, cmd, rest
-
-    def load(self, module_name: str) -> dict[str, Any]:
-        """Import ``flowtwin.cli.<module_name>`` and put its real commands in place."""
-        module = importlib.import_module(f"flowtwin.cli.{module_name}")
-        sub = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
-        module.register(sub)
-        group = typer.main.get_group(sub)
-        self.commands.update(group.commands)
-        return dict(group.commands)
+#: The group class of ``flowtwin``: every command of :data:`COMMANDS`, loaded when used.
+LazyGroup = lazy_group("flowtwin", COMMANDS)
 
 
 def _show_version(value: bool) -> None:

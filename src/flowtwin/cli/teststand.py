@@ -19,16 +19,11 @@ from rich.table import Table
 from rich.text import Text
 
 from flowtwin.errors import ProfileError
-from flowtwin.teststand.model import (
-    PAPER_PINCH_FORCES_N,
-    PAPER_SPEEDS_MM_S,
-    Instrument,
-    Procedure,
-    SlipLaw,
-)
+from flowtwin.teststand.series import PAPER_PINCH_FORCES_N, PAPER_SPEEDS_MM_S, SlipLaw
 
 if TYPE_CHECKING:
     from flowtwin.profiles import Roller
+    from flowtwin.teststand.model import Instrument, Procedure
 
 __all__ = ["register", "resolve_roller", "simulate_report"]
 
@@ -122,6 +117,7 @@ def simulate_report(out: Path, *, roller: Roller, law: SlipLaw, seed: int,
         instrument.
     """
     from flowtwin.teststand import DriveUnderTest, simulate_campaign, write_records_csv
+    from flowtwin.teststand.model import Instrument
 
     inst = instrument or Instrument()
     drive = DriveUnderTest.from_roller(roller, law=law, k_p=k_p,
@@ -162,6 +158,8 @@ def simulate_command(
     json_output: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Run the test-stand procedure of [000 §3] on a roller and write the records as CSV."""
+    from flowtwin.teststand.model import Procedure
+
     chosen = resolve_roller(roller, drive)
     procedure = Procedure(pinch_forces_n=_floats(pinch_forces, "--pinch-forces"),
                           speeds_mm_s=_floats(speeds, "--speeds"), repeats=repeats)

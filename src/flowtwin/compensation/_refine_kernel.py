@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["lag_gain", "model_pass", "segment_states"]
 

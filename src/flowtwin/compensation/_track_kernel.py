@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["FLAG_NAMES", "track_runs"]
 

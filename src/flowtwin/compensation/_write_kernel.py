@@ -16,7 +16,8 @@ the written file reads back as, bit for bit wherever the modes are absolute.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["lay_out", "write_text"]
 

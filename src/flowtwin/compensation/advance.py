@@ -107,6 +107,13 @@ class AdvanceOptions:
         than ``2/g`` times the model's; at a run start after a relieved travel the twin's
         column is not linear (a column left short must refill before anything flows), and
         a full step (``g = 1``) overshot there (Cura 5.9.1: a 0.2 mm run −98 % → +39 %).
+    retract_ratio
+        While the head slows down (a piece that ends slower than it starts), the piece may
+        pull the filament back at up to this many times its move's intended ratio (E per
+        mm of path): the law's ``−K·v̇⁰_E`` where the flow falls [001 Eq. 11, Fig. 8],
+        which E alone at ``min_flow_fraction`` cannot do. The refinement keeps the column
+        from pulling away from the melt (``x ≥ 0`` after every such piece: no backflow),
+        so this needs ``refine``; ``0``: never below ``min_flow_fraction``.
     """
 
     law: AdvanceLaw = AdvanceLaw.SMOOTHED
@@ -123,6 +130,7 @@ class AdvanceOptions:
     relief: bool = True
     relief_min_lags: float = 0.5
     twin_gain: float = 0.5
+    retract_ratio: float = 4.0
 
     @property
     def is_identity(self) -> bool:
@@ -145,6 +153,8 @@ class AdvanceOptions:
                                   0.0 < self.min_flow_fraction <= 1.0, "0 < f <= 1"),
             "limit_margin": (self.limit_margin, 0.0 <= self.limit_margin < 1.0, "0 <= m < 1"),
             "twin_gain": (self.twin_gain, 0.0 < self.twin_gain <= 1.0, "0 < g <= 1"),
+            "retract_ratio": (self.retract_ratio, 0.0 <= self.retract_ratio <= 20.0,
+                              "0 .. 20"),
         }
         if self.k_s is not None:
             checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")
@@ -349,7 +359,8 @@ class LawResult:
 def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
                row_e: FloatArray, row_e_exact: IntArray, k_la: FloatArray,
                limits: ExtruderLimits, options: AdvanceOptions, *, e_unit_mm: float,
-               xy_rows: npt.NDArray[np.bool_]) -> LawResult:
+               xy_rows: npt.NDArray[np.bool_],
+               pull_rows: npt.NDArray[np.bool_] | None = None) -> LawResult:
     """E of every piece of the runs by the advance law, within the firmware's limits.
 
     Parameters
@@ -377,6 +388,14 @@ def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
     xy_rows
         Rows with XY motion, shape ``(n_rows,)``: a junction with a move without XY
         motion (an E-only retraction) has no ratio step to limit.
+    pull_rows
+        Rows whose pieces may pull back (``options.retract_ratio``), shape ``(n_rows,)``;
+        default: every piece that slows down. A later pass passes the pieces an earlier
+        one made pull: the pieces it re-plans slow down where the earlier pass's ratio
+        steps made the planner slow a junction, and pulling there chased the planner
+        (Bambu Studio's flow calibration lines, 100/25 mm/s above the hot end's flow
+        limit: RMS 6.3 % → 6.4 % in the second pass, the pass dropped; 4.5 % with pulls
+        only where the first pass put them).
 
     Returns
     -------
@@ -422,6 +441,13 @@ def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
     accel = np.asarray(ph["accel"], dtype=np.float64)
     grid_per_mm = 1.0 / e_unit_mm
     c_min = options.min_flow_fraction * rate[pr]
+    if options.retract_ratio > 0 and options.refine is not None:
+        # while the head slows down the extruder may pull back (retract while moving: the
+        # law's −K·dv⁰_E/dt where the flow falls [001 Eq. 11, Fig. 8]); the refinement
+        # keeps the column at x ≥ 0 there (no backflow), so only with it
+        slowing = (pieces.v1_mm_s[sel] < pieces.v0_mm_s[sel] - 1e-9 if pull_rows is None
+                   else np.asarray(pull_rows, dtype=bool)[pr])
+        c_min = np.where(slowing, -options.retract_ratio * rate[pr], c_min)
     c_cap = np.full(sel.size, math.inf)
     if math.isfinite(limits.max_ratio):
         c_cap = np.minimum(c_cap, margin * limits.max_ratio * grid_per_mm)

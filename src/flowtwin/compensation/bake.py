@@ -32,6 +32,7 @@ import numpy.typing as npt
 from flowtwin.compensation.advance import (
     AdvanceLaw,
     AdvanceOptions,
+    LawResult,
     eligible_rows,
     follow_law,
     round_runs,
@@ -90,6 +91,11 @@ class PassReport:
     relief_precharge_mm
         Pre-charge the relieved travels' push-backs leave for the next runs' first moves
         (see :func:`flowtwin.compensation.refine.refine_qp`), mm of filament.
+    pull_pieces
+        Printing pieces that pull the filament back while the head slows down (negative
+        E; ``AdvanceOptions.retract_ratio``).
+    pull_mm
+        Total length those pieces pull back, mm of filament.
     """
 
     pieces: int = 0
@@ -101,6 +107,8 @@ class PassReport:
     relief_retractions: int = 0
     relief_retraction_mm: float = 0.0
     relief_precharge_mm: float = 0.0
+    pull_pieces: int = 0
+    pull_mm: float = 0.0
 
 
 def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: FloatArray,
@@ -151,7 +159,10 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     group = draft.row
     orig_elig = eligible_rows(draft.table, draft.row_e)
     cur_e = draft.e_grid
-    elig = orig_elig[group] & ((kind & MoveKind.XY) != 0) & (cur_e > 0)
+    # pieces of printing moves with XY motion; a later pass keeps in their runs the ones
+    # an earlier pass made pull back (negative E while slowing down)
+    elig = orig_elig[group] & ((kind & MoveKind.XY) != 0) & ((cur_e > 0) if split
+                                                              else (cur_e != 0))
     smoothed = options.law is AdvanceLaw.SMOOTHED
     w = options.smooth_time_s
     pieces = split_rows(timeline, elig if split else np.zeros(n, dtype=bool),
@@ -169,7 +180,8 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     k_la = (np.full(n, options.k_s) if options.k_s is not None
             else options.k_scale * np.asarray(lag_k_s, dtype=np.float64))
     law = follow_law(pieces, timeline, elig, intent_row, cur_e, k_la, limits, options,
-                     e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0)
+                     e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0,
+                     pull_rows=None if split else cur_e < 0)
     report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
     e_run = law.e
     lags = options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64)
@@ -239,7 +251,7 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         e_run, report.refinement, precharge = refine_qp(
             model, pieces, start_e, intent, row_group[pieces.row[law.sel]], law.c_min,
             law.c_max, options.refine, state_max=cap, target=target,
-            jump=None if split else law.jump, precharge=(pc_first, y_max))
+            jump=_jumps(law, split, options), precharge=(pc_first, y_max))
         _check_finite(e_run, precharge, table, pieces.row[law.sel])
         states = model.states(e_run / np.maximum(pieces.length_mm[law.sel], 1e-12),
                               (pc_first, precharge))
@@ -276,7 +288,10 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
         else:  # the refinement moves E between runs; the file keeps its total
             net = sum(back - ret for _a, _b, ret, back in reliefs) + sum(pushed.values())
             total = int(np.sum(cur_e[elig])) - net
-            e_piece[law.sel] = round_total(e_run, total)
+            e_piece[law.sel] = round_total(e_run, total, law.c_min > 0)
+        pulled = e_piece[law.sel][e_piece[law.sel] < 0]
+        report.pull_pieces = int(pulled.size)
+        report.pull_mm = -float(np.sum(pulled)) * e_unit_mm
     for r, de in pushed.items():
         e_piece[int(pieces.offsets[r])] += de
     # geometry of the pieces
@@ -337,12 +352,27 @@ def _check_finite(e_run: FloatArray, precharge: FloatArray, table: MoveTable,
                     allowed="a finite solution")
 
 
-def round_total(e: FloatArray, total: int) -> IntArray:
+def _jumps(law: LawResult, split: bool, options: AdvanceOptions) -> FloatArray | None:
+    """The ratio steps the refinement keeps within: every one in a later pass; in the first
+    only into and out of the pieces that may pull back (a step to a negative ratio at
+    speed would make the planner slow the junction down, most of all Klipper's extruder
+    corner velocity)."""
+    if not split:
+        return law.jump
+    if options.retract_ratio <= 0:
+        return None
+    pull = law.c_min < 0
+    near = pull | np.concatenate((pull[1:], [False]))
+    return np.where(near | np.concatenate(([False], pull[:-1])), law.jump, np.inf)
+
+
+def round_total(e: FloatArray, total: int,
+                positive: npt.NDArray[np.bool_] | None = None) -> IntArray:
     """Piece E in whole grid units adding up to exactly ``total``.
 
     ``e`` is scaled to the total, the cumulative sums are rounded (each piece carries the
-    rounding residue of the one before), and a piece that would get less than one unit
-    borrows it from the largest piece.
+    rounding residue of the one before), and a piece that must print (``positive``,
+    default all) but would get less than one unit borrows it from the largest piece.
     """
     s = float(np.sum(e))
     scaled = e * (total / s) if s > 0 else np.full(e.size, total / max(e.size, 1))
@@ -350,7 +380,8 @@ def round_total(e: FloatArray, total: int) -> IntArray:
     if pos.size:
         pos[-1] = total
     out = np.diff(np.concatenate(([0], pos)))
-    low = np.flatnonzero(out < 1)
+    must = np.ones(out.size, dtype=bool) if positive is None else np.asarray(positive, bool)
+    low = np.flatnonzero((out < 1) & must)
     if low.size == 0:
         return out
     # every low piece borrows from the currently largest one (first index on ties): a heap

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.errors import GcodeError
 from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode.inputs import open_source

@@ -44,6 +44,9 @@ class AdvancePassSummary:
         Slicer retractions whose push-back was shortened, and the length taken off, mm.
     relief_precharge_mm
         Pre-charge the relieved travels leave for the next runs, mm of filament.
+    pull_pieces, pull_mm
+        Printing pieces that pull the filament back while the head slows down, and the
+        length they pull, mm.
     rms_flow_error
         The twin's RMS flow error of the pass's result (fraction).
     twin_correction
@@ -64,6 +67,8 @@ class AdvancePassSummary:
     rms_flow_error: float
     twin_correction: bool
     kept: bool = True
+    pull_pieces: int = 0
+    pull_mm: float = 0.0
 
     @classmethod
     def of(cls, report: PassReport, *, rms_flow_error: float, twin_correction: bool,
@@ -72,7 +77,8 @@ class AdvancePassSummary:
         return cls(report.pieces, report.runs, dict(report.law_counts),
                    dict(report.refinement), report.relief_travels, report.relief_mm,
                    report.relief_retractions, report.relief_retraction_mm,
-                   report.relief_precharge_mm, rms_flow_error, twin_correction, kept)
+                   report.relief_precharge_mm, rms_flow_error, twin_correction, kept,
+                   report.pull_pieces, report.pull_mm)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able values (``kept`` only when the pass was not kept)."""
@@ -82,6 +88,7 @@ class AdvancePassSummary:
             "relief_mm": self.relief_mm, "relief_retractions": self.relief_retractions,
             "relief_retraction_mm": self.relief_retraction_mm,
             "relief_precharge_mm": self.relief_precharge_mm,
+            "pull_pieces": self.pull_pieces, "pull_mm": self.pull_mm,
             "rms_flow_error": self.rms_flow_error, "twin_correction": self.twin_correction}
         if not self.kept:
             out["kept"] = False

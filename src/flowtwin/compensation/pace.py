@@ -2,14 +2,11 @@
 
 The melt follows the extruder through a first-order lag, ``K·Q̇ = v_in − Q`` [001 Eq. 15]
 (``Q`` the outflow, ``v_in`` the volumetric feed, ``K`` the twin's lag factor of the move).
-A G-code can lower ``v_in`` to zero at most (no negative extrusion outside retractions), so
-the outflow can fall no faster than ``Q̇ ≥ −Q/K``: an *exponential* decay with time
-constant ``K`` (0.05–0.2 s). Where the intended flow ``Q = a·v`` (cross-section ``a``,
-path speed ``v``) falls faster — the planner's deceleration into a slow junction, a thin
-transition move between two full perimeters — no E of the moves can follow it, and the
-stored volume ``K·Q`` is dumped into the slow stretch. Likewise the outflow can rise no
-faster than the extruder can push above the intent (the E speed step the firmware allows
-at a junction, its E speed limit).
+With ``v_in ≥ 0`` the outflow falls no faster than ``Q̇ ≥ −Q/K`` (``K`` 0.05–0.2 s;
+faster if the advance pulls back: ``pull_ratio``). Where the intended flow ``Q = a·v``
+(``a`` the cross-section) falls faster (a deceleration into a slow junction, a thin
+transition between two perimeters), the stored ``K·Q`` is dumped into the slow stretch;
+it rises no faster than the firmware's E speed step and E speed limit let the extruder push.
 
 E cannot fix this, time can (OrcaSlicer's "extrusion rate smoothing",
 ``max_volumetric_extrusion_rate_slope``, slows the path where the flow would change too
@@ -103,6 +100,9 @@ class PaceOptions:
         pressure relief over the travel, :class:`~flowtwin.compensation.advance.
         AdvanceOptions` ``relief_min_lags``) is treated as a cross-section step to the next
         run's first piece, the outflow decaying by ``exp(−gap/K)`` in between.
+    pull_ratio
+        ``r``: pace for an advance pulling back while slowing (``retract_ratio``; off: 0):
+        ``ẋ = −x/K − r·Q``, so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path.
     """
 
     margin: float = 0.8
@@ -116,6 +116,7 @@ class PaceOptions:
     rise: bool = True
     run_ends: bool = True
     gap_lags: float = 0.5
+    pull_ratio: float = 0.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -130,6 +131,7 @@ class PaceOptions:
             "min_piece_mm": (self.min_piece_mm, 0.01 <= self.min_piece_mm <= 10.0,
                              "0.01 .. 10 mm"),
             "gap_lags": (self.gap_lags, 0.0 <= self.gap_lags <= 100.0, "0 .. 100"),
+            "pull_ratio": (self.pull_ratio, 0.0 <= self.pull_ratio <= 20.0, "0 .. 20"),
         }
         for name, (value, ok, allowed) in checks.items():
             if not (ok and math.isfinite(float(value))):
@@ -441,9 +443,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     # walls fall in many small steps) is one step: the largest cross-section within
     # adjust_mm of path before the junction against the one after it
     a_ref = _window_max(a, length, nxt, options.adjust_mm)
-    step_cap = np.where(nxt & (a_ref > options.min_step * a_next),
-                        step_speed_mm_s(a_ref, np.where(a_next > 0, a_next, 1.0), k_j,
-                                        adjust_mm=options.adjust_mm), np.inf)
+    fall = 1.0 + options.pull_ratio  # pulling back while slowing: the melt falls faster
+    step_cap = np.where(nxt & (a_ref > options.min_step * a_next), fall * step_speed_mm_s(
+        a_ref, np.where(a_next > 0, a_next, 1.0), k_j, adjust_mm=options.adjust_mm), np.inf)
     # flow falls by min_drop: from the piece's top flow to the flow after the junction
     with np.errstate(divide="ignore", invalid="ignore"):
         v_j = np.minimum(ev, step_cap)
@@ -466,7 +468,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     # backward pass: the drop envelope's speed at the end of every piece. Across a gap
     # shorter than gap_lags·K (no relief over it) the bound is carried in flow: the outflow
     # may decay by exp(m·gap/K) between the end of a run and the paced top flow of the next
-    g = np.where(pr, m / np.where(k > 0, k, np.inf), 0.0)
+    g = np.where(pr, m * fall / np.where(k > 0, k, np.inf), 0.0)
     end_bound = np.full(n, np.inf)
     bound = math.inf
     g_l = g.tolist()

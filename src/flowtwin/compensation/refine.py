@@ -341,6 +341,11 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     pre-charge is zero). The ``y`` are ordered just before the piece they feed, so the
     band stays narrow.
 
+    A piece whose ``c_min`` is negative may pull the filament back while the head slows
+    down (:attr:`flowtwin.compensation.advance.AdvanceOptions.retract_ratio`); the
+    program then keeps the state after it at ``x ≥ 0``: the model has no gap between the
+    filament and the melt, so it may only pull back what is compressed.
+
     Parameters
     ----------
     model
@@ -459,6 +464,17 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         d_con = np.concatenate((d_con, np.zeros(k_y)))
         lo_con = np.concatenate((lo_con, np.zeros(k_y)))
         hi_con = np.concatenate((hi_con, y_max))
+    # no backflow [001 Fig. 8]: a piece that may pull back (c_min < 0) ends with x ≥ 0;
+    # the state falls monotonically while it pulls, so it stays ≥ 0 throughout and the
+    # linear model stays the twin's
+    pull = np.flatnonzero(np.asarray(c_min) < 0)
+    if pull.size:
+        rows_p = sp.csr_matrix((np.ones(pull.size), (np.arange(pull.size), pull)),
+                               shape=(pull.size, n + k_y))
+        con = sp.vstack([con, rows_p], format="csr")
+        d_con = np.concatenate((d_con, np.zeros(pull.size)))
+        lo_con = np.concatenate((lo_con, np.zeros(pull.size)))
+        hi_con = np.concatenate((hi_con, np.full(pull.size, np.inf)))
     # the state cap: rows only where it binds (solved without it first; most runs stay
     # far below the compression at which the drive would grind)
     cap_rows = None

@@ -36,6 +36,7 @@ __all__ = [
     "relieved_gaps",
     "retraction_interims",
     "row_start_states",
+    "start_gap",
     "travel_interims",
 ]
 
@@ -72,6 +73,16 @@ def gaps(elig: npt.NDArray[np.bool_], timeline: Timeline,
     return list(zip(i[keep].tolist(), j[keep].tolist(), strict=True))
 
 
+def start_gap(elig: npt.NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """The rows before the file's first run, ``[(0, j)]`` (``j`` its first row), or none.
+
+    A print starts with a prime (Cura's ``G1 F200 E3``, a purge) whose compression a
+    retraction holds over the travel to the first run like any run's end.
+    """
+    first = np.flatnonzero(elig)
+    return [(0, int(first[0]))] if first.size and first[0] > 0 else []
+
+
 def travel_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8], row_e: IntArray,
               timeline: Timeline, min_time_s: FloatArray) -> list[tuple[int, int]]:
     """Travel rows ``(first, last)`` that may relieve the pressure between two runs.
@@ -106,7 +117,10 @@ def retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8]
     the G-code, all with one tool (a tool change loads another filament: its push-back is
     not this column's). The hold starts at the first retracting row: travels before it
     (a slicer that travels first, PrusaSlicer's move off its purge line) let the melt
-    ooze like any gap.
+    ooze like any gap. The rows before the file's first run count as such an interim
+    (:func:`start_gap`): a prime (Cura's ``G1 F200 E3``) compresses the column, its
+    retraction holds that over the travel to the first run, whose first moves got it all
+    (Cura 4.13: the skirt's first 0.6 mm +157 %, +211 % once advanced).
 
     Returns
     -------
@@ -114,8 +128,8 @@ def retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8]
         ``(first retracting row, push-back row)``.
     """
     out: list[tuple[int, int]] = []
-    for i, j in gaps(elig, timeline, min_time_s):
-        if np.all(tool[i - 1:j + 1] == tool[i - 1]):
+    for i, j in [*start_gap(elig), *gaps(elig, timeline, min_time_s)]:
+        if np.all(tool[max(i - 1, 0):j + 1] == tool[max(i - 1, 0)]):
             e = row_e[i:j]
             neg = np.flatnonzero(e < 0)
             pos = np.flatnonzero(e > 0)
@@ -163,14 +177,14 @@ def relieved_gaps(elig: npt.NDArray[np.bool_], row_e: IntArray, group: IntArray,
         the gap, and the grid units the earlier pass took off.
     """
     out: list[tuple[int, int, int, int]] = []
-    for i, j in gaps(elig, timeline, np.zeros(elig.shape[0])):
+    for i, j in [*start_gap(elig), *gaps(elig, timeline, np.zeros(elig.shape[0]))]:
         e = row_e[i:j]
         neg = np.flatnonzero(e < 0)
         if not neg.size:
             continue
         originals = np.unique(group[i:j])
         # an original row split between a run and the gap would mix its printing E in
-        if np.any(originals == group[i - 1]) or np.any(originals == group[j]):
+        if (i > 0 and np.any(originals == group[i - 1])) or np.any(originals == group[j]):
             continue
         short = int(np.sum(np.asarray(orig_e)[originals])) - int(np.sum(e))
         if short > 0:

@@ -25,7 +25,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = [
     "A_CMD", "A_FED", "A_FMAX", "A_FWD", "A_GRIND", "A_GTIME", "A_OUT", "A_QMAX", "A_QMIN",

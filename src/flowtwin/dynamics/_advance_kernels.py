@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["klipper_smooth", "marlin_eligible", "marlin_moves", "marlin_track",
            "merge_breakpoints"]

@@ -61,8 +61,10 @@ from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit, types
+from numba import types
 from numba.extending import intrinsic
+
+from flowtwin._jit import njit
 
 __all__ = [
     "FREE",

@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["BAD_NONE", "BAD_NO_MOTION", "BAD_OVERLAP", "BAD_PHASE_TIME", "build_segments",
            "count_segments", "prepare_moves"]

@@ -35,8 +35,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.dynamics._acc_kernel import (
     A_CMD,
     A_FED,

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.dynamics._expint import dpoly4, poly4
 
 __all__ = ["hermite_root", "speed_roots"]

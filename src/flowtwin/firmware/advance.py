@@ -21,11 +21,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from flowtwin.errors import GcodeError
 from flowtwin.firmware.kinds import Firmware, PaSyntax
 from flowtwin.gcode.emitter import format_number
-from flowtwin.gcode.moves import Event
+
+if TYPE_CHECKING:  # the move table (numpy) is not needed to write or read a command
+    from flowtwin.gcode.moves import Event
 
 __all__ = [
     "ACCEL_MAX_MM_S2",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from flowtwin._jit import njit
 
 # --- row kinds (must match MoveKind) --------------------------------------------------
 K_TRAVEL, K_EXTRUDE, K_RETRACT, K_XY, K_Z, K_ARC, K_FW, K_RAPID = 1, 2, 4, 8, 16, 32, 64, 128

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.gcode._arc import K_EXTRUDE
 
 __all__ = ["fill_columns"]

@@ -29,8 +29,8 @@ coordinates: a G-code coordinate ``v`` maps to ``v * unit + offset``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.gcode._arc import ARC_BAD, ARC_FULL, ARC_HUGE, emit, emit_arc, row_kind
 from flowtwin.gcode._bytes import (
     MAX_ABS_VALUE,

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["compensated_add", "group_sums"]
 

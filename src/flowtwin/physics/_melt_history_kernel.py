@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.physics.melt import _theta_scalar
 
 __all__ = ["breakpoints", "mean_temperatures"]

@@ -38,8 +38,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.physics._checks import as_float_array, require_positive
 
 __all__ = [

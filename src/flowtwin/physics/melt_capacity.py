@@ -20,10 +20,10 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from flowtwin.errors import ProfileError
 from flowtwin.physics.melt import bulk_temperature_fraction, steady_melt_temperature_c
+from flowtwin.scalar_search import bracketed_root
 
 __all__ = ["MELT_CAPACITY_PRESSURE_RATIO", "fit_melt_length_factor", "melt_capacity_mm3_s",
            "melt_fourier_at_fraction"]
@@ -38,7 +38,7 @@ def melt_fourier_at_fraction(theta: float) -> float:
     """The Fourier number where the bulk temperature fraction ``θ_b(Fo)`` equals ``theta``.
 
     Inverse of :func:`flowtwin.physics.melt.bulk_temperature_fraction` (monotone
-    decreasing from 1 at ``Fo = 0`` to 0), by Brent's method.
+    decreasing from 1 at ``Fo = 0`` to 0), by :func:`~flowtwin.scalar_search.bracketed_root`.
 
     Parameters
     ----------
@@ -56,7 +56,7 @@ def melt_fourier_at_fraction(theta: float) -> float:
     hi = 1.0
     while float(bulk_temperature_fraction(hi)) > theta:
         hi *= 2.0
-    return float(brentq(lambda fo: float(bulk_temperature_fraction(fo)) - theta, 0.0, hi,
+    return float(bracketed_root(lambda fo: float(bulk_temperature_fraction(fo)) - theta, 0.0, hi,
                         xtol=1e-14, rtol=1e-13))
 
 
@@ -101,8 +101,8 @@ def melt_capacity_mm3_s(viscosity_pa_s: ViscosityFn, *, set_c: float, inlet_c: f
     target = pressure_ratio * mu_set
     if viscosity_pa_s(inlet_c) < target:
         return math.inf
-    t_star = float(brentq(lambda t: viscosity_pa_s(t) - target, inlet_c, set_c,
-                          xtol=1e-12, rtol=1e-13))
+    t_star = bracketed_root(lambda t: viscosity_pa_s(t) - target, inlet_c, set_c,
+                            xtol=1e-12, rtol=1e-13)
     fo = melt_fourier_at_fraction((set_c - t_star) / (set_c - inlet_c))
     q = math.pi * diffusivity_mm2_s * heated_length_mm / fo
     # the round trip through the forward model (guards the inverse)

@@ -30,7 +30,8 @@ the next motion starts ``2·kin_flush_delay`` after the stop.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = [
     "EX_ACCEL",

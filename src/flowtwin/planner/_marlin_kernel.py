@@ -25,9 +25,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba as nb
 import numpy as np
 import numpy.typing as npt
+
+from flowtwin._jit import njit
 
 __all__ = [
     "N_PARAMS",
@@ -69,7 +70,7 @@ _EPS_MM = 1e-9
 _JD_REVERSAL_COS = 0.999999
 
 
-@nb.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _acos_neg_franklin(cos_theta: float) -> float:
     """``acos(-cos_theta)`` by the MinMax arcsine polynomial Marlin uses for JD.
 
@@ -85,7 +86,7 @@ def _acos_neg_franklin(cos_theta: float) -> float:
     return 0.5 * math.pi + neg * asinx
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def junction_deviation_sqr(prev_unit: npt.NDArray[np.float64],
                            unit: npt.NDArray[np.float64], accel: float,
                            amax: npt.NDArray[np.float64], jd_mm: float, length_mm: float,
@@ -131,7 +132,7 @@ def junction_deviation_sqr(prev_unit: npt.NDArray[np.float64],
     return v2
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def junction_classic_legacy(prev_speed: npt.NDArray[np.float64],
                             speed: npt.NDArray[np.float64], prev_nominal: float,
                             nominal: float, prev_safe: float, safe: float,
@@ -171,7 +172,7 @@ def junction_classic_legacy(prev_speed: npt.NDArray[np.float64],
     return vj
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def junction_classic_reworked(prev_speed: npt.NDArray[np.float64],
                               speed: npt.NDArray[np.float64], prev_nominal: float,
                               nominal: float, jerk: npt.NDArray[np.float64]) -> float:
@@ -200,7 +201,7 @@ def junction_classic_reworked(prev_speed: npt.NDArray[np.float64],
     return vj * factor
 
 
-@nb.njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True)
 def plan_kernel(moves: Any, start_xyz: npt.NDArray[np.float64],
                 state: npt.NDArray[np.int32], params: npt.NDArray[np.float64],
                 stop_before: npt.NDArray[np.bool_], dwell_before: npt.NDArray[np.float64],

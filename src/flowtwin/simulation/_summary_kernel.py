@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.gcode.groups import compensated_add
 
 __all__ = [

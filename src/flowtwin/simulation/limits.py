@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import brentq
 
 from flowtwin.errors import ProfileError
 from flowtwin.physics import defaults
@@ -43,6 +42,7 @@ from flowtwin.profiles.material import (
     MaterialProfile,
     WlfViscosity,
 )
+from flowtwin.scalar_search import bracketed_root
 
 __all__ = ["DELIVERED_MIN", "FlowFlags", "FlowLimit", "SteadyExtrusion", "flow_flags",
            "flow_limit", "flow_limit_table", "melt_model", "steady_extrusion"]
@@ -158,6 +158,20 @@ def _max_force(machine: Machine) -> float:
     return fit.max_feed_force_n(machine.drive.pinch_force_n) if fit is not None else math.inf
 
 
+@functools.lru_cache(maxsize=256)
+def _unit_resistance(machine: Machine, layer_height_mm: float | None) -> float:
+    """The hot end's hydraulic resistance at 1 Pa·s, MPa·s/mm³: every resistance term is
+    linear in the viscosity, ``R_hyd = μ·R(1 Pa·s)``; one value per machine and layer height
+    (``Machine`` is frozen and hashable), asked for by every steady state of a flow limit."""
+    hot = machine.hotend
+    return float(hydraulic_resistance_mpa_s_per_mm3(
+        pa_s_to_mpa_s(1.0), capillary_length_mm=hot.land_length_mm,
+        nozzle_radius_mm=hot.nozzle_radius_mm, bore_radius_mm=hot.bore_diameter_mm / 2.0,
+        cone_half_angle_deg=hot.cone_half_angle_deg, layer_height_mm=layer_height_mm,
+        back_pressure_length_mm=hot.back_pressure_length_mm,
+        back_pressure_exponent=hot.back_pressure_exponent))
+
+
 def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: float | None = None,
                      layer_height_mm: float | None = None, melt: bool = True
                      ) -> SteadyExtrusion:
@@ -183,7 +197,6 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
     if not (flow_mm3_s >= 0.0 and math.isfinite(flow_mm3_s)):
         raise ProfileError("the flow must be finite and >= 0", field="flow_mm3_s",
                            value=flow_mm3_s, allowed=">= 0 mm³/s")
-    hot = machine.hotend
     mat = machine.material
     area = machine.filament.area_mm2
     t_set = machine.temperature_c if temperature_c is None else float(temperature_c)
@@ -191,13 +204,7 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
     lo, hi = mat.viscosity.t_min_c, mat.viscosity.t_max_c
     grad = _slip_gradient(machine, flow_mm3_s / area)
 
-    # every resistance term is linear in the viscosity: R_hyd = μ·R(1 Pa·s)
-    r_unit = float(hydraulic_resistance_mpa_s_per_mm3(
-        pa_s_to_mpa_s(1.0), capillary_length_mm=hot.land_length_mm,
-        nozzle_radius_mm=hot.nozzle_radius_mm, bore_radius_mm=hot.bore_diameter_mm / 2.0,
-        cone_half_angle_deg=hot.cone_half_angle_deg, layer_height_mm=layer_height_mm,
-        back_pressure_length_mm=hot.back_pressure_length_mm,
-        back_pressure_exponent=hot.back_pressure_exponent))
+    r_unit = _unit_resistance(machine, layer_height_mm)
 
     # scalar forms of steady_melt_temperature_c and the viscosity law (same formulas,
     # without the array checks: this runs thousands of times per limit)
@@ -212,17 +219,20 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
         mu = law(min(max(t_melt, lo), hi))
         return t_melt, mu, mu * r_unit
 
-    slip = 0.0
-    t_melt, mu, r_hyd = at(flow_mm3_s)
-    for _ in range(200):
-        force0 = r_hyd * flow_mm3_s * area
-        kp = machine.drive.k_p      # [000 Eq. 6] with F ∝ delivered flow (steady_state_slip)
-        new = (kp + grad * force0) / (1.0 + grad * force0)
-        converged = abs(new - slip) <= 1e-11
-        slip = new
-        if converged or model is None:
-            break
-        t_melt, mu, r_hyd = at(flow_mm3_s * (1.0 - slip))
+    kp = machine.drive.k_p
+
+    def slip_at(s: float) -> float:
+        """[000 Eq. 6] with F ∝ delivered flow (steady_state_slip), the melt temperature
+        (hence viscosity) set by the filament fed at slip ``s``."""
+        force0 = at(flow_mm3_s * (1.0 - s))[2] * flow_mm3_s * area
+        return (kp + grad * force0) / (1.0 + grad * force0)
+
+    slip = slip_at(0.0)
+    if model is not None and slip > 0.0:
+        # the slip is the fixed point s = slip_at(s): slip_at falls as s rises (less fed,
+        # hotter melt, lower force), so s - slip_at(s) has one root in [0, 1)
+        slip = bracketed_root(lambda s: slip_at(s) - s, 0.0, 1.0, xtol=1e-13, rtol=0.0)
+    t_melt, mu, r_hyd = at(flow_mm3_s * (1.0 - slip))
     force = r_hyd * flow_mm3_s * (1.0 - slip) * area
     return SteadyExtrusion(flow_mm3_s=float(flow_mm3_s), temperature_c=t_set,
                            melt_temperature_c=t_melt, viscosity_pa_s=mu, feed_force_n=force,
@@ -273,16 +283,17 @@ class FlowLimit:
                 "melt_model": self.melt_model}
 
 
-def _first_crossing(values: list[float], grid: npt.NDArray[np.float64], fn: object
-                    ) -> float | None:
+def _first_crossing(values: list[float], grid: npt.NDArray[np.float64],
+                    fn: Callable[[float], float]) -> float | None:
     """Smallest ``q`` with ``fn(q) ≤ 0`` (``fn`` decreasing in ``q``) from its values on
-    ``grid``, refined by Brent's method; ``None`` if it stays positive."""
+    ``grid``, refined by :func:`~flowtwin.scalar_search.bracketed_root`; ``None`` if it stays
+    positive."""
     for i, v in enumerate(values):
         if v <= 0.0:
             if i == 0:
                 return float(grid[0])
-            return float(brentq(fn, float(grid[i - 1]), float(grid[i]),  # type: ignore[arg-type]
-                                xtol=1e-9, rtol=1e-10))
+            return bracketed_root(fn, float(grid[i - 1]), float(grid[i]),
+                                  xtol=1e-9, rtol=1e-10)
     return None
 
 

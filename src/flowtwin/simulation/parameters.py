@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from flowtwin._jit import njit
 from flowtwin.dynamics import ExtrusionParams, move_temperatures
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable

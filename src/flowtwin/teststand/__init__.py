@@ -45,14 +45,7 @@ if TYPE_CHECKING:
         fit_velocity_law,
         r_squared_histogram,
     )
-    from flowtwin.teststand.model import (
-        PAPER_PINCH_FORCES_N,
-        PAPER_SPEEDS_MM_S,
-        DriveUnderTest,
-        Instrument,
-        Procedure,
-        SlipLaw,
-    )
+    from flowtwin.teststand.model import DriveUnderTest, Instrument, Procedure
     from flowtwin.teststand.records import (
         COLUMNS,
         SCHEMA_VERSION,
@@ -68,6 +61,7 @@ if TYPE_CHECKING:
         analyse_campaign,
         compare_with_roller,
     )
+    from flowtwin.teststand.series import PAPER_PINCH_FORCES_N, PAPER_SPEEDS_MM_S, SlipLaw
     from flowtwin.teststand.simulate import simulate_campaign, simulate_record
 
 __all__ = [
@@ -120,12 +114,12 @@ __getattr__, __dir__ = lazy_exports(__name__, {
     "fit_pinch_law": "flowtwin.teststand.fits",
     "fit_velocity_law": "flowtwin.teststand.fits",
     "r_squared_histogram": "flowtwin.teststand.fits",
-    "PAPER_PINCH_FORCES_N": "flowtwin.teststand.model",
-    "PAPER_SPEEDS_MM_S": "flowtwin.teststand.model",
+    "PAPER_PINCH_FORCES_N": "flowtwin.teststand.series",
+    "PAPER_SPEEDS_MM_S": "flowtwin.teststand.series",
     "DriveUnderTest": "flowtwin.teststand.model",
     "Instrument": "flowtwin.teststand.model",
     "Procedure": "flowtwin.teststand.model",
-    "SlipLaw": "flowtwin.teststand.model",
+    "SlipLaw": "flowtwin.teststand.series",
     "COLUMNS": "flowtwin.teststand.records",
     "SCHEMA_VERSION": "flowtwin.teststand.records",
     "ColumnSpec": "flowtwin.teststand.records",

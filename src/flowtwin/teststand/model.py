@@ -54,7 +54,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import StrEnum
 
 import numpy as np
 import numpy.typing as npt
@@ -66,6 +65,7 @@ from flowtwin.physics.drive import (
     slip_gradient_velocity,
 )
 from flowtwin.profiles import Roller
+from flowtwin.teststand.series import PAPER_PINCH_FORCES_N, PAPER_SPEEDS_MM_S, SlipLaw
 
 __all__ = [
     "PAPER_PINCH_FORCES_N",
@@ -77,20 +77,6 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-
-#: Feed velocities of the test series, mm/s [000 §3].
-PAPER_SPEEDS_MM_S: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0, 10.0, 15.0)
-#: Pinch forces of the test series, 10–150 N in 10 N steps, N [000 §3].
-PAPER_PINCH_FORCES_N: tuple[float, ...] = tuple(float(f) for f in range(10, 151, 10))
-
-
-class SlipLaw(StrEnum):
-    """Which slip-gradient law the drive under test follows (module docstring)."""
-
-    PINCH = "pinch"
-    VELOCITY = "velocity"
-    COMBINED = "combined"
-
 
 def _check(name: str, value: float, *, low: float, high: float, low_open: bool = False,
            allowed: str | None = None) -> float:

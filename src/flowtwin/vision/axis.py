@@ -50,7 +50,7 @@ from flowtwin.vision.axis_refine import (
     refine_axis,
 )
 from flowtwin.vision.config import TrackingParams
-from flowtwin.vision.features import detect_features
+from flowtwin.vision.features import FeatureMemo
 from flowtwin.vision.roi import Roi
 
 __all__ = ["AxisEstimate", "estimate_gear_axis", "fit_rotation_axis"]
@@ -312,13 +312,14 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
         The axis in frame pixels, and whether the motion is a rotation about it.
     """
     p = params or TrackingParams()
-    est = _coarse_axis(images, roi, p)
+    memo = _memo(images, roi, p)
+    est = _coarse_axis(images, roi, p, memo)
     if not est.is_rotation or est.center_px is None:
         return est
     centre = est.center_px
     dist = math.nan
     for _ in range(_REFINE_ROUNDS):
-        ref = refine_axis(images, roi, p, centre, est.angle_per_frame_rad)
+        ref = refine_axis(images, roi, p, centre, est.angle_per_frame_rad, memo)
         if ref is None:
             return replace(est, is_rotation=False,
                            reason=f"the axis found first ({centre[0]:.1f}, {centre[1]:.1f}) "
@@ -347,14 +348,22 @@ def estimate_gear_axis(images: Sequence[U8], roi: Roi, params: TrackingParams | 
                    "for a translation)")
 
 
-def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstimate:
+def _memo(images: Sequence[U8], roi: Roi, p: TrackingParams) -> FeatureMemo:
+    """Keyframe features of the padded gear ROI, detected once per frame for every pass."""
+    h, w = images[0].shape[:2] if images else (roi.y1, roi.x1)
+    x0, y0, x1, y1 = roi.padded(p.pad_px, w, h)
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    mask[roi.y - y0:roi.y1 - y0, roi.x - x0:roi.x1 - x0] = 255
+    return FeatureMemo(p, mask)
+
+
+def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams, memo: FeatureMemo
+                 ) -> AxisEstimate:
     """Step 1–3 of the module docstring: keyframe tracks, rigid fit, decision."""
     if len(images) < 2:
         return _no_axis("fewer than two frames", 0, len(images))
     h, w = images[0].shape[:2]
     x0, y0, x1, y1 = roi.padded(p.pad_px, w, h)
-    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    mask[roi.y - y0:roi.y1 - y0, roi.x - x0:roi.x1 - x0] = 255
     win = (p.win_px, p.win_px)
     levels = max(0, min(p.pyramid_levels, int(math.log2(max(min(y1 - y0, x1 - x0)
                                                             / p.win_px, 1.0)))))
@@ -376,7 +385,7 @@ def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstim
     prev: U8 | None = None
     age = 0
     flags = cv2.OPTFLOW_USE_INITIAL_FLOW
-    for image in images:
+    for index, image in enumerate(images):
         crop = np.ascontiguousarray(image[y0:y1, x0:x1])
         if prev is not None and np.array_equal(crop, prev):
             continue
@@ -408,7 +417,7 @@ def _coarse_axis(images: Sequence[U8], roi: Roi, p: TrackingParams) -> AxisEstim
         if (len(pts) < p.min_tracks or age >= KEY_FRAMES
                 or (len(pts) and float(np.median(np.hypot(*(pts - key_pts).T))) > _KEY_CHORD_PX)):
             key = crop
-            key_pts = detect_features(crop, p, mask=mask)
+            key_pts = memo(index, crop)
             pts = key_pts.copy()
             ids = np.arange(next_id, next_id + len(key_pts), dtype=np.intp)
             next_id += len(key_pts)

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
-from flowtwin.vision.features import detect_features
+from flowtwin.vision.features import FeatureMemo, detect_features
 from flowtwin.vision.roi import Roi
 
 __all__ = ["KEY_FRAMES", "MIN_TOL_PX", "ROBUST_ROUNDS", "refine_axis"]
@@ -43,7 +43,8 @@ _REFINE_KEY_RAD = 0.15
 
 
 def refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
-                 centre: tuple[float, float], rate_rad: float
+                 centre: tuple[float, float], rate_rad: float,
+                 memo: FeatureMemo | None = None
                  ) -> tuple[F64, float, float, int, float] | None:
     """Correction of the gear axis from tracks on derotated frames (module docstring).
 
@@ -59,6 +60,9 @@ def refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
         Present axis ``(x, y)``, frame px.
     rate_rad
         Expected rotation per frame (first prediction), rad.
+    memo
+        Keyframe features already detected in other passes over the same frames (the
+        same padded ROI and mask); ``None``: detected here.
 
     Returns
     -------
@@ -91,7 +95,7 @@ def refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
     inc = rate_rad if math.isfinite(rate_rad) else 0.0
     age = 0
     prev: U8 | None = None
-    for image in images:
+    for index, image in enumerate(images):
         crop = np.ascontiguousarray(image[y0:y1, x0:x1])
         if prev is not None and np.array_equal(crop, prev):
             continue
@@ -144,7 +148,7 @@ def refine_axis(images: Sequence[U8], roi: Roi, p: TrackingParams,
                 continue
         # new keyframe: this frame, its features, angles from here
         key = crop
-        pts = detect_features(crop, p, mask=mask)
+        pts = memo(index, crop) if memo is not None else detect_features(crop, p, mask=mask)
         ids = np.arange(next_id, next_id + len(pts), dtype=np.intp)
         next_id += len(pts)
         n_keys += 1

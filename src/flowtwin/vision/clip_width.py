@@ -12,11 +12,22 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    frames whose edges were found, and their median fixed for the later frames; each
    frame's limb shapes are fitted with it (the running values). At the end
    (:meth:`ClipWidth.finish`) the blur and the shape of each edge are fitted jointly
-   over up to :data:`SHAPE_FRAMES` frames spread over the clip
-   (:func:`~flowtwin.vision.silhouette.clip_model`: the least residual summed over the
-   frames), and every frame is refitted with them: only the edges' positions, the
+   (:func:`~flowtwin.vision.silhouette.clip_model`: the least residual summed over
+   the profiles) on the **means of groups** of :data:`SHAPE_GROUP` consecutive
+   frames' crops (:class:`FrameGroups`; up to :data:`SHAPE_FRAMES` groups over the
+   clip), and every frame is refitted with them: only the edges' positions, the
    background and the amplitudes are per frame. (The widths are final when the run
-   ends.)
+   ends.) Why group means: the blur and the limb's shape are nearly interchangeable
+   within the blur (a ridge of equal residual along which the edge moves), and the
+   filament's texture, which moves with the material, perturbs each frame's profile
+   by a few tenths of a DN; summed over single frames, the least-squares fit slides
+   along that ridge towards the shapes that absorb the texture best (on renderer 2,
+   seed 2: limb shape 0.53 rad instead of the texture-free 0.73 rad at the true blur,
+   and every width −0.3 px). In a mean over consecutive frames the texture has moved
+   and averages out, while the silhouette, the blur and the shading stay (a gain
+   change between the frames scales the whole profile, not its shape); groups end
+   where the edges move by more than :data:`GROUP_SHIFT_PX`. A texture that does not
+   move (a still filament, stripes along it) is not averaged out.
 2. **Rough edges.** A silhouette is straight: its rows' edge points scatter about the
    edge line by the noise only (0.2–0.5 px on the real clip of [003], up to 0.85 px on
    renderer 2 at 2 px blur). Where the gear's teeth cover the filament's edge, or teeth
@@ -43,7 +54,7 @@ import numpy.typing as npt
 
 from flowtwin.vision.readings import Quality
 from flowtwin.vision.roi import Roi
-from flowtwin.vision.silhouette import clip_model
+from flowtwin.vision.silhouette import Silhouette, clip_model
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
 
@@ -54,6 +65,12 @@ __all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REAC
 BLUR_FRAMES = 15
 #: Frames (spread over the clip) whose residuals decide the clip's blur and limb shapes.
 SHAPE_FRAMES = 64
+#: Consecutive frames whose ``before`` crops are averaged into one image for the clip's
+#: blur and limb shapes (the filament's texture moves with it, its silhouette does not).
+SHAPE_GROUP = 8
+#: A frame whose edge lines (at the ROI's middle row) lie further than this from the
+#: group's first frame's starts a new group, px.
+GROUP_SHIFT_PX = 0.5
 #: Clip-median row scatter of the rougher edge above which, with :data:`ROUGH_RATIO`,
 #: the edges are not a silhouette, px.
 ROUGH_PX = 0.6
@@ -107,6 +124,45 @@ def contact_rows(center_px: tuple[float, float], contact_radius_px: float, reach
 
 
 @dataclass
+class FrameGroups:
+    """Means of the ``before`` crop over groups of :data:`SHAPE_GROUP` consecutive frames
+    whose edges stay put (module docstring, 1): the filament's texture moves with the
+    material and averages out, its silhouette, the blur and the limb's shading do not.
+    At most ``2·keep`` groups are kept (every other one dropped when there are more)."""
+
+    size: int = SHAPE_GROUP
+    keep: int = SHAPE_FRAMES
+    means: list[npt.NDArray[np.float32]] = field(default_factory=list)
+    _sum: npt.NDArray[np.float32] | None = None
+    _count: int = 0
+    _at: tuple[float, float] = (math.nan, math.nan)
+
+    def add(self, crop: npt.NDArray[np.uint8],
+            lines: tuple[tuple[float, float], tuple[float, float]]) -> None:
+        """Add one frame's crop whose edge lines were found."""
+        mid = 0.5 * (crop.shape[0] - 1)
+        at = (lines[0][0] * mid + lines[0][1], lines[1][0] * mid + lines[1][1])
+        if self._sum is not None and (self._sum.shape != crop.shape or max(
+                abs(at[0] - self._at[0]), abs(at[1] - self._at[1])) > GROUP_SHIFT_PX):
+            self.close()
+        if self._sum is None:
+            self._sum, self._count, self._at = crop.astype(np.float32), 1, at
+        else:
+            self._sum += crop
+            self._count += 1
+        if self._count >= self.size:
+            self.close()
+
+    def close(self) -> None:
+        """End the present group (kept when it holds at least half a group)."""
+        if self._sum is not None and 2 * self._count >= self.size:
+            self.means.append(self._sum / np.float32(self._count))
+            if len(self.means) > 2 * self.keep:
+                self.means = self.means[::2]
+        self._sum, self._count = None, 0
+
+
+@dataclass
 class ClipWidth:
     """Width measurement over a recording (see the module docstring).
 
@@ -129,44 +185,72 @@ class ClipWidth:
     blur_frames: int = BLUR_FRAMES
     blur_px: float | None = None
     mix: tuple[float, float] | None = None
-    reference_px: float | None = None
-    reference_rows: tuple[int, ...] = ()
-    _scanned: bool = False
+    _strip: npt.NDArray[np.uint8] | None = None
+    _reference: tuple[float | None, tuple[int, ...]] | None = None
+    _groups: FrameGroups = field(default_factory=FrameGroups)
     _stored: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
     _scatter: list[tuple[float, float]] = field(default_factory=list)
 
     def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
-        """Width of one frame's ``before`` crop (with the clip's blur once it is fixed;
-        the limb shapes are fitted per frame until :meth:`finish`)."""
-        return measure_width_px(crop, sigma_px=self.sigma_px,
-                                min_edge_dn_px=self.min_edge_dn_px,
-                                expected_px=self.expected_px, blur_px=self.blur_px)
+        """Width of one frame's ``before`` crop. Until the clip's blur is fixed, the
+        silhouettes are fitted here (blur free); after, the frame's edges are found and
+        its profiles taken, and the fit is left to :meth:`finish`, which fits all those
+        frames in one vectorised pass (status ``"pending"`` until then)."""
+        em = measure_width_px(crop, sigma_px=self.sigma_px,
+                              min_edge_dn_px=self.min_edge_dn_px,
+                              expected_px=self.expected_px, blur_px=self.blur_px,
+                              fit=self.blur_px is None)
+        if em.lines is not None:
+            self._groups.add(crop, em.lines)
+        return em
 
     def scan_frame(self, image: npt.NDArray[np.uint8]) -> None:
-        """The filament's width elsewhere in the frame: the ROI's columns (±20 px) in
+        """Keep the ROI's columns (±20 px) of the first frame whose edges were found, for
+        :attr:`reference_px`."""
+        if self._strip is None:
+            x0, x1 = max(0, self.roi.x - 20), min(image.shape[1], self.roi.x1 + 20)
+            self._strip = image[:, x0:x1].copy()
+
+    @property
+    def reference_px(self) -> float | None:
+        """The filament's width elsewhere in the frame (:meth:`scan_frame`'s columns in
         bands of :data:`REFERENCE_BAND_ROWS` rows over the whole height; the bands whose
-        edges are clean silhouettes give the reference (their median), when at least two
-        agree. Done once per clip (the first call)."""
-        if self._scanned:
-            return
-        self._scanned = True
-        h, w = image.shape[:2]
-        x0, x1 = max(0, self.roi.x - 20), min(w, self.roi.x1 + 20)
-        found: list[tuple[int, float]] = []
-        for y0 in range(0, h - REFERENCE_BAND_ROWS + 1, REFERENCE_BAND_ROWS):
-            em = measure_width_px(image[y0:y0 + REFERENCE_BAND_ROWS, x0:x1],
-                                  sigma_px=self.sigma_px, min_edge_dn_px=self.min_edge_dn_px,
-                                  expected_px=self.expected_px)
-            if em.ok and is_clean(em.edge_scatter_px):
-                found.append((y0, em.width_px))
+        edges are clean silhouettes give the reference, their median, when at least two
+        agree), px; ``None`` without one. Worked out once, on first use (with the clip's
+        blur once it is known)."""
+        return self._scan_reference()[0]
+
+    @property
+    def reference_rows(self) -> tuple[int, ...]:
+        """First rows of the bands that gave :attr:`reference_px`."""
+        return self._scan_reference()[1]
+
+    def _scan_reference(self) -> tuple[float | None, tuple[int, ...]]:
+        if self._reference is not None:
+            return self._reference
+        self._reference = (None, ())
+        if self._strip is None:
+            return self._reference
+        strip = self._strip
+        starts = range(0, strip.shape[0] - REFERENCE_BAND_ROWS + 1, REFERENCE_BAND_ROWS)
+        ems = [measure_width_px(strip[y0:y0 + REFERENCE_BAND_ROWS], sigma_px=self.sigma_px,
+                                min_edge_dn_px=self.min_edge_dn_px,
+                                expected_px=self.expected_px, blur_px=self.blur_px,
+                                fit=self.blur_px is None) for y0 in starts]
+        if self.blur_px is not None:
+            # all bands' silhouettes in one pass at the clip's blur
+            ems = refit_widths(ems, self.blur_px, REFERENCE_BAND_ROWS, self.expected_px)
+        found = [(y0, em.width_px) for y0, em in zip(starts, ems, strict=True)
+                 if em.ok and is_clean(em.edge_scatter_px)]
         if len(found) < 2:
-            return
+            return self._reference
         widths = np.array([v for _, v in found])
         ref = float(np.median(widths))
         agree = np.abs(widths - ref) <= _tolerance(ref)
         if int(agree.sum()) >= 2:
-            self.reference_px = float(np.median(widths[agree]))
-            self.reference_rows = tuple(y for (y, _), a in zip(found, agree, strict=True) if a)
+            self._reference = (float(np.median(widths[agree])),
+                               tuple(y for (y, _), a in zip(found, agree, strict=True) if a))
+        return self._reference
 
     def record(self, row: int, em: EdgeMeasurement) -> None:
         """Note the measurement of row ``row``; once :attr:`blur_frames` frames were
@@ -188,9 +272,18 @@ class ClipWidth:
             return
         if self.blur_px is None:
             self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
-        ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
-        pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
-        sils = [em.silhouette for em in pick if em.silhouette is not None]
+        sils = self._shape_silhouettes()
+        if len(sils) < 2:
+            # too few frame groups: single frames, each with its own fit (limb shapes
+            # free) at the running blur
+            todo = [i for i, (_, em) in enumerate(self._stored) if em.status == "pending"]
+            fitted = refit_widths([self._stored[i][1] for i in todo], self.blur_px,
+                                  self.roi.h, self.expected_px)
+            for i, em in zip(todo, fitted, strict=True):
+                self._stored[i] = (self._stored[i][0], em)
+            ok = [em for _, em in self._stored if em.ok and em.silhouette is not None]
+            pick = ok[::max(1, len(ok) // SHAPE_FRAMES)][:SHAPE_FRAMES]
+            sils = [em.silhouette for em in pick if em.silhouette is not None]
         if sils:
             self.blur_px, self.mix = clip_model([sl.profiles for sl in sils],
                                                 [(sl.left, sl.right) for sl in sils],
@@ -206,6 +299,19 @@ class ClipWidth:
             else:
                 _refuse_row(rows, row)
         self._stored.clear()
+
+    def _shape_silhouettes(self) -> list[Silhouette]:
+        """The silhouettes of the frame groups' mean crops (:class:`FrameGroups`), fitted
+        at the running blur, for the clip's blur and limb shapes."""
+        self._groups.close()
+        if self.blur_px is None:
+            return []
+        found = [measure_width_px(mean, sigma_px=self.sigma_px,
+                                  min_edge_dn_px=self.min_edge_dn_px,
+                                  expected_px=self.expected_px, blur_px=self.blur_px,
+                                  fit=False) for mean in self._groups.means]
+        fitted = refit_widths(found, self.blur_px, self.roi.h, self.expected_px)
+        return [em.silhouette for em in fitted if em.ok and em.silhouette is not None]
 
     def finish(self, rows: RowLog, gear_center_px: tuple[float, float] | None,
                mm_per_px: float | None) -> str | None:

@@ -16,8 +16,8 @@ import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
 
-__all__ = ["detect_features", "is_stale", "min_eigenvalue_map", "noise_sigma_dn",
-           "robust_mean"]
+__all__ = ["FeatureMemo", "detect_features", "is_stale", "min_eigenvalue_at",
+           "min_eigenvalue_map", "noise_sigma_dn", "robust_mean", "window_std_at"]
 
 U8 = npt.NDArray[np.uint8]
 F32 = npt.NDArray[np.float32]
@@ -46,8 +46,12 @@ def is_stale(crop: U8, previous: U8) -> bool:
     -------
     bool
     """
-    same = np.all(crop == previous, axis=1) & (crop.max(axis=1) > crop.min(axis=1))
-    return int(same.sum()) >= max(4, int(0.05 * crop.shape[0]))
+    need = max(4, int(0.05 * crop.shape[0]))
+    same = np.all(crop == previous, axis=1)
+    if int(same.sum()) < need:
+        return False
+    same &= crop.max(axis=1) > crop.min(axis=1)
+    return int(same.sum()) >= need
 
 
 def robust_mean(values: npt.NDArray[np.float64], scale: npt.NDArray[np.float64] | None = None,
@@ -112,6 +116,75 @@ def min_eigenvalue_map(gray: U8, *, block: int = _BLOCK) -> F32:
     c = cv2.boxFilter(gy * gy, -1, (block, block))
     half = 0.5 * (a - c)
     return np.asarray(0.5 * (a + c) - np.sqrt(half * half + b * b), dtype=np.float32)
+
+
+def min_eigenvalue_at(gray: U8, xy: npt.NDArray[np.float64], *, block: int = _BLOCK) -> F32:
+    """:func:`min_eigenvalue_map` at the pixels nearest to points ``xy`` only (the same
+    gradients and reflected border; the windows summed at those points instead of
+    box-filtering the whole map).
+
+    Parameters
+    ----------
+    gray
+        Image, shape ``(H, W)``, uint8.
+    xy
+        Points ``(x, y)``, shape ``(N, 2)``, px.
+    block
+        Averaging window side, px (odd).
+
+    Returns
+    -------
+    numpy.ndarray
+        Scores, shape ``(N,)``, (DN/px)².
+    """
+    img = gray.astype(np.float32)
+    half = block // 2
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    gx = cv2.copyMakeBorder(gx, half, half, half, half, cv2.BORDER_REFLECT_101)
+    gy = cv2.copyMakeBorder(gy, half, half, half, half, cv2.BORDER_REFLECT_101)
+    ix = np.clip(np.rint(xy[:, 0]).astype(np.intp), 0, gray.shape[1] - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(np.intp), 0, gray.shape[0] - 1)
+    offs = np.arange(block)
+    rows = (iy[:, None] + offs[None, :])[:, :, None]
+    cols = (ix[:, None] + offs[None, :])[:, None, :]
+    wx, wy = gx[rows, cols], gy[rows, cols]                       # (N, block, block)
+    n = float(block * block)
+    a = (wx * wx).sum(axis=(1, 2)) / n
+    b = (wx * wy).sum(axis=(1, 2)) / n
+    c = (wy * wy).sum(axis=(1, 2)) / n
+    h2 = 0.5 * (a - c)
+    return np.asarray(0.5 * (a + c) - np.sqrt(h2 * h2 + b * b), dtype=np.float32)
+
+
+def window_std_at(img: U8, xy: npt.NDArray[np.float64], win: int) -> npt.NDArray[np.float64]:
+    """Standard deviation of the grey levels in the ``win × win`` window around the pixel
+    nearest to each point (reflected border, as ``cv2.boxFilter``), DN.
+
+    Parameters
+    ----------
+    img
+        Image, shape ``(H, W)``, uint8.
+    xy
+        Points ``(x, y)``, shape ``(N, 2)``, px.
+    win
+        Window side, px (odd).
+
+    Returns
+    -------
+    numpy.ndarray
+        Standard deviations, shape ``(N,)``.
+    """
+    if len(xy) == 0:
+        return np.zeros(0)
+    half = win // 2
+    f = cv2.copyMakeBorder(img, half, half, half, half, cv2.BORDER_REFLECT_101)
+    ix = np.clip(np.rint(xy[:, 0]).astype(np.intp), 0, img.shape[1] - 1)
+    iy = np.clip(np.rint(xy[:, 1]).astype(np.intp), 0, img.shape[0] - 1)
+    offs = np.arange(win)
+    v = f[(iy[:, None] + offs[None, :])[:, :, None],
+          (ix[:, None] + offs[None, :])[:, None, :]].reshape(len(ix), -1).astype(np.float64)
+    return np.asarray(np.std(v, axis=1), dtype=np.float64)
 
 
 def noise_sigma_dn(gray: U8) -> float:
@@ -179,11 +252,35 @@ def detect_features(gray: U8, params: TrackingParams, *, mask: U8 | None = None,
         return np.zeros((0, 2), np.float64)
     xy = pts[:, 0, :].astype(np.float64)
     if noise_region is None and mask is not None:
-        ys, xs = np.nonzero(mask)
-        noise_region = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
+        bx, by, bw, bh = cv2.boundingRect(mask)
+        noise_region = (slice(by, by + bh), slice(bx, bx + bw))
     sigma = noise_sigma_dn(gray if noise_region is None else gray[noise_region])
     floor = max(params.min_texture_eig, params.min_texture_snr * 0.1875 * sigma * sigma)
-    eig = min_eigenvalue_map(gray)
-    ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, gray.shape[1] - 1)
-    iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, gray.shape[0] - 1)
-    return xy[eig[iy, ix] >= floor]
+    return xy[min_eigenvalue_at(gray, xy) >= floor]
+
+
+class FeatureMemo:
+    """:func:`detect_features` of the same frames with the same mask, remembered: the
+    axis estimate makes keyframes of the same frames in several passes.
+
+    Parameters
+    ----------
+    params
+        Tracking parameters.
+    mask
+        Where features may be (non-zero), shape ``(H, W)``, uint8.
+    """
+
+    def __init__(self, params: TrackingParams, mask: U8) -> None:
+        self.params = params
+        self.mask = mask
+        bx, by, bw, bh = cv2.boundingRect(mask)
+        self.box = (slice(by, by + bh), slice(bx, bx + bw))
+        self._found: dict[int, npt.NDArray[np.float64]] = {}
+
+    def __call__(self, index: int, crop: U8) -> npt.NDArray[np.float64]:
+        """Features of frame ``index`` (its crop ``crop``), detected once."""
+        if index not in self._found:
+            self._found[index] = detect_features(crop, self.params, mask=self.mask,
+                                                 noise_region=self.box)
+        return self._found[index].copy()

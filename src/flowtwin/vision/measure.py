@@ -17,6 +17,7 @@ from collections.abc import Iterable, Sequence
 from itertools import chain, islice
 from pathlib import Path
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -43,6 +44,11 @@ def _step_flags(est: StepEstimate | None, low: Quality, bad: Quality, stale: Qua
     if est.stale:
         return stale
     return low if est.low_texture else bad
+
+
+def _spread_dn(img: npt.NDArray[np.uint8]) -> float:
+    """Standard deviation of every 4th pixel of every 4th row, DN (a blank frame's)."""
+    return float(cv2.meanStdDev(np.ascontiguousarray(img[::4, ::4]))[1][0, 0])
 
 
 def _step_tuple(est: StepEstimate | None) -> tuple[float, float, int, float] | None:
@@ -110,7 +116,8 @@ class Pipeline:
     gear_tracker, filament_tracker
         The two trackers (their ``last_points`` / ``last_kept`` show the last step).
     last_width
-        Width measurement of the last processed frame (None before the first).
+        Width measurement of the last processed frame (None before the first; its
+        status is ``"pending"`` once the clip's blur is fixed: fitted in :meth:`result`).
     """
 
     def __init__(self, config: VisionConfig, frame_size: tuple[int, int], gear: GearSetup,
@@ -162,10 +169,11 @@ class Pipeline:
             self._t0 = frame.t_s
         t_rel = frame.t_s - self._t0
         no_width = (NAN, NAN, NAN)
-        if float(np.std(img[::4, ::4])) < p.blank_std_dn:
+        if _spread_dn(img) < p.blank_std_dn:
             self.rows.add(frame.index, t_rel, NAN, Quality.BLANK, None, None, no_width)
             return
-        if self._prev is not None and np.array_equal(img, self._prev):
+        if (self._prev is not None and np.array_equal(img[::8, ::8], self._prev[::8, ::8])
+                and np.array_equal(img, self._prev)):
             self.rows.add(frame.index, t_rel, NAN, Quality.DUPLICATE, None, None, no_width)
             return
         dt: float | None = None
@@ -190,7 +198,10 @@ class Pipeline:
                              Quality.GEAR_STALE)
         flags |= _step_flags(f, Quality.FILAMENT_LOW_TEXTURE, Quality.FILAMENT_TRACKING,
                              Quality.FILAMENT_STALE)
-        ok = em.ok
+        # a pending width (edges found, fit left to the end of the run) is provisionally
+        # NaN without a flag; result() fits it or refuses it
+        ok = em.ok or em.status == "pending"
+        stale = False
         if not ok:
             flags |= Quality.WIDTH_INVALID
             if em.status == "ambiguous":
@@ -198,12 +209,12 @@ class Pipeline:
         elif (self.check_stale and self._prev is not None
               and is_stale(before_crop, self._prev[before.slices])):
             flags |= Quality.WIDTH_INVALID
-            ok = False
+            ok, stale = False, True
         width = (em.width_px, em.left_px + before.x, em.right_px + before.x) if ok \
             else no_width
         self.rows.add(frame.index, t_rel, NAN if dt is None else dt, flags, _step_tuple(g),
                       _step_tuple(f), width)
-        if not (flags & Quality.WIDTH_INVALID) or not em.ok:
+        if not stale:
             self.widths.record(len(self.rows.t) - 1, em)
         self._prev = img
         self._t_last = frame.t_s

@@ -30,8 +30,8 @@ from flowtwin.vision.edge_model import (
     stack_profiles,
 )
 
-__all__ = ["IN_PX", "OUT_PX", "Silhouette", "clip_model", "edge_profiles", "fit_silhouette",
-           "fit_silhouettes"]
+__all__ = ["IN_PX", "NO_FIT", "OUT_PX", "Silhouette", "clip_model", "edge_profiles",
+           "fit_silhouette", "fit_silhouettes"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -199,10 +199,10 @@ def _unfit(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float) -> Silhou
     for name, p in zip(("left", "right"), profiles, strict=True):
         t = p.inside * p.offset_px
         if p.rows == 0 or int(np.sum((t < -1.0) & (p.weights > 0))) < 2:
-            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+            return Silhouette(NO_FIT, NO_FIT, profiles, polarity, False,
                               f"too little background beside the {name} edge in the ROI")
         if int(np.sum(t > 2.0)) < 4:
-            return Silhouette(_NO_FIT, _NO_FIT, profiles, polarity, False,
+            return Silhouette(NO_FIT, NO_FIT, profiles, polarity, False,
                               f"too little filament inside the {name} edge in the ROI")
     return None
 
@@ -218,7 +218,8 @@ def _checked(profiles: tuple[EdgeProfile, EdgeProfile], polarity: float, fl: Edg
     return Silhouette(fl, fr, profiles, polarity, True)
 
 
-_NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, False)
+#: The fit of an edge that was not (or could not be) fitted.
+NO_FIT = EdgeFit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, False)
 
 
 #: Limb shapes ``α`` tried for a clip, rad (``α`` and ``α + π`` are the same shape).

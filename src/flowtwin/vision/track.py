@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.vision.config import TrackingParams
-from flowtwin.vision.features import detect_features, is_stale, robust_mean
+from flowtwin.vision.features import detect_features, is_stale, robust_mean, window_std_at
 from flowtwin.vision.roi import Roi
 
 __all__ = ["RoiTracker", "StepEstimate"]
@@ -244,12 +244,7 @@ class RoiTracker:
         self._alive = np.ones(len(self._ref_pts), dtype=bool)
         self._low_texture = len(self._ref_pts) < p.min_tracks
         # contrast of each feature's window in the keyframe, to judge later matches
-        f = norm.astype(np.float32)
-        mean = cv2.boxFilter(f, -1, self._win)
-        var = cv2.boxFilter(f * f, -1, self._win) - mean * mean
-        ix = np.clip(np.rint(self._ref_pts[:, 0]).astype(int), 0, f.shape[1] - 1)
-        iy = np.clip(np.rint(self._ref_pts[:, 1]).astype(int), 0, f.shape[0] - 1)
-        self._ref_std = np.sqrt(np.maximum(var[iy, ix], 0.0)).astype(np.float64)
+        self._ref_std = window_std_at(norm, self._ref_pts, self.params.win_px)
 
     def _predict(self, pts: npt.NDArray[np.float64], step: float) -> npt.NDArray[np.float64]:
         if self.mode == "translation":

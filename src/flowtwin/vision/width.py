@@ -53,6 +53,7 @@ from flowtwin.errors import VisionError
 from flowtwin.vision.edge_model import EdgeProfile
 from flowtwin.vision.edge_pairs import Pair, band_pairs, outer_pairs
 from flowtwin.vision.silhouette import (
+    NO_FIT,
     Silhouette,
     edge_profiles,
     fit_silhouette,
@@ -118,7 +119,8 @@ class EdgeMeasurement:
         Why not, if not ``ok``.
     status
         ``"ok"``, ``"no_edges"`` (no plausible pair of edges), ``"ambiguous"``
-        (competing plausible pairs, or rows that disagree) or ``"few_rows"``.
+        (competing plausible pairs, or rows that disagree), ``"few_rows"``, or
+        ``"pending"`` (edges found, silhouettes not fitted yet: ``fit=False``).
     row_spread_px
         Standard deviation of the used rows' widths, px (NaN if not ``ok``).
     row_left_px, row_right_px
@@ -217,18 +219,20 @@ def _subpixel(d: npt.NDArray[np.float32], k: npt.NDArray[np.intp]) -> F64:
     return km + np.clip(off, -0.5, 0.5)
 
 
-def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
+def measure_width_px(crop: npt.NDArray[np.uint8] | npt.NDArray[np.float32], *,
+                     sigma_px: float = 0.7,
                      min_edge_dn_px: float = 3.0, min_rows_frac: float = 0.5,
                      expected_px: Sequence[tuple[float, float]] | None = None,
-                     blur_px: float | None = None, mix: tuple[float, float] | None = None
-                     ) -> EdgeMeasurement:
+                     blur_px: float | None = None, mix: tuple[float, float] | None = None,
+                     fit: bool = True) -> EdgeMeasurement:
     """Measure the filament width in a crop that spans both edges (see module docstring).
 
     Parameters
     ----------
     crop
-        Grey image of the ``before`` ROI, shape ``(H, W)``, uint8, filament roughly
-        vertical with background on both sides.
+        Grey image of the ``before`` ROI, shape ``(H, W)``, uint8 (or float32, e.g. a
+        mean of several frames), filament roughly vertical with background on both
+        sides.
     sigma_px
         Gaussian smoothing across the filament before differentiation, px.
     min_edge_dn_px
@@ -244,6 +248,11 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     mix
         The two edges' limb shapes when known from earlier frames
         (:attr:`~flowtwin.vision.edge_model.EdgeFit.mix_rad`); ``None``: fitted.
+    fit
+        Fit the silhouettes now. ``False`` (with ``blur_px`` known): the edges are found
+        and their profiles taken, but the fit is left for :func:`refit_widths`, which
+        fits many frames in one vectorised pass; the result's ``status`` is
+        ``"pending"`` (``ok`` false, width NaN) unless the edge search refused it.
 
     Returns
     -------
@@ -368,6 +377,8 @@ def measure_width_px(crop: npt.NDArray[np.uint8], *, sigma_px: float = 0.7,
     diag = _Diagnostics(strength, used, spread, row_left, row_right, row_used,
                         tuple(rejected), lines, sign,
                         (_scatter(yf, xl, good_l, fit_l), _scatter(yf, xr, good_r, fit_r)))
+    if not fit and blur_px is not None:
+        return _pending(diag, profiles, float(blur_px))
     return _silhouette_width(diag, profiles, h, expected_px, blur_px, mix)
 
 
@@ -391,6 +402,20 @@ def _scatter(y: F64, x: F64, good: npt.NDArray[np.bool_], line: tuple[float, flo
     """Robust scatter (1.4826·MAD) of the rows' edge points about an edge line, px."""
     res = x[good] - (line[0] * y[good] + line[1])
     return float(1.4826 * np.median(np.abs(res - np.median(res)))) if res.size else math.nan
+
+
+def _pending(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile], blur_px: float
+             ) -> EdgeMeasurement:
+    """Edges found, silhouettes not fitted yet (:func:`refit_widths` fits them)."""
+    (al, bl), (ar, br) = d.lines
+    y_mid = 0.5 * (d.row_used.size - 1)
+    cos_t = math.cos(math.atan(0.5 * (al + ar)))
+    gradient = ((ar - al) * y_mid + br - bl) * cos_t
+    sil = Silhouette(NO_FIT, NO_FIT, profiles, d.polarity, False, "not fitted yet")
+    return EdgeMeasurement(math.nan, math.nan, math.nan, math.nan, d.strength, d.used, False,
+                           "silhouettes not fitted yet", "pending", d.spread, d.row_left,
+                           d.row_right, d.row_used, d.rejected, gradient, blur_px, d.lines,
+                           sil, d.scatter)
 
 
 def _silhouette_width(d: _Diagnostics, profiles: tuple[EdgeProfile, EdgeProfile], h: int,

@@ -31,7 +31,6 @@ from flowtwin.firmware import (
     pa_command,
 )
 from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, Retraction, WordFormats
-from flowtwin.physics.deposition import bead_area_mm2
 
 __all__ = [
     "PATTERN_FORMATS",
@@ -164,6 +163,8 @@ class PrintSettings:
         """Bead cross-section [001 Eq. 7] of these lines (or of the given ``w``, ``h``), mm²."""
         w = self.line_width_mm if width_mm is None else width_mm
         h = self.layer_height_mm if height_mm is None else height_mm
+        from flowtwin.physics.deposition import bead_area_mm2  # numpy: loaded when used
+
         return float(bead_area_mm2(w, h))
 
     @property

@@ -25,7 +25,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
 from flowtwin.dynamics import AdvanceSettings, predict
@@ -44,6 +43,7 @@ from flowtwin.physics.deposition import bead_area_mm2
 from flowtwin.planner.plan_file import PlanResult, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
+from flowtwin.scalar_search import bounded_minimum
 from flowtwin.simulation import DEFAULT_MACHINE, move_parameters
 
 __all__ = ["AdvanceFit", "adaptive_pa_table", "best_pressure_advance", "pa_test_gcode"]
@@ -213,10 +213,10 @@ def best_pressure_advance(source: str | os.PathLike[str] | bytes | None = None, 
     hi_b = float(ks[min(i + 1, ks.size - 1)])
     best_k, best_rms = curve[i]
     if hi_b > lo_b:
-        res = minimize_scalar(lambda k: scorer.score(float(k))[0], bounds=(lo_b, hi_b),
-                              method="bounded", options={"xatol": 1e-4 * max(hi, 1e-3)})
-        if float(res.fun) < best_rms:
-            best_k, best_rms = float(res.x), float(res.fun)
+        k_min, rms_min = bounded_minimum(lambda k: scorer.score(k)[0], lo_b, hi_b,
+                                         xatol=1e-4 * max(hi, 1e-3))
+        if rms_min < best_rms:
+            best_k, best_rms = k_min, rms_min
             curve.append((best_k, best_rms))
     curve.sort()
     rms0, peak0 = scorer.score(0.0)

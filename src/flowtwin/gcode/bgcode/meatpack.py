@@ -23,7 +23,8 @@ cannot restore (then with one space before each parameter; see ``docs/gcode.md``
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from flowtwin._jit import njit
 
 __all__ = ["drop_empty_lines", "pack", "unpack"]
 
