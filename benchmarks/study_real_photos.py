@@ -154,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     outcomes = []
     for e in entries(a.split):
+        print(f"reading {e['file']}", file=sys.stderr, flush=True)
         path = locate(e, a.dir)
         if path is None:
             outcomes.append(Outcome(e["file"], e["split"], e["pattern"],
