@@ -130,6 +130,31 @@ def test_layout_gcode_lines_and_marks(name: str) -> None:
     assert np.diff(ys) == pytest.approx([p.line_pitch_mm] * 5)
 
 
+def test_marlin_anchor_frame_and_no_prime() -> None:
+    """k-factor.js "Print Frame": at each end of the test lines a line up and one back a
+    line width inside, from 3 mm before the first test line to 3 mm beyond the last;
+    ``prime=False`` leaves out the two prime lines 10 mm left of the lines."""
+    s = layout_settings("marlin", PrintSettings())
+    kw = {"k_start": 0.0, "k_end": 0.05, "k_step": 0.01}
+    plain, _ = scene_from_pattern(line_layout_pattern(
+        "marlin", s, layout_params("marlin", kw)), lag_s=0.03)
+    pat = line_layout_pattern("marlin", s, layout_params(
+        "marlin", {**kw, "frame": True, "prime": False}))
+    framed, tests = scene_from_pattern(pat, lag_s=0.03)
+    x0 = min(float(p[0][0, 0]) for p in tests.values())
+    x1 = max(float(p[0][-1, 0]) for p in tests.values())
+    y0 = min(float(p[0][0, 1]) for p in tests.values())
+    y1 = max(float(p[0][0, 1]) for p in tests.values())
+    along_y = [m for m in framed if m.shape == (2, 2) and m[0, 0] == m[1, 0]]
+    xs = sorted(round(float(m[0, 0]), 3) for m in along_y
+                if abs(abs(m[1, 1] - m[0, 1]) - (y1 - y0 + 6.0)) < 1e-6)
+    w = s.line_width_mm
+    assert xs == pytest.approx([x0, x0 + w, x1 - w, x1])
+    assert not any(float(m[0, 0]) < x0 - 5.0 for m in framed)       # no prime line
+    assert any(float(m[0, 0]) < x0 - 5.0 for m in plain)
+    assert len(framed) == len(plain) + 2
+
+
 # --- the independent renderer's model --------------------------------------------------------
 
 def test_synthetic_bead_is_even_when_the_advance_equals_the_lag() -> None:

@@ -50,6 +50,11 @@ def from_image_cmd(
     pitch: Annotated[_F, _opt("Line spacing, mm.")] = None,
     numbers: Annotated[bool, typer.Option(help="The K was printed beside the lines "
                                                "(marlin, prusa, orca).")] = True,
+    frame: Annotated[bool, typer.Option(help="marlin, prusa: the generator's anchor frame "
+                                             "was printed (Ellis' lines tool: on).")
+                     ] = False,
+    prime: Annotated[bool, typer.Option(help="marlin, prusa: the generator's prime lines "
+                                             "were printed.")] = True,
     mark_every: Annotated[int, _opt("kline, chevron: tick every N lines (chevrons), as "
                                     "printed.")] = 5,
     walls: Annotated[int, _opt("chevron: walls (nested corners) per chevron.")] = 3,
@@ -114,7 +119,12 @@ def from_image_cmd(
               "slow_speed_mm_s": slow_speed, "fast_speed_mm_s": fast_speed,
               "slow_length_mm": slow_length, "fast_length_mm": fast_length,
               "end_length_mm": end_length, "line_pitch_mm": pitch}
-    params = layout_params(pattern, {**values, "numbers": numbers})
+    extra: dict[str, Any] = {"numbers": numbers}
+    if frame:
+        extra["frame"] = True
+    if not prime:
+        extra["prime"] = False
+    params = layout_params(pattern, {**values, **extra})
     if pattern == "kline":
         if params.end_length_mm is not None:
             raise CalibrationError("the kline pattern has equal slow segments",

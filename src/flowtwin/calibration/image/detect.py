@@ -62,6 +62,8 @@ _END_WEIGHT = 0.35
 _LOCAL_LEVEL = 0.45
 #: ... and this many robust standard deviations above the sheet's.
 _SHEET_SIGMAS = 4.0
+#: ... or this many, where it continues a bead that clears :data:`_SHEET_SIGMAS`.
+_WEAK_SIGMAS = 2.0
 #: The polarity whose lines carry this many times more bead than the other's wins.
 POLARITY_MARGIN = 2.0
 
@@ -178,7 +180,16 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rad + 1, 2 * rad + 1)))
     env = cv2.GaussianBlur(env, (0, 0), pitch)
     thr = np.maximum(_LOCAL_LEVEL * env, med + _SHEET_SIGMAS * mad)
-    mask = ((sm > thr) & (valid > 0)).astype(np.uint8)
+    strong = (sm > thr) & (valid > 0)
+    # hysteresis: a bead's fainter stretch (thin, or in the shade) continues a strong one
+    # down to _WEAK_SIGMAS above the sheet (a textured sheet's scatter is wide)
+    weak = ((sm > np.maximum(_LOCAL_LEVEL * env, med + _WEAK_SIGMAS * mad))
+            & (valid > 0)).astype(np.uint8)
+    nw, wl = cv2.connectedComponents(weak, connectivity=8)
+    seeded = np.zeros(nw, bool)
+    seeded[np.unique(wl[strong])] = True
+    seeded[0] = False
+    mask = seeded[wl].astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     out: list[_Piece] = []
     keep = [k for k in range(1, n) if stats[k, cv2.CC_STAT_WIDTH] >= 4.0 * pitch * 0.2

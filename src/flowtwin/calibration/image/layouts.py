@@ -17,7 +17,12 @@ name            geometry and defaults (source)
                 1.2 × nozzle, 0.2 mm layer, acceleration 500 mm/s², K 0–2 by 0.2 (the
                 page's LIN_ADVANCE 1.5 defaults); two prime lines along Y 10 mm left of the
                 lines, two 20 mm reference marks at the speed changes 5 mm behind the last
-                line, the K printed (2 mm segments) 2 mm right of every second line.
+                line, the K printed (2 mm segments) 2 mm right of every second line;
+                options ``frame`` (the generator's anchor frame: two lines along each
+                end of the test lines, 3 mm beyond the first and last line) and
+                ``prime`` (on by default). Andrew Ellis' deprecated "lines method" tool
+                is this generator with the frame on, no prime lines, 5/120 mm/s,
+                2000 mm/s² and K 0–0.1 by 0.005 by default.
 ``prusa``       Prusa's linear-advance calibration lines (Prusa Knowledge Base, "Linear
                 Advance", article 2252): the first and last 25 mm slow, 100 mm fast.
                 The article states no speeds, spacing or K range: the defaults here are
@@ -91,6 +96,11 @@ class LineLayoutParams:
         Distance between neighbouring lines.
     numbers
         Print the K beside every second line (the tools' option).
+    frame
+        ``marlin``/``prusa``: the generator's anchor frame (two lines along each end of
+        the test lines, from 3 mm before the first line to 3 mm beyond the last).
+    prime
+        ``marlin``/``prusa``: the generator's two prime lines left of the pattern.
     """
 
     k_start: float = 0.0
@@ -103,6 +113,8 @@ class LineLayoutParams:
     line_pitch_mm: float = 5.0
     numbers: bool = True
     end_length_mm: float | None = None
+    frame: bool = False
+    prime: bool = True
 
     def __post_init__(self) -> None:
         check_param("k_start", self.k_start, 0.0 <= self.k_start <= 10.0, "0 .. 10 s")
@@ -354,11 +366,20 @@ def line_layout_pattern(name: str, settings: PrintSettings,
         # two prime lines along Y, 10 mm left of the lines, over the pattern's depth
         depth = (n - 1) * p.line_pitch_mm + 25.0
         xp = x0 - 10.0
-        _first_layer(w, xp, y0)
+        _first_layer(w, xp if p.prime else x0, y0 if p.prime else y0 - 3.0)
         w.feature("Skirt/Brim")
-        w.extrude_to(xp, y0 + depth, s.prime_speed_mm_s)
-        w.travel(xp + 1.5 * lw, y0 + depth, retract=False)
-        w.extrude_to(xp + 1.5 * lw, y0, s.prime_speed_mm_s)
+        if p.prime:
+            w.extrude_to(xp, y0 + depth, s.prime_speed_mm_s)
+            w.travel(xp + 1.5 * lw, y0 + depth, retract=False)
+            w.extrude_to(xp + 1.5 * lw, y0, s.prime_speed_mm_s)
+        if p.frame:
+            # k-factor.js "Print Frame": at each end of the lines, up and back one line
+            # width inside, from 3 mm before the first line to 3 mm beyond the last
+            for xf, inward in ((x0, lw), (x_end, -lw)):
+                w.travel(xf, y0 - 3.0)
+                w.extrude_to(xf, y_last + 3.0, p.slow_speed_mm_s, multiplier=1.1)
+                w.travel(xf + inward, y_last + 3.0, retract=False)
+                w.extrude_to(xf + inward, y0 - 3.0, p.slow_speed_mm_s, multiplier=1.1)
         for i, k in enumerate(ks):
             _test_line(w, p, x0, y0 + i * p.line_pitch_mm, i, k)
         w.set_pa(0.0, -1)
