@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 DEMO_OUT ?= demo-out
 
-.PHONY: install demo test bench lint clean services browser fuzz slicer
+.PHONY: install demo test bench lint clean services browser fuzz slicer photos
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -60,3 +60,11 @@ clean:
 FUZZ_DOCS ?= 1000000
 fuzz: $(STAMP)
 	$(PY) -m fuzz --documents $(FUZZ_DOCS) --out fuzz-out
+
+# real public photos of printed advance patterns, read by `calibrate from-image` and held to
+# the outcomes recorded in tests/data/kphoto/photos.json. The photos are fetched public data,
+# not in the repository (tests/data/kphoto/PROVENANCE.md says where each comes from):
+#   make photos KPHOTO_DIR=/folder/with/the/photos
+photos: $(STAMP)
+	@test -n "$(KPHOTO_DIR)" || { echo "make photos: set KPHOTO_DIR to the folder holding the photos listed in tests/data/kphoto/PROVENANCE.md" >&2; exit 2; }
+	FLOWTWIN_KPHOTO_DIR="$(KPHOTO_DIR)" $(PY) -m pytest -q -p no:randomly benchmarks/photos
