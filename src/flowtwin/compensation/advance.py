@@ -204,14 +204,7 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
     ndarray
         Smoothed advance term at the query times (E units of ``rate`` times mm), ``(q,)``.
     """
-    ph = timeline.phases[rows]
-    t0 = np.asarray(ph["t_start"], dtype=np.float64)
-    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
-    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
-    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
-    sv = np.asarray(ph["start_v"], dtype=np.float64)
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
-    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    t0, ta, tc, td, sv, cv, ev = timeline.trapezoids(rows)
     g = k_la * rate
     # three segments per row: (start, duration, A at start, slope)
     starts = np.column_stack([t0, t0 + ta, t0 + ta + tc]).ravel()

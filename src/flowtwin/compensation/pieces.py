@@ -155,21 +155,14 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
     -------
     Pieces
     """
-    ph = timeline.phases
-    n = ph.shape[0]
+    n = timeline.phases.shape[0]
     if select.shape != (n,):
         raise DataError("selection does not match the timeline", field="select",
                         value=select.shape, allowed=f"({n},)")
     if accel_pieces < 1:
         raise DataError("accel_pieces must be at least 1", field="accel_pieces",
                         value=accel_pieces, allowed=">= 1")
-    sv = np.asarray(ph["start_v"], dtype=np.float64)
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
-    ev = np.asarray(ph["end_v"], dtype=np.float64)
-    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
-    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
-    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
-    t_start = np.asarray(ph["t_start"], dtype=np.float64)
+    t_start, ta, tc, td, sv, cv, ev = timeline.trapezoids()
     duration = ta + tc + td
     length, _ = phase_distance_mm(sv, cv, ev, ta, tc, td, duration)
 

@@ -210,15 +210,8 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
     -------
     LagModel
     """
-    ph = timeline.phases
-    n_rows = ph.shape[0]
-    sv = np.asarray(ph["start_v"], dtype=np.float64)
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
-    ev = np.asarray(ph["end_v"], dtype=np.float64)
-    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
-    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
-    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
-    t0_row = np.asarray(ph["t_start"], dtype=np.float64)
+    n_rows = timeline.phases.shape[0]
+    t0_row, ta, tc, td, sv, cv, ev = timeline.trapezoids()
     r = pieces.row
     tau0 = pieces.t0_s - t0_row[r]
     tau1 = pieces.t1_s - t0_row[r]

@@ -10,7 +10,7 @@ included; homing moves and heater waits take no time in this model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -21,8 +21,8 @@ from flowtwin.gcode.groups import group_sums
 if TYPE_CHECKING:
     from flowtwin.gcode.moves import MoveTable
 
-__all__ = ["DWELL_FEATURE", "PHASE_DTYPE", "Timeline", "feature_seconds", "time_by_feature",
-           "time_by_layer"]
+__all__ = ["DWELL_FEATURE", "PHASE_DTYPE", "Timeline", "Trapezoids", "feature_seconds",
+           "time_by_feature", "time_by_layer"]
 
 #: Key of :func:`time_by_feature` that collects dwells and restart gaps.
 DWELL_FEATURE = "(dwell)"
@@ -38,6 +38,20 @@ PHASE_DTYPE = np.dtype([
     ("cruise_t", np.float64),
     ("decel_t", np.float64),
 ])
+
+
+class Trapezoids(NamedTuple):
+    """The velocity trapezoids of some moves as float64 arrays, shape ``(n,)``: start on the
+    printer clock and phase durations, s (durations clipped at 0); speeds along the path,
+    mm/s. From :meth:`Timeline.trapezoids`."""
+
+    t_start: npt.NDArray[np.float64]
+    accel_t: npt.NDArray[np.float64]
+    cruise_t: npt.NDArray[np.float64]
+    decel_t: npt.NDArray[np.float64]
+    start_v: npt.NDArray[np.float64]
+    cruise_v: npt.NDArray[np.float64]
+    end_v: npt.NDArray[np.float64]
 
 
 @dataclass(slots=True)
@@ -84,6 +98,17 @@ class Timeline:
     def end_time_s(self) -> npt.NDArray[np.float64]:
         """End of each move on the printer clock, s, shape ``(n_moves,)``."""
         return np.asarray(self.phases["t_start"], dtype=np.float64) + self.move_time_s
+
+    def trapezoids(self, rows: npt.NDArray[np.intp] | None = None) -> Trapezoids:
+        """The trapezoids of all moves (or of ``rows``) as float64 arrays (:class:`Trapezoids`)."""
+        ph = self.phases if rows is None else self.phases[rows]
+
+        def f64(name: str) -> npt.NDArray[np.float64]:
+            return np.asarray(ph[name], dtype=np.float64)
+
+        return Trapezoids(f64("t_start"), np.maximum(f64("accel_t"), 0.0),
+                          np.maximum(f64("cruise_t"), 0.0), np.maximum(f64("decel_t"), 0.0),
+                          f64("start_v"), f64("cruise_v"), f64("end_v"))
 
     def time_at_line(self, line: int) -> float:
         """Print time when the motion commanded up to ``line`` (inclusive) is done, s.

@@ -282,13 +282,7 @@ def apply_nonlinear_extrusion(table: MoveTable, timeline: Timeline,
     kind = mv["kind"]
     moving = (kind & (MoveKind.XY | MoveKind.Z)) != 0
     fwd = (de > 0) & moving & ((kind & MoveKind.FW_RETRACT) == 0)
-    ph = timeline.phases
-    ta = np.maximum(np.asarray(ph["accel_t"], dtype=np.float64), 0.0)
-    tc = np.maximum(np.asarray(ph["cruise_t"], dtype=np.float64), 0.0)
-    td = np.maximum(np.asarray(ph["decel_t"], dtype=np.float64), 0.0)
-    sv = np.asarray(ph["start_v"], dtype=np.float64)
-    cv = np.asarray(ph["cruise_v"], dtype=np.float64)
-    ev = np.asarray(ph["end_v"], dtype=np.float64)
+    _, ta, tc, td, sv, cv, ev = timeline.trapezoids()
     path = sv * ta + 0.5 * (cv - sv) * ta + cv * tc + cv * td - 0.5 * (cv - ev) * td
     duration = ta + tc + td
     with np.errstate(divide="ignore", invalid="ignore"):
