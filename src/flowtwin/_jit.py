@@ -23,11 +23,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numba
 from numba import njit, prange
 from numba.core import caching
 
-__all__ = ["LEAN_CACHE_LOAD", "njit", "numba", "prange"]
+__all__ = ["LEAN_CACHE_LOAD", "njit", "prange"]
 
 
 def _install_lean_cache_load() -> bool:

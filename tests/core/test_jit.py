@@ -27,9 +27,8 @@ def fresh(a):                                # compiled now: needs the full regi
     return np.linalg.norm(a) + np.sort(a)[0] + np.sum(np.cumsum(a))
 
 value = fresh(np.array([3.0, 4.0, -1.0]))
-print(json.dumps({"before": before, "after_plan": loaded_scipy, "moves": plan.table.n_moves
-                  if hasattr(plan.table, "n_moves") else len(plan.table.moves),
-                  "value": value}))
+print(json.dumps({"before": before, "after_plan": loaded_scipy,
+                  "moves": len(plan.table.moves), "value": value}))
 """
 
 

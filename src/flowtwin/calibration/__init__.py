@@ -37,7 +37,9 @@ Lag from a measured width profile::
     print(fit.k_s, "±", fit.k_err_s)
 """
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from flowtwin._lazy import lazy_exports
 
 #: Every name loads on first use: the fits need the dynamics, scipy, OpenCV or the test
 #: stand, the patterns the firmware model and numpy; importing the package (or one of its
@@ -123,13 +125,8 @@ if TYPE_CHECKING:
     )
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib
-
-    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+__getattr__, __dir__ = lazy_exports(__name__, {name: f"{__name__}.{module}"
+                                               for name, module in _LAZY.items()})
 
 
 __all__ = [

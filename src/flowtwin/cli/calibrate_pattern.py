@@ -25,7 +25,7 @@ from flowtwin.calibration.patterns.tower import TowerParams
 from flowtwin.cli._common import console, err_console, fmt_duration, print_json, table_from_rows
 from flowtwin.firmware import Firmware
 
-__all__ = ["register", "register_patterns"]
+__all__ = ["register"]
 
 
 def _default(params_type: type[Any], name: str) -> Any:
@@ -250,15 +250,12 @@ def _command(kind: str) -> Callable[..., None]:
     return command
 
 
-def register_patterns(calibrate: typer.Typer) -> None:
-    """Add ``flowtwin calibrate pattern`` and its one command per pattern kind."""
+def register(calibrate: typer.Typer) -> None:
+    """Add ``flowtwin calibrate pattern`` and its one command per pattern kind (what
+    :class:`~flowtwin.cli.lazy_group.LazyGroup` calls when the group is first used)."""
     group = typer.Typer(name="pattern", no_args_is_help=True, add_completion=False,
                         help=PATTERN_HELP)
     for kind, entry in PATTERN_KINDS.items():
         group.command(kind, help=PATTERN_KIND_HELP.get(kind, entry.description))(
             _command(kind))
     calibrate.add_typer(group, name="pattern")
-
-
-#: What :class:`~flowtwin.cli.lazy_group.LazyGroup` calls to load ``flowtwin calibrate pattern``.
-register = register_patterns

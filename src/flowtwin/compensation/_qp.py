@@ -33,7 +33,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from numba import njit, prange
+
+from flowtwin._jit import njit, prange
 
 __all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_box_qp"]
 
