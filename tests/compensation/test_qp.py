@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from flowtwin.compensation._qp import envelope_ldl, envelope_ldl_solve, qp_blocks, solve_box_qp
+from flowtwin.compensation._qp import envelope_ldl, envelope_ldl_solve, qp_blocks
+from flowtwin.compensation._qp_sparse import solve_box_qp
 
 
 def _band_spd(n: int, b: int, seed: int) -> np.ndarray:

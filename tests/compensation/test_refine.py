@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 from scipy.optimize import lsq_linear
 
-from flowtwin.compensation._qp import solve_box_qp
+from flowtwin.compensation._qp_sparse import solve_box_qp
 from flowtwin.compensation._refine_kernel import lag_gain, model_pass
 from flowtwin.compensation.advance import eligible_rows
 from flowtwin.compensation.original import read_original

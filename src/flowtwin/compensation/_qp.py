@@ -32,11 +32,10 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
 
 from flowtwin._jit import njit, prange
 
-__all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_box_qp"]
+__all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_program"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -448,44 +447,49 @@ def _row_spans(ptr: IntArray, col: IntArray) -> tuple[IntArray, IntArray]:
     return row_lo, row_hi
 
 
-def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, lo: FloatArray,
-                 hi: FloatArray, *, max_iterations: int = 60, tolerance: float = 1e-9,
-                 x0: FloatArray | None = None,
-                 squares: tuple[sp.spmatrix, FloatArray] | None = None
-                 ) -> tuple[FloatArray, int, float]:
-    """Solve the program of the module docstring.
+def _take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
+               ) -> tuple[IntArray, IntArray, FloatArray]:
+    """The given rows of a CSR matrix, in the given order."""
+    counts = (ptr[1:] - ptr[:-1])[rows]
+    new_ptr = np.zeros(rows.size + 1, dtype=np.int64)
+    np.cumsum(counts, out=new_ptr[1:])
+    at = np.repeat(ptr[rows] - new_ptr[:-1], counts) + np.arange(int(new_ptr[-1]))
+    return new_ptr, col[at], val[at]
+
+
+def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArray,
+                  c: tuple[IntArray, IntArray, FloatArray], d: FloatArray, lo: FloatArray,
+                  hi: FloatArray, x0: FloatArray, *,
+                  squares: tuple[IntArray, IntArray, FloatArray, FloatArray],
+                  max_iterations: int = 60, tolerance: float = 1e-9
+                  ) -> tuple[FloatArray, int, float]:
+    """Solve the program of the module docstring, given as arrays.
 
     Parameters
     ----------
+    n
+        Variables.
     h
-        Hessian, sparse ``(n, n)``.
-    g
-        Linear term, ``(n,)``.
-    c, d
-        Constraint map ``C`` (sparse ``(m, n)``) and offset ``d`` ``(m,)``.
-    lo, hi
-        Bounds of ``C·x + d``, ``(m,)``; ``lo < hi``; either may be infinite (a row with
-        both infinite is ignored).
-    max_iterations
-        Newton steps at most (per block).
-    tolerance
-        Stop when the duality gap per constraint and the scaled residuals are below it.
-    x0
-        Starting point (default: least squares towards the middle of the bounds); the
-        slacks start at least 0.1 % of each bound interval inside.
+        Upper triangle of ``H``: rows, columns and values, ordered by row then column,
+        no zero value.
+    g, d, lo, hi, x0
+        Linear term ``(n,)``, offset and bounds of ``C·x + d`` ``(m,)`` (a row bounded
+        above only is negated, one bounded on neither side dropped), starting point.
+    c
+        ``C`` as compressed rows ``(ptr, col, val)``, columns ascending in every row, no
+        zero value.
     squares
-        ``(R, w)``: the Hessian is ``H + Rᵀ·diag(w)·R`` (``R`` sparse ``(k, n)``,
-        ``w > 0``), given as rows instead of their product: a row reading ``ℓ`` variables
-        adds ``ℓ²`` entries to the product, but only ``ℓ`` to the steps' factor (see
-        :func:`_solve_block`).
+        ``R`` as compressed rows (as ``c``) and the weights ``w``.
+    max_iterations, tolerance
+        Newton steps at most (per block); stop when the duality gap per constraint and
+        the scaled residuals are below ``tolerance``.
 
     Returns
     -------
     tuple
         ``x`` ``(n,)``, the most iterations any block took, and 0.
     """
-    n = h.shape[0]
-    c = sp.csr_matrix(c)
+    c_ptr, c_col, c_val = c
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
     d = np.asarray(d, dtype=np.float64)
@@ -494,63 +498,43 @@ def solve_box_qp(h: sp.spmatrix, g: FloatArray, c: sp.spmatrix, d: FloatArray, l
     keep = np.isfinite(lo) | upper_only
     if np.any(upper_only) or not np.all(keep):
         sign = np.where(upper_only, -1.0, 1.0)
-        c = sp.csr_matrix(sp.diags(sign) @ c)[keep]
+        c_val = c_val * np.repeat(sign, np.diff(c_ptr))
+        kept = np.flatnonzero(keep)
+        c_ptr, c_col, c_val = _take_rows(c_ptr, c_col, c_val, kept)
         d = (sign * d)[keep]
         lo, hi = np.where(upper_only, -hi, lo)[keep], np.where(upper_only, np.inf, hi)[keep]
-    c.sum_duplicates()
-    c.eliminate_zeros()
-    if x0 is not None:
-        x = np.asarray(x0, dtype=np.float64).copy()
-    else:
-        finite_hi = np.isfinite(hi)
-        span = np.where(finite_hi, hi - lo, np.inf)
-        target = np.where(finite_hi, lo + 0.5 * span, lo + np.maximum(1.0, np.abs(lo)) * 0.5)
-        from scipy.sparse.linalg import splu
-
-        ct = sp.csc_matrix(c.T)
-        reg = sp.identity(n, format="csc") * 1e-12
-        x = splu(sp.csc_matrix(ct @ c + reg)).solve(ct @ (target - d))
-    hu = sp.csr_matrix(sp.triu(sp.coo_matrix(h)))
-    hu.eliminate_zeros()  # a structural zero couples nothing (a relaxed run start)
-    hu = hu.tocoo()
-    h_r = hu.row.astype(np.int64)
-    h_c = hu.col.astype(np.int64)
-    h_v = hu.data.astype(np.float64)
-    row_lo, row_hi = _row_spans(c.indptr.astype(np.int64), c.indices.astype(np.int64))
-    if squares is None:
-        rq = sp.csr_matrix((0, n))
-        wq = np.zeros(0)
-    else:
-        rq = sp.csr_matrix(squares[0], dtype=np.float64)
-        rq.sum_duplicates()
-        rq.eliminate_zeros()
-        wq = np.asarray(squares[1], dtype=np.float64)
-        used = (wq > 0) & (np.diff(rq.indptr) > 0)  # an empty row is a constant
-        rq, wq = rq[used], wq[used]
-    sq_lo, sq_hi = _row_spans(rq.indptr.astype(np.int64), rq.indices.astype(np.int64))
+    x = np.array(x0, dtype=np.float64)
+    h_r, h_c, h_v = h
+    row_lo, row_hi = _row_spans(c_ptr, c_col)
+    r_ptr, r_col, r_val, wq = squares
+    used = np.flatnonzero((wq > 0) & (np.diff(r_ptr) > 0))  # an empty row is a constant
+    if used.size < wq.size:
+        r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, used)
+        wq = wq[used]
+    sq_lo, sq_hi = _row_spans(r_ptr, r_col)
     starts, ends = qp_blocks(n, h_r, h_c, np.concatenate((row_lo, sq_lo)),
                              np.concatenate((row_hi, sq_hi)))
     # H entries, constraint rows and squared rows ordered by block (squared rows by their
     # last variable)
     h_block = np.searchsorted(starts, h_r, side="right") - 1
-    order = np.argsort(h_block, kind="stable")
-    h_r, h_c, h_v = h_r[order], h_c[order], h_v[order]
-    h_ptr = np.searchsorted(h_block[order], np.arange(starts.size + 1)).astype(np.int64)
+    if np.any(h_block[1:] < h_block[:-1]):
+        order = np.argsort(h_block, kind="stable")
+        h_r, h_c, h_v, h_block = h_r[order], h_c[order], h_v[order], h_block[order]
+    h_ptr = np.searchsorted(h_block, np.arange(starts.size + 1)).astype(np.int64)
     row_block = np.searchsorted(starts, row_lo, side="right") - 1
     if np.any(row_block[1:] < row_block[:-1]):  # (copies only when out of order)
         rorder = np.argsort(row_block, kind="stable")
-        c, d, lo, hi, row_block = c[rorder], d[rorder], lo[rorder], hi[rorder], row_block[rorder]
+        c_ptr, c_col, c_val = _take_rows(c_ptr, c_col, c_val, rorder)
+        d, lo, hi, row_block = d[rorder], lo[rorder], hi[rorder], row_block[rorder]
     row_ptr = np.searchsorted(row_block, np.arange(starts.size + 1)).astype(np.int64)
     if np.any(sq_hi[1:] < sq_hi[:-1]):
         sorder = np.argsort(sq_hi, kind="stable")
-        rq, wq, sq_hi = rq[sorder], wq[sorder], sq_hi[sorder]
+        r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, sorder)
+        wq, sq_hi = wq[sorder], sq_hi[sorder]
     sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
                              np.arange(starts.size + 1)).astype(np.int64)
     iters = np.zeros(starts.size, dtype=np.int64)
     _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
-                  row_ptr, c.indptr.astype(np.int64), c.indices.astype(np.int64),
-                  c.data.astype(np.float64), d, lo, hi, sq_ptr,
-                  rq.indptr.astype(np.int64), rq.indices.astype(np.int64),
-                  rq.data.astype(np.float64), wq, int(max_iterations), float(tolerance),
-                  iters)
+                  row_ptr, c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val, wq,
+                  int(max_iterations), float(tolerance), iters)
     return x, int(iters.max(initial=0)), 0.0

@@ -34,6 +34,7 @@ from flowtwin.compensation._refine_kernel import (
     segment_states,
 )
 from flowtwin.compensation.pieces import Pieces, phase_distance_mm
+from flowtwin.compensation.program import Chain, Csr
 from flowtwin.errors import CalibrationError, ProfileError
 from flowtwin.planner.timeline import Timeline
 
@@ -379,9 +380,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         E of every free piece (grid units, floats), figures, and the pre-charge of every
         ``precharge`` entry (grid units, ``0`` for entries without one), shape ``(k,)``.
     """
-    import scipy.sparse as sp
-
-    from flowtwin.compensation._qp import solve_box_qp
+    from flowtwin.compensation._qp import solve_program
     from flowtwin.compensation._refine_kernel import free_piece_chain
 
     n = model.free_pieces.size
@@ -395,52 +394,43 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
                      alpha, kappa, e_p, b_p, k_p, l_p)
     b_p = np.maximum(b_p, 1e-12)
     idx = np.arange(n)
-    # c = Cx + c0
-    rows = np.concatenate((idx, idx[1:]))
-    cols = np.concatenate((idx, idx[1:] - 1))
-    vals = np.concatenate((1.0 / b_p, -(e_p[1:] * alpha[1:]) / b_p[1:]))
-    c_mat = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
-    c0 = -(e_p * kappa + k_p) / b_p
-    # x_pre = P x + kappa, P has alpha on the sub-diagonal
-    p_mat = sp.csr_matrix((alpha[1:], (idx[1:], idx[1:] - 1)), shape=(n, n))
     grp = np.asarray(piece_group, dtype=np.int64)
+    if np.any(grp[1:] < grp[:-1]):
+        raise ProfileError("the pieces of a move must be consecutive", field="piece_group",
+                           value=int(np.flatnonzero(grp[1:] < grp[:-1])[0]) + 1,
+                           allowed="a group index that does not decrease")
     m = intent.size
-    g_mat = sp.csr_matrix((np.ones(n), (grp, idx)), shape=(m, n))
     first = np.concatenate(([True], grp[1:] != grp[:-1]))
-    last = np.concatenate((grp[1:] != grp[:-1], [True]))
-    s_last = sp.csr_matrix((np.ones(int(last.sum())), (grp[last], idx[last])), shape=(m, n))
-    s_first = sp.csr_matrix((np.ones(int(first.sum())), (grp[first], idx[first])), shape=(m, n))
     # pre-charges y: x_pre(p_k) += y_k, so c_p gains −E_p/B_p·y_k (variables [x; y])
     after_v, y_max, use = _precharge_entries(precharge, alpha, kappa, n)
     k_y = int(after_v.size)
-    y_idx = np.arange(k_y)
-    y_x = sp.csr_matrix((np.ones(k_y), (after_v, y_idx)), shape=(n, k_y))
-    c_y = sp.csr_matrix((-e_p[after_v] / b_p[after_v], (after_v, y_idx)), shape=(n, k_y))
-    c_mat = sp.hstack([c_mat, c_y], format="csr")
-    p_mat = sp.hstack([p_mat, y_x], format="csr")
-    s_last = sp.hstack([s_last, sp.csr_matrix((m, k_y))], format="csr")
-    r_mat = g_mat @ sp.diags(l_p) @ c_mat - s_last + s_first @ p_mat
-    r0 = g_mat @ (l_p * c0) + s_first @ kappa - (intent if target is None else target)
-    del g_mat, s_last, s_first, p_mat, y_x, c_y, rows, cols, vals  # held through the solve
+    chain = Chain.of(alpha, e_p, b_p, after_v)
+    c_mat = chain.matrix()  # c = C·[x; y] + c0
+    c0 = -(e_p * kappa + k_p) / b_p
+    # outputs R·[x; y] + r0: Σ L_p·c_p over the move's pieces, minus the state after its
+    # last piece, plus the state before its first (x_pre = α·x_(p−1) + κ, or y)
+    r_mat = chain.outputs(grp, m, l_p, alpha)
+    r_first = np.zeros(m)
+    r_first[grp[first]] += kappa[first]
+    r0 = (np.bincount(grp, weights=l_p * c0, minlength=m) + r_first
+          - (intent if target is None else target))
     inv = 1.0 / np.maximum(intent, 1e-9)
     w = inv + options.peak_weight * float(np.mean(intent)) * inv * inv
     v = options.track_weight * l_p ** 2 * inv[grp]
     v_y = options.track_weight * inv[grp[after_v]]
     c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
-    # the Hessian is h + Rᵀ·diag(w)·R; the solver takes R's rows as they are (a move cut
-    # into many pieces would make its block of Rᵀ·W·R dense)
-    h = c_mat.T @ sp.diags(v) @ c_mat
-    if k_y:
-        h = h + sp.csr_matrix((v_y, (n + y_idx, n + y_idx)), shape=(n + k_y, n + k_y))
-    r_mat = sp.csr_matrix(r_mat)
-    g = r_mat.T @ (w * r0) + c_mat.T @ (v * (c0 - c_hat))
-    r_diag = np.asarray(r_mat.multiply(r_mat).T @ w).ravel()
-    scale = float(np.mean(np.abs(h.diagonal() + r_diag))) or 1.0
+    # the Hessian is Cᵀ·V·C + Rᵀ·diag(w)·R; the solver takes R's rows as they are (a
+    # move cut into many pieces would make its block of Rᵀ·W·R dense)
+    h_upper, h_diag = chain.hessian(v, v_y)
+    size = chain.size
+    g = r_mat.rmatvec(w * r0, size) + c_mat.rmatvec(v * (c0 - c_hat), size)
+    r_diag = r_mat.squared().rmatvec(w, size)
+    scale = float(np.mean(np.abs(h_diag + r_diag))) or 1.0
     hi = np.where(np.isfinite(c_max), np.maximum(c_max, c_min * (1 + 1e-6) + 1e-9), np.inf)
 
     def objective(x: FloatArray) -> float:  # x: [states; pre-charges]
-        r = r_mat @ x + r0
-        c = c_mat @ x + c0
+        r = r_mat.matvec(x) + r0
+        c = c_mat.matvec(x) + c0
         return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2)
                      + 0.5 * np.sum(v_y * x[n:] ** 2))
 
@@ -450,34 +440,21 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     x_start = np.concatenate((_chain_states(alpha, kappa, e_p, b_p, k_p, c_start),
                               np.zeros(k_y)))
     before = objective(x_start)
-    con, d_con, lo_con, hi_con = c_mat, c0, c_min, hi
-    if k_y:  # 0 ≤ y_k ≤ y_max
-        rows_y = sp.csr_matrix((np.ones(k_y), (y_idx, n + y_idx)), shape=(k_y, n + k_y))
-        con = sp.vstack([con, rows_y], format="csr")
-        d_con = np.concatenate((d_con, np.zeros(k_y)))
-        lo_con = np.concatenate((lo_con, np.zeros(k_y)))
-        hi_con = np.concatenate((hi_con, y_max))
+    # constraint rows, in the solver's order of the variables: the ratio box, 0 ≤ y_k ≤
+    # y_max, no backflow, the ratio steps, the state cap
+    con: list[Csr] = [chain.box_rows(), chain.unit_rows(n + np.arange(k_y))]
+    d_con = [c0, np.zeros(k_y)]
+    lo_con = [c_min, np.zeros(k_y)]
+    hi_con = [hi, y_max]
     # no backflow [001 Fig. 8]: a piece that may pull back (c_min < 0) ends with x ≥ 0;
     # the state falls monotonically while it pulls, so it stays ≥ 0 throughout and the
     # linear model stays the twin's
     pull = np.flatnonzero(np.asarray(c_min) < 0)
     if pull.size:
-        rows_p = sp.csr_matrix((np.ones(pull.size), (np.arange(pull.size), pull)),
-                               shape=(pull.size, n + k_y))
-        con = sp.vstack([con, rows_p], format="csr")
-        d_con = np.concatenate((d_con, np.zeros(pull.size)))
-        lo_con = np.concatenate((lo_con, np.zeros(pull.size)))
-        hi_con = np.concatenate((hi_con, np.full(pull.size, np.inf)))
-    # the state cap: rows only where it binds (solved without it first; most runs stay
-    # far below the compression at which the drive would grind)
-    cap_rows = None
-    if state_max is not None and np.any(np.isfinite(state_max)):
-        cap = np.isfinite(state_max)
-        rows_x = sp.csr_matrix((np.ones(int(cap.sum())), (np.arange(int(cap.sum())),
-                                                          idx[cap])),
-                               shape=(int(cap.sum()), n + k_y))
-        cap_rows = (rows_x, np.zeros(int(cap.sum())), np.full(int(cap.sum()), -np.inf),
-                    np.asarray(state_max, dtype=np.float64)[cap], cap)
+        con.append(chain.unit_rows(pull))
+        d_con.append(np.zeros(pull.size))
+        lo_con.append(np.zeros(pull.size))
+        hi_con.append(np.full(pull.size, np.inf))
     if jump is not None:
         jmp = np.asarray(jump, dtype=np.float64)
         if jmp.shape != (n,):
@@ -486,41 +463,44 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         step = np.flatnonzero(np.isfinite(jmp[1:])) + 1  # steps p-1 -> p that are limited
         if step.size:
             # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1), within ±jump_p
-            sel_rows = sp.csr_matrix((np.ones(step.size), (np.arange(step.size), step)),
-                                     shape=(step.size, n))
-            sel_prev = sp.csr_matrix((np.ones(step.size), (np.arange(step.size), step - 1)),
-                                     shape=(step.size, n))
-            d_mat = (sel_rows - sel_prev) @ c_mat
             j = np.maximum(jmp[step], 1e-9)
-            con = sp.vstack([con, d_mat], format="csr")
-            d_con = np.concatenate((d_con, c0[step] - c0[step - 1]))
-            lo_con = np.concatenate((lo_con, -j))
-            hi_con = np.concatenate((hi_con, j))
-    # each pre-charge just before the piece it feeds: the band stays narrow
-    order = np.argsort(np.concatenate((idx, after_v - 0.5)), kind="stable")
-    h = sp.csr_matrix(h)[order][:, order] if k_y else h
-    r_sq = r_mat[:, order] if k_y else r_mat
+            con.append(chain.step_rows(step))
+            d_con.append(c0[step] - c0[step - 1])
+            lo_con.append(-j)
+            hi_con.append(j)
+    # the state cap: rows only where it binds (solved without it first; most runs stay
+    # far below the compression at which the drive would grind)
+    cap = (None if state_max is None or not np.any(np.isfinite(state_max))
+           else np.isfinite(state_max))
+    order = chain.order
+    h_arrays = (np.repeat(np.arange(size), np.diff(h_upper.ptr)), h_upper.col,
+                h_upper.val * (1.0 / scale))  # (as scipy.sparse divides)
+    keep_h = h_arrays[2] != 0.0
+    h_arrays = (h_arrays[0][keep_h], h_arrays[1][keep_h], h_arrays[2][keep_h])
+    r_sq = r_mat.renumbered(chain.new_index) if k_y else r_mat
     x = np.empty(n + k_y)
     iterations = 0
     for with_cap in (False, True):
         if with_cap:
-            if cap_rows is None:
+            if cap is None:
                 break
-            over = x[:n][cap_rows[4]] > cap_rows[3] + 1e-6 * np.maximum(np.abs(cap_rows[3]), 1)
+            limit = np.asarray(state_max, dtype=np.float64)[cap]
+            over = x[:n][cap] > limit + 1e-6 * np.maximum(np.abs(limit), 1)
             if not np.any(over):
                 break
-            con = sp.vstack([con, cap_rows[0]], format="csr")
-            d_con = np.concatenate((d_con, cap_rows[1]))
-            lo_con = np.concatenate((lo_con, cap_rows[2]))
-            hi_con = np.concatenate((hi_con, cap_rows[3]))
-        z, its, _mu = solve_box_qp(h / scale, g[order] / scale,
-                                   sp.csr_matrix(con)[:, order] if k_y else con,
-                                   d_con, lo_con, hi_con,
-                                   max_iterations=options.max_iterations,
-                                   x0=x_start[order], squares=(r_sq, w / scale))
+            con.append(chain.unit_rows(idx[cap]))
+            d_con.append(np.zeros(limit.size))
+            lo_con.append(np.full(limit.size, -np.inf))
+            hi_con.append(limit)
+        rows = _stack_rows(con)
+        z, its, _mu = solve_program(
+            size, h_arrays, g[order] / scale, (rows.ptr, rows.col, rows.val),
+            np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con),
+            x_start[order], squares=(r_sq.ptr, r_sq.col, r_sq.val, w / scale),
+            max_iterations=options.max_iterations)
         iterations = max(iterations, its)
         x[order] = z
-    c = np.clip(c_mat @ x + c0, c_min, hi)
+    c = np.clip(c_mat.matvec(x) + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
     total = float(np.sum(intent))
@@ -529,6 +509,17 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     return e_new, {"flow_before": 2.0 * before / total, "flow_after": 2.0 * after / total,
                    "iterations": float(iterations),
                    "precharges": float(np.count_nonzero(y_out > 0.5))}, y_out
+
+
+def _stack_rows(parts: list[Csr]) -> Csr:
+    """Rows of several matrices, one below the other."""
+    ptr = [np.zeros(1, dtype=np.int64)]
+    at = 0
+    for part in parts:
+        ptr.append(part.ptr[1:] + at)
+        at += int(part.ptr[-1])
+    return Csr(np.concatenate(ptr), np.concatenate([p.col for p in parts]),
+               np.concatenate([p.val for p in parts]))
 
 
 def _precharge_entries(precharge: tuple[IntArray, FloatArray] | None, alpha: FloatArray,

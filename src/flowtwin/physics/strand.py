@@ -28,7 +28,6 @@ from enum import Enum
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import least_squares
 
 from flowtwin.errors import CalibrationError, DataError
 from flowtwin.physics._checks import as_float_array, require_positive
@@ -333,6 +332,8 @@ def fit_strand_profile(x_mm: npt.ArrayLike, z_mm: npt.ArrayLike, *, model: Stran
 
     def residual(p: FloatArray) -> FloatArray:
         return _evaluate(model, unpack(p), x, h) - z
+
+    from scipy.optimize import least_squares  # (0.3 s to import: only for a fit)
 
     with np.errstate(over="ignore", invalid="ignore"):
         result = least_squares(residual, start, bounds=(lower, upper), xtol=1e-12,

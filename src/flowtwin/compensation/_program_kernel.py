@@ -1,0 +1,122 @@
+"""Compiled kernels that assemble the refinement's program as compressed sparse rows.
+
+A matrix is three arrays: ``ptr`` (row ``i`` holds entries ``ptr[i] : ptr[i + 1]``),
+``col`` and ``val``; *canonical* rows have their columns ascending and no zero entry.
+The products below add their terms in the order ``scipy.sparse`` does (a row's entries
+from left to right, a transposed product's rows from top to bottom), so the program is
+the same to the last bit as when it was assembled from ``scipy.sparse`` products.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin._jit import njit
+
+__all__ = ["csr_matvec", "csr_rmatvec", "group_rows", "sort_rows"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@njit(cache=True)
+def sort_rows(ptr: IntArray, col: IntArray, val: FloatArray) -> None:
+    """Sort every row's entries by column, in place (rows are short: insertion sort)."""
+    for i in range(ptr.shape[0] - 1):
+        for p in range(ptr[i] + 1, ptr[i + 1]):
+            c = col[p]
+            v = val[p]
+            q = p - 1
+            while q >= ptr[i] and col[q] > c:
+                col[q + 1] = col[q]
+                val[q + 1] = val[q]
+                q -= 1
+            col[q + 1] = c
+            val[q + 1] = v
+
+
+@njit(cache=True)
+def csr_matvec(ptr: IntArray, col: IntArray, val: FloatArray, x: FloatArray,
+               out: FloatArray) -> None:
+    """``out = A·x``, every row summed from its first entry to its last."""
+    for i in range(ptr.shape[0] - 1):
+        s = 0.0
+        for p in range(ptr[i], ptr[i + 1]):
+            s += val[p] * x[col[p]]
+        out[i] = s
+
+
+@njit(cache=True)
+def csr_rmatvec(ptr: IntArray, col: IntArray, val: FloatArray, y: FloatArray,
+                out: FloatArray) -> None:
+    """``out = Aᵀ·y`` (``out`` zeroed by the caller), rows taken from the top."""
+    for i in range(ptr.shape[0] - 1):
+        yi = y[i]
+        for p in range(ptr[i], ptr[i + 1]):
+            out[col[p]] += val[p] * yi
+
+
+@njit(cache=True)
+def group_rows(grp: IntArray, n_groups: int, l_p: FloatArray, cd: FloatArray,
+               cs: FloatArray, cy: FloatArray, y_of: IntArray, alpha: FloatArray,
+               n: int) -> tuple[IntArray, IntArray, FloatArray]:
+    """Rows ``R`` of the moves' outputs in the states ``[x; y]`` (canonical, columns of
+    the unpermuted variables: ``x_p`` is ``p``, pre-charge ``k`` is ``n + k``).
+
+    Row ``g`` is ``Σ_(p∈g) L_p·C[p, :] − e_last(g) + P[first(g), :]`` with ``C`` the
+    chain's ratio map (``cd`` on its diagonal, ``cs`` below it, ``cy`` in the pre-charge
+    column of a piece with one, ``y_of`` its index or −1) and ``P`` the state before a
+    piece (``α`` below the diagonal, 1 in its pre-charge's column). Pieces of a group
+    are consecutive (``grp`` does not decrease).
+    """
+    m = n_groups
+    counts = np.zeros(m, dtype=np.int64)
+    for p in range(n):
+        g = grp[p]
+        counts[g] += 1
+        if p == 0 or grp[p - 1] != g:
+            counts[g] += 1  # the column before the group
+        if y_of[p] >= 0:
+            counts[g] += 1
+    ptr = np.zeros(m + 1, dtype=np.int64)
+    for g in range(m):
+        ptr[g + 1] = ptr[g] + counts[g]
+    col = np.empty(ptr[m], dtype=np.int64)
+    val = np.empty(ptr[m], dtype=np.float64)
+    fill = ptr[:m].copy()
+    p = 0
+    while p < n:
+        g = grp[p]
+        first = p
+        last = p
+        while last + 1 < n and grp[last + 1] == g:
+            last += 1
+        at = fill[g]
+        if first >= 1:
+            col[at] = first - 1
+            val[at] = l_p[first] * cs[first] + alpha[first]
+        else:
+            col[at] = 0
+            val[at] = 0.0
+        at += 1
+        for q in range(first, last + 1):
+            r1 = l_p[q] * cd[q]
+            if q < last:
+                r1 = r1 + l_p[q + 1] * cs[q + 1]
+                col[at] = q
+                val[at] = r1
+            else:
+                col[at] = q
+                val[at] = r1 - 1.0
+            at += 1
+        for q in range(first, last + 1):
+            if y_of[q] >= 0:
+                col[at] = n + y_of[q]
+                v = l_p[q] * cy[q]
+                val[at] = v + 1.0 if q == first else v
+                at += 1
+        fill[g] = at
+        p = last + 1
+    sort_rows(ptr, col, val)
+    return ptr, col, val

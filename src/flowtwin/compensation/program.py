@@ -1,0 +1,237 @@
+"""The refinement's quadratic program, assembled as arrays.
+
+:func:`flowtwin.compensation.refine.refine_qp` states the program in the states ``x`` after
+the free pieces and the pre-charges ``y`` (see there): the pieces' ratios are
+``c = C·[x; y] + c0`` with ``C`` lower bidiagonal (one more entry in the pre-charge's
+column of the piece it feeds), the moves' outputs ``R·[x; y] + r0`` with one row per move.
+This module builds ``C``, ``R``, the Hessian ``Cᵀ·V·C`` and the constraint rows directly as
+compressed rows (:class:`Csr`) from the chain's coefficients, in the order the solver
+reads the variables (every pre-charge just before the piece it feeds), at the cost of a
+few passes over the pieces; the arithmetic is that of the ``scipy.sparse`` products it
+replaces, term for term (:mod:`flowtwin.compensation._program_kernel`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.compensation._program_kernel import (
+    csr_matvec,
+    csr_rmatvec,
+    group_rows,
+    sort_rows,
+)
+
+__all__ = ["Chain", "Csr", "slot_rows"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class Csr:
+    """A sparse matrix as compressed rows: row ``i`` is ``col/val[ptr[i] : ptr[i + 1]]``."""
+
+    ptr: IntArray
+    col: IntArray
+    val: FloatArray
+
+    @property
+    def n_rows(self) -> int:
+        """Number of rows."""
+        return int(self.ptr.size - 1)
+
+    def matvec(self, x: FloatArray) -> FloatArray:
+        """``A·x``, shape ``(n_rows,)``."""
+        out = np.empty(self.n_rows)
+        csr_matvec(self.ptr, self.col, self.val, np.ascontiguousarray(x, dtype=np.float64),
+                   out)
+        return out
+
+    def rmatvec(self, y: FloatArray, size: int) -> FloatArray:
+        """``Aᵀ·y``, shape ``(size,)``."""
+        out = np.zeros(size)
+        csr_rmatvec(self.ptr, self.col, self.val,
+                    np.ascontiguousarray(y, dtype=np.float64), out)
+        return out
+
+    def squared(self) -> Csr:
+        """The entries squared (same pattern)."""
+        return Csr(self.ptr, self.col, self.val * self.val)
+
+    def take(self, rows: IntArray) -> Csr:
+        """The given rows, in the given order."""
+        rows = np.asarray(rows, dtype=np.int64)
+        counts = (self.ptr[1:] - self.ptr[:-1])[rows]
+        ptr = np.zeros(rows.size + 1, dtype=np.int64)
+        np.cumsum(counts, out=ptr[1:])
+        at = np.repeat(self.ptr[rows] - ptr[:-1], counts) + np.arange(int(ptr[-1]))
+        return Csr(ptr, self.col[at], self.val[at])
+
+    def renumbered(self, new_col: IntArray) -> Csr:
+        """Columns renumbered (``j → new_col[j]``), each row sorted again."""
+        col = np.asarray(new_col, dtype=np.int64)[self.col]
+        val = self.val.copy()
+        sort_rows(self.ptr, col, val)
+        return Csr(self.ptr, col, val)
+
+
+def slot_rows(cols: IntArray, vals: FloatArray) -> Csr:
+    """Rows from a table of slots (``(m, w)``, columns ascending along each row); slots
+    whose value is zero are no entries."""
+    keep = vals != 0.0
+    ptr = np.zeros(cols.shape[0] + 1, dtype=np.int64)
+    np.cumsum(np.count_nonzero(keep, axis=1), out=ptr[1:])
+    return Csr(ptr, np.ascontiguousarray(cols[keep], dtype=np.int64),
+               np.ascontiguousarray(vals[keep], dtype=np.float64))
+
+
+@dataclass(frozen=True, slots=True)
+class Chain:
+    """The ratio map ``c = C·[x; y] + c0`` of the free pieces.
+
+    Attributes
+    ----------
+    diag, sub, pre
+        ``C[p, p]``, ``C[p, p − 1]`` (0 for ``p = 0``) and ``C[p, n + k]`` for the
+        pre-charge ``k`` feeding piece ``p`` (0 without one), shape ``(n,)`` each.
+    pre_of
+        Pre-charge feeding each piece, or −1, shape ``(n,)``.
+    pre_piece
+        Piece each pre-charge feeds, shape ``(k,)``.
+    new_index
+        Position of every variable ``[x; y]`` in the solver's order (each pre-charge
+        just before the piece it feeds), shape ``(n + k,)``.
+    """
+
+    diag: FloatArray
+    sub: FloatArray
+    pre: FloatArray
+    pre_of: IntArray
+    pre_piece: IntArray
+    new_index: IntArray
+
+    @property
+    def n(self) -> int:
+        """Free pieces."""
+        return int(self.diag.size)
+
+    @property
+    def size(self) -> int:
+        """Variables (states and pre-charges)."""
+        return int(self.diag.size + self.pre_piece.size)
+
+    @classmethod
+    def of(cls, alpha: FloatArray, e_p: FloatArray, b_p: FloatArray,
+           pre_piece: IntArray) -> Chain:
+        """From the chain's coefficients (:func:`free_piece_chain`, ``B_p`` floored)."""
+        n = b_p.size
+        k_y = pre_piece.size
+        sub = np.zeros(n)
+        sub[1:] = -(e_p[1:] * alpha[1:]) / b_p[1:]
+        pre = np.zeros(n)
+        pre[pre_piece] = -e_p[pre_piece] / b_p[pre_piece]
+        pre_of = np.full(n, -1, dtype=np.int64)
+        pre_of[pre_piece] = np.arange(k_y)
+        new_index = np.arange(n + k_y, dtype=np.int64)
+        if k_y:
+            order = np.argsort(np.concatenate((np.arange(n), pre_piece - 0.5)), kind="stable")
+            new_index[order] = np.arange(n + k_y)
+        return cls(1.0 / b_p, sub, pre, pre_of, np.asarray(pre_piece, dtype=np.int64),
+                   new_index)
+
+    @property
+    def order(self) -> IntArray:
+        """Variable at every position of the solver's order (inverse of ``new_index``)."""
+        out = np.empty_like(self.new_index)
+        out[self.new_index] = np.arange(self.new_index.size)
+        return out
+
+    def matrix(self) -> Csr:
+        """``C`` in the variables' own order."""
+        n = self.n
+        p = np.arange(n)
+        cols = np.column_stack((np.maximum(p - 1, 0), p, n + np.maximum(self.pre_of, 0)))
+        return slot_rows(cols, np.column_stack((self.sub, self.diag, self.pre)))
+
+    def _pre_column(self, piece: IntArray) -> IntArray:
+        """Solver's column of the pre-charge feeding each piece (0 for none)."""
+        k = self.pre_of[piece]
+        return np.where(k >= 0, self.new_index[np.minimum(self.n + k, self.size - 1)], 0)
+
+    def box_rows(self) -> Csr:
+        """``C`` with the solver's column order."""
+        n = self.n
+        p = np.arange(n)
+        ni = self.new_index
+        cols = np.column_stack((ni[np.maximum(p - 1, 0)], self._pre_column(p), ni[p]))
+        return slot_rows(cols, np.column_stack((self.sub, self.pre, self.diag)))
+
+    def step_rows(self, step: IntArray) -> Csr:
+        """``C[p] − C[p − 1]`` for every ``p`` of ``step`` (all ≥ 1), solver's columns."""
+        n = self.n
+        ni = self.new_index
+        p = np.asarray(step, dtype=np.int64)
+        q = p - 1
+        cols = np.column_stack((ni[np.maximum(p - 2, 0)], self._pre_column(q), ni[q],
+                                self._pre_column(p), ni[p]))
+        sub_q = np.where(q >= 1, self.sub[q], 0.0)
+        vals = np.column_stack((-sub_q, -self.pre[q], -self.diag[q] + self.sub[p],
+                                self.pre[p], self.diag[p]))
+        return slot_rows(cols, vals)
+
+    def unit_rows(self, var: IntArray) -> Csr:
+        """One row ``e_var`` per given variable (own numbering), solver's columns."""
+        var = np.asarray(var, dtype=np.int64)
+        return slot_rows(self.new_index[var][:, None], np.ones((var.size, 1)))
+
+    def hessian(self, v: FloatArray, v_y: FloatArray) -> tuple[Csr, FloatArray]:
+        """Upper triangle of ``Cᵀ·diag(v)·C + diag(0, v_y)`` in the solver's order (rows by
+        position, canonical), and its diagonal in the variables' own order."""
+        n = self.n
+        k_y = self.pre_piece.size
+        d, s, y = self.diag, self.sub, self.pre
+        hd = (d * v) * d
+        hd[:-1] = hd[:-1] + (s[1:] * v[1:]) * s[1:]
+        h_next = np.zeros(n)  # H[p, p + 1]
+        h_next[:-1] = (s[1:] * v[1:]) * d[1:]
+        a = self.pre_piece
+        h_yy = (y[a] * v[a]) * y[a] + v_y
+        h_before = np.where(a >= 1, (s[a] * v[a]) * y[a], 0.0)  # H[p − 1, y]
+        h_after = (y[a] * v[a]) * d[a]  # H[y, p]
+        ni = self.new_index
+        size = n + k_y
+        cols = np.zeros((size, 3), dtype=np.int64)
+        vals = np.zeros((size, 3))
+        p = np.arange(n)
+        rows_x = ni[p]
+        cols[rows_x, 0] = rows_x
+        vals[rows_x, 0] = hd
+        nxt = np.minimum(p + 1, n - 1)
+        y_next = np.where(p + 1 < n, self.pre_of[nxt], -1)
+        has = y_next >= 0
+        cols[rows_x[has], 1] = ni[n + y_next[has]]
+        vals[rows_x[has], 1] = h_before[y_next[has]]
+        cols[rows_x, 2] = ni[nxt]
+        vals[rows_x, 2] = h_next
+        rows_y = ni[n + np.arange(k_y)]
+        cols[rows_y, 0] = rows_y
+        vals[rows_y, 0] = h_yy
+        cols[rows_y, 1] = ni[a]
+        vals[rows_y, 1] = h_after
+        return slot_rows(cols, vals), np.concatenate((hd, h_yy))
+
+    def outputs(self, grp: IntArray, n_groups: int, l_p: FloatArray,
+                alpha: FloatArray) -> Csr:
+        """``R``: every move's output in ``[x; y]`` (own numbering, canonical)."""
+        ptr, col, val = group_rows(np.ascontiguousarray(grp, dtype=np.int64), int(n_groups),
+                                   l_p, self.diag, self.sub, self.pre, self.pre_of, alpha,
+                                   self.n)
+        keep = val != 0.0
+        row_of = np.repeat(np.arange(int(n_groups)), np.diff(ptr))
+        new_ptr = np.zeros(ptr.size, dtype=np.int64)
+        np.cumsum(np.bincount(row_of[keep], minlength=int(n_groups)), out=new_ptr[1:])
+        return Csr(new_ptr, col[keep], val[keep])
