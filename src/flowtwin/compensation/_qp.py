@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
+from numba import set_parallel_chunksize
 
 from flowtwin._jit import njit, prange
 
@@ -39,6 +40,9 @@ __all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_program"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+
+#: Blocks a thread takes at a time in :func:`_solve_blocks`.
+_CHUNK_BLOCKS = 4
 
 
 @njit(cache=True)
@@ -97,17 +101,6 @@ def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: Float
         xi = out[i]
         for k in range(fi, i):
             out[k] -= f[pi + k] * xi
-
-
-@njit(cache=True)
-def _step(v: FloatArray, dv: FloatArray, mask: npt.NDArray[np.bool_]) -> float:
-    a = 1.0
-    for i in range(v.shape[0]):
-        if mask[i] and dv[i] < 0.0:
-            r = -v[i] / dv[i]
-            if r < a:
-                a = r
-    return a
 
 
 @njit(cache=True)
@@ -181,7 +174,6 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     m = r1 - r0
     nr = q1 - q0
     fin = np.empty(m, dtype=np.bool_)
-    ones = np.ones(m, dtype=np.bool_)
     s = np.empty(m)
     t = np.empty(m)
     z = np.ones(m)
@@ -244,23 +236,24 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             for p2 in range(c_ptr[i], c_ptr[i + 1]):
                 if lpos[p - p_0] <= lpos[p2 - p_0]:
                     n_pairs += 1
-    pair_at = np.empty(n_pairs, dtype=np.int64)  # C^T D C: entry of the envelope, both
-    pair_p = np.empty(n_pairs, dtype=np.int64)   # constraint entries and the row
-    pair_p2 = np.empty(n_pairs, dtype=np.int64)
-    pair_q = np.empty(n_pairs, dtype=np.int64)
+    pair_at = np.empty(n_pairs, dtype=np.int64)  # C^T D C: entry of the envelope and the
+    pair_c = np.empty(n_pairs)                   # two constraint entries, by row
+    pair_c2 = np.empty(n_pairs)
+    pair_ptr = np.empty(m + 1, dtype=np.int64)
     k = 0
     for q in range(m):
         i = r0 + q
+        pair_ptr[q] = k
         for p in range(c_ptr[i], c_ptr[i + 1]):
             ci = lpos[p - p_0]
             for p2 in range(c_ptr[i], c_ptr[i + 1]):
                 cj = lpos[p2 - p_0]
                 if ci <= cj:
                     pair_at[k] = ptr[cj] + ci - first[cj]
-                    pair_p[k] = p
-                    pair_p2[k] = p2
-                    pair_q[k] = q
+                    pair_c[k] = c_val[p]
+                    pair_c2[k] = c_val[p2]
                     k += 1
+    pair_ptr[m] = k
     diag_at = np.empty(n, dtype=np.int64)
     for i in range(n):
         diag_at[i] = ptr[pos[i] + 1] - 1
@@ -313,6 +306,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             mu += s[q] * z[q] + t[q] * w[q]
             if abs(r_l[q]) > pmax:
                 pmax = abs(r_l[q])
+            dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)  # (for the step matrix)
         mu /= max(n_c, 1)
         dual = 0.0
         for i in range(n):
@@ -322,12 +316,12 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             if dual < tolerance * gmax or (mu < 1e-3 * tolerance and dual < 1e-3 * gmax):
                 break
         # the step matrix [[H + Cᵀ·diag(z/s + w/t)·C, Rᵀ], [R, −W⁻¹]], factorised
-        for q in range(m):
-            dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)
         for k in range(size):
             ab[k] = hb[k]
-        for k in range(n_pairs):
-            ab[pair_at[k]] += dd[pair_q[k]] * c_val[pair_p[k]] * c_val[pair_p2[k]]
+        for q in range(m):
+            dq = dd[q]
+            for k in range(pair_ptr[q], pair_ptr[q + 1]):
+                ab[pair_at[k]] += dq * pair_c[k] * pair_c2[k]
         diag_max = 0.0
         for i in range(n):
             v = abs(ab[diag_at[i]])
@@ -349,13 +343,12 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
         sigma_mu = 0.0
         for corr in range(2):
             # Newton direction (predictor, then corrector with σμ and Δs·Δz)
+            for i in range(n):
+                rhs[pos[i]] = -r_d[i]
             for q in range(m):
                 rc_l[q] = s[q] * z[q] - sigma_mu + (ds[q] * dz[q] if corr else 0.0)
                 rc_u[q] = (t[q] * w[q] - sigma_mu + (dt[q] * dw[q] if corr else 0.0)
                            if fin[q] else 0.0)
-            for i in range(n):
-                rhs[pos[i]] = -r_d[i]
-            for q in range(m):
                 i = r0 + q
                 v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
                 if fin[q]:
@@ -365,6 +358,8 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             envelope_ldl_solve(first, ptr, uf, rhs, sol)
             for i in range(n):
                 dx[i] = sol[pos[i]]
+            a_p = 1.0  # the longest steps that keep s, t (primal) and z, w (dual) ≥ 0
+            a_d = 1.0
             for q in range(m):
                 i = r0 + q
                 v = 0.0
@@ -375,8 +370,14 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 dt[q] = -v + r_u[q] if fin[q] else 0.0
                 dz[q] = (-rc_l[q] - z[q] * ds[q]) / s[q]
                 dw[q] = (-rc_u[q] - w[q] * dt[q]) / t[q] if fin[q] else 0.0
-            a_p = min(_step(s, ds, ones), _step(t, dt, fin))
-            a_d = min(_step(z, dz, ones), _step(w, dw, fin))
+                if ds[q] < 0.0 and -s[q] / ds[q] < a_p:
+                    a_p = -s[q] / ds[q]
+                if fin[q] and dt[q] < 0.0 and -t[q] / dt[q] < a_p:
+                    a_p = -t[q] / dt[q]
+                if dz[q] < 0.0 and -z[q] / dz[q] < a_d:
+                    a_d = -z[q] / dz[q]
+                if fin[q] and dw[q] < 0.0 and -w[q] / dw[q] < a_d:
+                    a_d = -w[q] / dw[q]
             if corr == 0:
                 mu_aff = 0.0
                 for q in range(m):
@@ -534,7 +535,13 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
     sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
                              np.arange(starts.size + 1)).astype(np.int64)
     iters = np.zeros(starts.size, dtype=np.int64)
-    _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
-                  row_ptr, c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val, wq,
-                  int(max_iterations), float(tolerance), iters)
+    # blocks differ in size by 100× and more: the threads take a few at a time (results
+    # do not depend on which thread solves a block)
+    chunk = set_parallel_chunksize(_CHUNK_BLOCKS)
+    try:
+        _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
+                      row_ptr, c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val,
+                      wq, int(max_iterations), float(tolerance), iters)
+    finally:
+        set_parallel_chunksize(chunk)
     return x, int(iters.max(initial=0)), 0.0

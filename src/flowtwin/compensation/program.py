@@ -172,7 +172,6 @@ class Chain:
 
     def step_rows(self, step: IntArray) -> Csr:
         """``C[p] − C[p − 1]`` for every ``p`` of ``step`` (all ≥ 1), solver's columns."""
-        n = self.n
         ni = self.new_index
         p = np.asarray(step, dtype=np.int64)
         q = p - 1

@@ -477,7 +477,11 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
                 h_upper.val * (1.0 / scale))  # (as scipy.sparse divides)
     keep_h = h_arrays[2] != 0.0
     h_arrays = (h_arrays[0][keep_h], h_arrays[1][keep_h], h_arrays[2][keep_h])
+    del h_upper, keep_h
     r_sq = r_mat.renumbered(chain.new_index) if k_y else r_mat
+    rows = _stack_rows(con)
+    bounds = (np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con))
+    del con, d_con, lo_con, hi_con
     x = np.empty(n + k_y)
     iterations = 0
     for with_cap in (False, True):
@@ -488,18 +492,17 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
             over = x[:n][cap] > limit + 1e-6 * np.maximum(np.abs(limit), 1)
             if not np.any(over):
                 break
-            con.append(chain.unit_rows(idx[cap]))
-            d_con.append(np.zeros(limit.size))
-            lo_con.append(np.full(limit.size, -np.inf))
-            hi_con.append(limit)
-        rows = _stack_rows(con)
+            rows = _stack_rows([rows, chain.unit_rows(idx[cap])])
+            bounds = (np.concatenate((bounds[0], np.zeros(limit.size))),
+                      np.concatenate((bounds[1], np.full(limit.size, -np.inf))),
+                      np.concatenate((bounds[2], limit)))
         z, its, _mu = solve_program(
-            size, h_arrays, g[order] / scale, (rows.ptr, rows.col, rows.val),
-            np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con),
+            size, h_arrays, g[order] / scale, (rows.ptr, rows.col, rows.val), *bounds,
             x_start[order], squares=(r_sq.ptr, r_sq.col, r_sq.val, w / scale),
             max_iterations=options.max_iterations)
         iterations = max(iterations, its)
         x[order] = z
+    del rows, bounds, h_arrays, r_sq
     c = np.clip(c_mat.matvec(x) + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)

@@ -275,10 +275,13 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     the file without the firmware's own advance.
     """
     twin = setting.twin
-    cur = (current.sim if not twin.pressure_advance
-           else twin.simulate_draft(current.draft, pressure_advance=False))
-    kept = Current(current.draft, cur)
-    kept_rms = flow_figures(setting.original, cur, current.draft.row).rms_flow_error
+    start = (current.sim if not twin.pressure_advance
+             else twin.simulate_draft(current.draft, pressure_advance=False))
+    cur: SimulationResult | None = start
+    kept_draft = current.draft
+    kept_sim: SimulationResult | None = start
+    kept_rms = flow_figures(setting.original, start, current.draft.row).rms_flow_error
+    del start
     draft = current.draft
     attempts = [(k, ilc) for k in range(passes) for ilc in ((True, False) if k else (False,))]
     done: set[int] = set()
@@ -287,11 +290,20 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     for k, ilc in attempts:
         if k in done:
             continue
+        if cur is None:  # (the kept draft's simulation was let go: simulate it again)
+            cur = kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False)
+        plan, lag_k_s = cur.plan, cur.parameters.params.lag_k_s
+        state_max = _grinding_state(cur, setting)
+        delivered = _delivered_grid(setting.original, cur, draft) if ilc else None
+        if cur is not setting.original:
+            # the pass needs the plan, the lag factors, the cap and what was delivered:
+            # the rest of the simulation (dynamics, deposition) is let go while it runs
+            cur = kept_sim = None
         draft, rep = advance_pass(
-            draft, cur.plan.table, cur.plan.timeline, cur.parameters.params.lag_k_s,
-            setting.limits, options, e_unit_mm=setting.original_file.e_unit, split=k == 0,
-            relief=(k == 0 and options.relief), state_max=_grinding_state(cur, setting),
-            delivered=_delivered_grid(setting.original, cur, draft) if ilc else None)
+            draft, plan.table, plan.timeline, lag_k_s, setting.limits, options,
+            e_unit_mm=setting.original_file.e_unit, split=k == 0,
+            relief=(k == 0 and options.relief), state_max=state_max, delivered=delivered)
+        del plan, lag_k_s, state_max, delivered
         cur = twin.simulate_draft(draft, pressure_advance=False)
         rms = flow_figures(setting.original, cur, draft.row).rms_flow_error
         retry = ilc and rms > kept_rms
@@ -299,7 +311,7 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         summaries.append(AdvancePassSummary.of(rep, rms_flow_error=rms, twin_correction=ilc,
                                                kept=not (retry or fail)))
         if retry:  # the same pass again, without the correction
-            draft, cur = kept.draft, kept.sim
+            draft, cur = kept_draft, kept_sim
             continue
         done.add(k)
         if fail:
@@ -307,10 +319,12 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
                             f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
                             "its result is not used")
             break
-        kept, kept_rms = Current(draft, cur), rms
-    applied = kept.draft is not current.draft
-    sim = kept.sim if not twin.pressure_advance else twin.simulate_draft(kept.draft)
-    return AdvanceOutcome(Current(kept.draft, sim), tuple(summaries), applied,
+        kept_draft, kept_sim, kept_rms = draft, cur, rms
+    applied = kept_draft is not current.draft
+    if kept_sim is None:
+        kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False)
+    sim = kept_sim if not twin.pressure_advance else twin.simulate_draft(kept_draft)
+    return AdvanceOutcome(Current(kept_draft, sim), tuple(summaries), applied,
                           tuple(warnings))
 
 
