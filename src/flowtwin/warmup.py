@@ -6,7 +6,9 @@ afterwards (``cache=True``). Compiling the kernels ``plan`` and ``simulate`` use
 35-100 s (more on a busy machine): ``make install`` runs this module so that a user's first
 command does not. It plans and simulates a small generated print the ways the commands do:
 Klipper and Marlin planners, whole-table and streamed, the default set-up (Marlin-style
-advance) and a Klipper printer with smoothed pressure advance.
+advance) and a Klipper printer with smoothed pressure advance; and it compensates it as
+``flowtwin compensate --advance --slip`` does (the refinement's interior point and the
+writer: ~15 s more to compile, else a user's first ``compensate`` pays it).
 
 The package's modules are byte-compiled too (:func:`compile_bytecode`): Python writes
 ``__pycache__`` on first import, except where ``PYTHONDONTWRITEBYTECODE`` is set (some
@@ -50,8 +52,10 @@ def compile_bytecode() -> bool:
 
 
 def warm_up() -> float:
-    """Run plan and simulate on a small print in every common configuration; return the
-    seconds it took (compilation, or loading from the cache when it is warm)."""
+    """Run plan and simulate on a small print in every common configuration, and
+    compensate it (advance and slip); return the seconds it took (compilation, or loading
+    from the cache when it is warm)."""
+    from flowtwin.compensation import compensate
     from flowtwin.gcode.generator import PrintSpec, write_print
     from flowtwin.planner.plan_file import plan_gcode
     from flowtwin.planner.plan_stream import plan_stream
@@ -78,6 +82,7 @@ def warm_up() -> float:
             sim.worst_moves("width")
             simulate_stream(path, klipper_config=cfg_or_none, section_moves=1000,
                             chunk_bytes=16 * 1024).summary()
+        compensate(path, Path(tmp) / "compensated.gcode", advance=True, slip=True)
     return time.perf_counter() - t0
 
 
