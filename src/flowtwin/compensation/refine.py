@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin._memory import release_free_memory
 from flowtwin.compensation._refine_kernel import (
     apply_holds,
     model_pass,
@@ -483,7 +482,6 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     rows = _stack_rows(con)
     bounds = (np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con))
     del con, d_con, lo_con, hi_con
-    release_free_memory()  # (the assembly's temporaries)
     x = np.empty(n + k_y)
     iterations = 0
     for with_cap in (False, True):
@@ -505,7 +503,6 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         iterations = max(iterations, its)
         x[order] = z
     del rows, bounds, h_arrays, r_sq
-    release_free_memory()
     c = np.clip(c_mat.matvec(x) + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin._memory import release_free_memory
 from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import advance_pass
 from flowtwin.compensation.draft import Draft
@@ -93,7 +92,6 @@ class Twin:
     def simulate_draft(self, draft: Draft, *, pressure_advance: bool | None = None
                        ) -> SimulationResult:
         """Simulate the draft as its written file would read (its move table, in memory)."""
-        release_free_memory()  # (the stage before built and dropped large arrays)
         return self.simulate_table(draft.to_table(), pressure_advance=pressure_advance)
 
 
