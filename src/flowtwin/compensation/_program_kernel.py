@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["csr_matvec", "csr_rmatvec", "group_rows", "sort_rows"]
+__all__ = ["compact_slots", "csr_matvec", "csr_rmatvec", "group_rows", "sort_rows", "take_rows"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -34,6 +34,51 @@ def sort_rows(ptr: IntArray, col: IntArray, val: FloatArray) -> None:
                 q -= 1
             col[q + 1] = c
             val[q + 1] = v
+
+
+@njit(cache=True)
+def take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
+              ) -> tuple[IntArray, IntArray, FloatArray]:
+    """The given rows of a matrix, in the given order."""
+    new_ptr = np.empty(rows.shape[0] + 1, dtype=np.int64)
+    new_ptr[0] = 0
+    for k in range(rows.shape[0]):
+        new_ptr[k + 1] = new_ptr[k] + ptr[rows[k] + 1] - ptr[rows[k]]
+    new_col = np.empty(new_ptr[-1], dtype=np.int64)
+    new_val = np.empty(new_ptr[-1])
+    for k in range(rows.shape[0]):
+        at = new_ptr[k]
+        for p in range(ptr[rows[k]], ptr[rows[k] + 1]):
+            new_col[at] = col[p]
+            new_val[at] = val[p]
+            at += 1
+    return new_ptr, new_col, new_val
+
+
+@njit(cache=True)
+def compact_slots(cols: npt.NDArray[np.int64], vals: npt.NDArray[np.float64]
+                  ) -> tuple[IntArray, IntArray, FloatArray]:
+    """Rows from a table of slots ``(m, w)``: every slot whose value is not zero, in
+    order."""
+    m, width = cols.shape
+    ptr = np.empty(m + 1, dtype=np.int64)
+    ptr[0] = 0
+    for i in range(m):
+        k = 0
+        for j in range(width):
+            if vals[i, j] != 0.0:
+                k += 1
+        ptr[i + 1] = ptr[i] + k
+    col = np.empty(ptr[m], dtype=np.int64)
+    val = np.empty(ptr[m])
+    at = 0
+    for i in range(m):
+        for j in range(width):
+            if vals[i, j] != 0.0:
+                col[at] = cols[i, j]
+                val[at] = vals[i, j]
+                at += 1
+    return ptr, col, val
 
 
 @njit(cache=True)

@@ -451,11 +451,9 @@ def _row_spans(ptr: IntArray, col: IntArray) -> tuple[IntArray, IntArray]:
 def _take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
                ) -> tuple[IntArray, IntArray, FloatArray]:
     """The given rows of a CSR matrix, in the given order."""
-    counts = (ptr[1:] - ptr[:-1])[rows]
-    new_ptr = np.zeros(rows.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=new_ptr[1:])
-    at = np.repeat(ptr[rows] - new_ptr[:-1], counts) + np.arange(int(new_ptr[-1]))
-    return new_ptr, col[at], val[at]
+    from flowtwin.compensation._program_kernel import take_rows
+
+    return take_rows(ptr, col, val, np.ascontiguousarray(rows, dtype=np.int64))
 
 
 def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArray,

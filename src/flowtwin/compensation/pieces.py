@@ -165,6 +165,13 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
     t_start, ta, tc, td, sv, cv, ev = timeline.trapezoids()
     duration = ta + tc + td
     length, _ = phase_distance_mm(sv, cv, ev, ta, tc, td, duration)
+    if not np.any(select) and (phase_only is None or not np.any(phase_only)):
+        # nothing to cut (a later pass): one piece per row, as the general path gives it
+        one = np.arange(n + 1, dtype=np.int64)
+        return Pieces(row=one[:-1].copy(), t0_s=t_start + 0.0, t1_s=t_start + duration,
+                      s0_mm=np.zeros(n), s1_mm=length.copy(), v0_mm_s=sv.copy(),
+                      v1_mm_s=ev.copy(),
+                      offsets=one, row_length_mm=length)
 
     # candidate cut times (relative to the move start) per selected row
     cand: list[FloatArray] = []

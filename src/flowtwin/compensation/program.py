@@ -19,10 +19,12 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation._program_kernel import (
+    compact_slots,
     csr_matvec,
     csr_rmatvec,
     group_rows,
     sort_rows,
+    take_rows,
 )
 
 __all__ = ["Chain", "Csr", "slot_rows"]
@@ -64,12 +66,8 @@ class Csr:
 
     def take(self, rows: IntArray) -> Csr:
         """The given rows, in the given order."""
-        rows = np.asarray(rows, dtype=np.int64)
-        counts = (self.ptr[1:] - self.ptr[:-1])[rows]
-        ptr = np.zeros(rows.size + 1, dtype=np.int64)
-        np.cumsum(counts, out=ptr[1:])
-        at = np.repeat(self.ptr[rows] - ptr[:-1], counts) + np.arange(int(ptr[-1]))
-        return Csr(ptr, self.col[at], self.val[at])
+        return Csr(*take_rows(self.ptr, self.col, self.val,
+                              np.ascontiguousarray(rows, dtype=np.int64)))
 
     def renumbered(self, new_col: IntArray) -> Csr:
         """Columns renumbered (``j → new_col[j]``), each row sorted again."""
@@ -82,11 +80,9 @@ class Csr:
 def slot_rows(cols: IntArray, vals: FloatArray) -> Csr:
     """Rows from a table of slots (``(m, w)``, columns ascending along each row); slots
     whose value is zero are no entries."""
-    keep = vals != 0.0
-    ptr = np.zeros(cols.shape[0] + 1, dtype=np.int64)
-    np.cumsum(np.count_nonzero(keep, axis=1), out=ptr[1:])
-    return Csr(ptr, np.ascontiguousarray(cols[keep], dtype=np.int64),
-               np.ascontiguousarray(vals[keep], dtype=np.float64))
+    ptr, col, val = compact_slots(np.ascontiguousarray(cols, dtype=np.int64),
+                                  np.ascontiguousarray(vals, dtype=np.float64))
+    return Csr(ptr, col, val)
 
 
 @dataclass(frozen=True, slots=True)
