@@ -489,6 +489,7 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
         ``x`` ``(n,)``, the most iterations any block took, and 0.
     """
     c_ptr, c_col, c_val = c
+    del c
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
     d = np.asarray(d, dtype=np.float64)
@@ -513,6 +514,7 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
     sq_lo, sq_hi = _row_spans(r_ptr, r_col)
     starts, ends = qp_blocks(n, h_r, h_c, np.concatenate((row_lo, sq_lo)),
                              np.concatenate((row_hi, sq_hi)))
+    del row_hi, sq_lo, used, upper_only, keep  # (the rows' spans are large: let them go)
     # H entries, constraint rows and squared rows ordered by block (squared rows by their
     # last variable)
     h_block = np.searchsorted(starts, h_r, side="right") - 1
@@ -521,11 +523,14 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
         h_r, h_c, h_v, h_block = h_r[order], h_c[order], h_v[order], h_block[order]
     h_ptr = np.searchsorted(h_block, np.arange(starts.size + 1)).astype(np.int64)
     row_block = np.searchsorted(starts, row_lo, side="right") - 1
+    del row_lo
     if np.any(row_block[1:] < row_block[:-1]):  # (copies only when out of order)
         rorder = np.argsort(row_block, kind="stable")
         c_ptr, c_col, c_val = _take_rows(c_ptr, c_col, c_val, rorder)
         d, lo, hi, row_block = d[rorder], lo[rorder], hi[rorder], row_block[rorder]
+        del rorder
     row_ptr = np.searchsorted(row_block, np.arange(starts.size + 1)).astype(np.int64)
+    del row_block, h_block
     if np.any(sq_hi[1:] < sq_hi[:-1]):
         sorder = np.argsort(sq_hi, kind="stable")
         r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, sorder)
