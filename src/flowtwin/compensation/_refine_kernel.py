@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["lag_gain", "model_pass", "segment_states"]
+__all__ = ["lag_gain", "model_pass", "piece_segments", "segment_states"]
 
 
 @njit(cache=True)
@@ -265,3 +265,86 @@ def segment_states(c: npt.NDArray[np.float64], seg_piece: npt.NDArray[np.int64],
         cv = c[p] if p >= 0 else seg_fixed[s]
         x = seg_a[s] * x + seg_b[s] * cv + seg_c[s]
         out[s] = x
+
+
+@njit(cache=True)
+def _phase_point(sv: float, cv: float, ev: float, ta: float, tc: float, td: float,
+                 tau_s: float) -> tuple[float, float]:
+    """Path distance and speed ``τ`` after a trapezoid's start
+    (:func:`flowtwin.compensation.pieces.phase_distance_mm` for one move, the same
+    operations in the same order)."""
+    tau = min(max(tau_s, 0.0), ta + tc + td)
+    a_up = (cv - sv) / ta if ta > 0 else 0.0
+    a_dn = (cv - ev) / td if td > 0 else 0.0
+    t1 = min(tau, ta)
+    d = sv * t1 + 0.5 * a_up * t1 * t1
+    v = sv + a_up * t1
+    t2 = min(max(tau - ta, 0.0), tc)
+    d = d + cv * t2
+    t3 = min(max(tau - ta - tc, 0.0), td)
+    d = d + cv * t3 - 0.5 * a_dn * t3 * t3
+    if tau > ta:
+        v = cv - a_dn * t3
+    return d, v
+
+
+@njit(cache=True)
+def piece_segments(row: npt.NDArray[np.int64], t0_s: npt.NDArray[np.float64],
+                   t1_s: npt.NDArray[np.float64], first_of_row: npt.NDArray[np.bool_],
+                   t0_row: npt.NDArray[np.float64], ta: npt.NDArray[np.float64],
+                   tc: npt.NDArray[np.float64], td: npt.NDArray[np.float64],
+                   sv: npt.NDArray[np.float64], cv: npt.NDArray[np.float64],
+                   ev: npt.NDArray[np.float64], gap: npt.NDArray[np.float64]
+                   ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64],
+                              npt.NDArray[np.float64], npt.NDArray[np.float64],
+                              npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+    """Segments of constant acceleration of every piece, with the rest before a row.
+
+    A piece falls into its move's accel/cruise/decel phases (those of positive duration;
+    one empty segment when none has); a rest segment (piece −1, the gap's duration, no
+    path) comes before the first piece of a row that starts ``gap[row] > 0`` after the
+    row before ends. Returns the piece (−1: rest), duration, path length, speeds at both
+    ends and owner row of every segment.
+    """
+    n_p = row.shape[0]
+    cap = 4 * n_p
+    seg_piece = np.empty(cap, dtype=np.int64)
+    seg_t = np.empty(cap)
+    seg_len = np.empty(cap)
+    seg_va = np.empty(cap)
+    seg_vb = np.empty(cap)
+    owner = np.empty(cap, dtype=np.int64)
+    b = np.empty(4)
+    d = np.empty(4)
+    v = np.empty(4)
+    k = 0
+    for p in range(n_p):
+        r = row[p]
+        tau0 = t0_s[p] - t0_row[r]
+        tau1 = t1_s[p] - t0_row[r]
+        b[0] = tau0
+        b[1] = min(max(ta[r], tau0), tau1)
+        b[2] = min(max(ta[r] + tc[r], tau0), tau1)
+        b[3] = tau1
+        for j in range(4):
+            d[j], v[j] = _phase_point(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], b[j])
+        if first_of_row[p] and gap[r] > 0:
+            seg_piece[k] = -1
+            seg_t[k] = gap[r]
+            seg_len[k] = 0.0
+            seg_va[k] = 0.0
+            seg_vb[k] = 0.0
+            owner[k] = r
+            k += 1
+        for j in range(3):
+            dur = b[j + 1] - b[j]
+            if dur > 0.0 or (j == 0 and not (b[2] - b[1] > 0.0 or b[3] - b[2] > 0.0)):
+                seg_piece[k] = p
+                seg_t[k] = dur
+                seg_len[k] = d[j + 1] - d[j]
+                seg_va[k] = v[j]
+                seg_vb[k] = v[j + 1]
+                owner[k] = r
+                k += 1
+    return (seg_piece[:k].copy(), seg_t[:k].copy(), seg_len[:k].copy(), seg_va[:k].copy(),
+            seg_vb[:k].copy(), owner[:k].copy())

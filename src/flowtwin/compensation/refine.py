@@ -30,10 +30,11 @@ import numpy.typing as npt
 from flowtwin.compensation._refine_kernel import (
     apply_holds,
     model_pass,
+    piece_segments,
     segment_maps,
     segment_states,
 )
-from flowtwin.compensation.pieces import Pieces, phase_distance_mm
+from flowtwin.compensation.pieces import Pieces
 from flowtwin.compensation.program import Chain, Csr
 from flowtwin.errors import CalibrationError, ProfileError
 from flowtwin.planner.timeline import Timeline
@@ -214,42 +215,16 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
     n_rows = timeline.phases.shape[0]
     t0_row, ta, tc, td, sv, cv, ev = timeline.trapezoids()
     r = pieces.row
-    tau0 = pieces.t0_s - t0_row[r]
-    tau1 = pieces.t1_s - t0_row[r]
-    b = np.column_stack([tau0, np.clip(ta[r], tau0, tau1), np.clip(ta[r] + tc[r], tau0, tau1),
-                         tau1])
-    d = np.empty_like(b)
-    v = np.empty_like(b)
-    for k in range(4):
-        d[:, k], v[:, k] = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], b[:, k])
-    dur = np.diff(b, axis=1)
-    keep = dur > 0.0
-    keep[:, 0] |= ~np.any(keep, axis=1)  # a zero-duration piece keeps one (empty) segment
-    n_p = len(pieces)
-    piece_idx = np.repeat(np.arange(n_p), 3).reshape(n_p, 3)[keep]
-    seg_t = dur[keep]
-    seg_len = np.diff(d, axis=1)[keep]
-    seg_va = v[:, :3][keep]
-    seg_vb = v[:, 1:][keep]
     # gaps: rest time before every row (after the previous row's end)
     end_row = t0_row + ta + tc + td
     gap = np.zeros(n_rows)
     gap[1:] = np.maximum(t0_row[1:] - end_row[:-1], 0.0)
-    first_piece = pieces.offsets[:-1]
-    seg_is_first_of_piece = np.concatenate(([True], piece_idx[1:] != piece_idx[:-1]))
-    # interleave: one gap segment before the first segment of every row with a gap
-    first_seg_of_row = np.flatnonzero(seg_is_first_of_piece
-                                      & np.isin(piece_idx, first_piece[gap > 0]))
-    gap_rows = r[piece_idx[first_seg_of_row]]
-    ins = first_seg_of_row
-    seg_piece_of = np.insert(piece_idx, ins, -1)
-    seg_t = np.insert(seg_t, ins, gap[gap_rows])
-    seg_len = np.insert(seg_len, ins, 0.0)
-    seg_va = np.insert(seg_va, ins, 0.0)
-    seg_vb = np.insert(seg_vb, ins, 0.0)
+    n_p = len(pieces)
+    first_of_row = np.zeros(n_p, dtype=bool)
+    first_of_row[pieces.offsets[:-1][pieces.offsets[1:] > pieces.offsets[:-1]]] = True
+    seg_piece_of, seg_t, seg_len, seg_va, seg_vb, owner_row = piece_segments(
+        r, pieces.t0_s, pieces.t1_s, first_of_row, t0_row, ta, tc, td, sv, cv, ev, gap)
     is_gap = seg_piece_of < 0
-    owner_row = np.where(is_gap, 0, r[np.maximum(seg_piece_of, 0)])
-    owner_row[is_gap] = gap_rows
     seg_k = np.asarray(lag_k_s, dtype=np.float64)[owner_row]
     if np.any(~(seg_k > 0)):
         raise CalibrationError("lag factor must be positive for every move",
