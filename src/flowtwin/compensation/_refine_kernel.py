@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["lag_gain", "model_pass", "piece_segments", "segment_states"]
+__all__ = ["lag_gain", "model_pass", "phase_point", "piece_segments", "segment_states"]
 
 
 @njit(cache=True)
@@ -268,7 +268,7 @@ def segment_states(c: npt.NDArray[np.float64], seg_piece: npt.NDArray[np.int64],
 
 
 @njit(cache=True)
-def _phase_point(sv: float, cv: float, ev: float, ta: float, tc: float, td: float,
+def phase_point(sv: float, cv: float, ev: float, ta: float, tc: float, td: float,
                  tau_s: float) -> tuple[float, float]:
     """Path distance and speed ``τ`` after a trapezoid's start
     (:func:`flowtwin.compensation.pieces.phase_distance_mm` for one move, the same
@@ -327,7 +327,7 @@ def piece_segments(row: npt.NDArray[np.int64], t0_s: npt.NDArray[np.float64],
         b[2] = min(max(ta[r] + tc[r], tau0), tau1)
         b[3] = tau1
         for j in range(4):
-            d[j], v[j] = _phase_point(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], b[j])
+            d[j], v[j] = phase_point(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], b[j])
         if first_of_row[p] and gap[r] > 0:
             seg_piece[k] = -1
             seg_t[k] = gap[r]

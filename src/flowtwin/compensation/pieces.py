@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin._jit import njit
+from flowtwin.compensation._refine_kernel import phase_point
 from flowtwin.errors import DataError
 from flowtwin.planner.timeline import Timeline
 
@@ -173,8 +174,8 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
                       v1_mm_s=ev.copy(),
                       offsets=one, row_length_mm=length)
 
-    # candidate cut times (relative to the move start) per selected row
-    cand: list[FloatArray] = []
+    # candidate cut times (relative to the move start) per cut row, kept in time order
+    # when at least min_piece_mm from the last kept cut and from the row's end
     ones = np.ones(n)
     n_acc = np.maximum(accel_pieces, np.ceil(ta / max_piece_s) if max_piece_s > 0 else ones)
     n_dec = np.maximum(accel_pieces, np.ceil(td / max_piece_s) if max_piece_s > 0 else ones)
@@ -183,75 +184,106 @@ def split_rows(timeline: Timeline, select: npt.NDArray[np.bool_], *, accel_piece
     coarse = np.zeros(n, dtype=bool) if phase_only is None else phase_only & ~select
     n_acc = np.where(coarse, 1.0, n_acc)
     n_dec = np.where(coarse, 1.0, n_dec)
-    edge_ok = ~coarse
-    k_max = int(max(np.max(n_acc[select], initial=1), np.max(n_dec[select], initial=1)))
-    for k in range(1, k_max):
-        cand.append(np.where((ta > 0) & (k < n_acc), k / n_acc * ta, np.nan))
-        cand.append(np.where((td > 0) & (k < n_dec), ta + tc + k / n_dec * td, np.nan))
-    cand.append(np.where((ta > 0) & (tc + td > 0), ta, np.nan))
-    cand.append(np.where((tc > 0) & (td > 0), ta + tc, np.nan))
-    if cruise_edge_s > 0:
-        step = max_piece_s if max_piece_s > 0 else cruise_edge_s
-        m_edge = int(np.ceil(cruise_edge_s / step - 1e-9))
-        for k in range(1, m_edge + 1):
-            off = min(k * step, cruise_edge_s)
-            inside = (tc > 2.0 * off) & edge_ok
-            cand.append(np.where(inside, ta + off, np.nan))
-            cand.append(np.where(inside, ta + tc - off, np.nan))
-    cuts = np.column_stack(cand) if cand else np.empty((n, 0))
-    cut_rows = select | coarse
-    cuts[~cut_rows] = np.nan
-    cuts = np.sort(cuts, axis=1)  # NaN last
-
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    k_valid = np.sum(np.isfinite(cuts), axis=1)
-    sel_idx = np.flatnonzero(cut_rows & (k_valid > 0))
-    # distances of every candidate cut
-    dist = np.full(cuts.shape, np.nan)
-    for j in range(cuts.shape[1]):
-        col = cuts[:, j]
-        ok = np.isfinite(col)
-        if np.any(ok):
-            d, _ = phase_distance_mm(sv[ok], cv[ok], ev[ok], ta[ok], tc[ok], td[ok], col[ok])
-            dist[ok, j] = d
-    keep = np.zeros(cuts.shape, dtype=np.bool_)
-    _keep_cuts(cuts, dist, length, sel_idx.astype(np.int64), float(min_piece_mm), keep)
-    counts = 1 + np.sum(keep, axis=1).astype(np.int64)
-    offsets[1:] = np.cumsum(counts)
-    total_pieces = int(offsets[-1])
-    rows_arr = np.repeat(np.arange(n, dtype=np.int64), counts)
-    tau0 = np.zeros(total_pieces)
-    tau1 = np.repeat(duration, counts)
-    kr, kc = np.nonzero(keep)  # kept cuts in row order, and in time order within a row
-    if kr.size:
-        rank = np.arange(kr.size) - np.repeat(np.cumsum(counts - 1) - (counts - 1), counts - 1)
-        o = offsets[kr]
-        tau0[o + 1 + rank] = cuts[kr, kc]
-        tau1[o + rank] = cuts[kr, kc]
-    r = rows_arr
-    s0, v0 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau0)
-    s1, v1 = phase_distance_mm(sv[r], cv[r], ev[r], ta[r], tc[r], td[r], tau1)
-    # exact ends: first piece starts at 0 with start_v, last ends at the row's length/end_v
-    first = offsets[:-1]
-    last = offsets[1:] - 1
-    s0[first], v0[first] = 0.0, sv
-    s1[last], v1[last] = length, ev
-    return Pieces(row=rows_arr, t0_s=t_start[r] + tau0, t1_s=t_start[r] + tau1, s0_mm=s0,
+    step = max_piece_s if max_piece_s > 0 else cruise_edge_s
+    m_edge = int(np.ceil(cruise_edge_s / step - 1e-9)) if cruise_edge_s > 0 else 0
+    row, tau0, tau1, s0, s1, v0, v1, offsets = _cut_rows(
+        select | coarse, ~coarse, n_acc, n_dec, ta, tc, td, sv, cv, ev, duration, length,
+        m_edge, float(step) if m_edge else 0.0, float(cruise_edge_s), float(min_piece_mm))
+    return Pieces(row=row, t0_s=t_start[row] + tau0, t1_s=t_start[row] + tau1, s0_mm=s0,
                   s1_mm=s1, v0_mm_s=v0, v1_mm_s=v1, offsets=offsets, row_length_mm=length)
 
 
 @njit(cache=True)
-def _keep_cuts(cuts: FloatArray, dist: FloatArray, length: FloatArray, rows: IntArray,
-               min_piece_mm: float, keep: npt.NDArray[np.bool_]) -> None:
-    """Mark the cuts kept: in time order, each at least ``min_piece_mm`` after the last
-    kept one and before the row's end."""
-    for i in rows:
-        last_d = 0.0
-        total = length[i]
-        for j in range(cuts.shape[1]):
-            if not np.isfinite(cuts[i, j]):
-                break
-            dj = dist[i, j]
-            if dj - last_d >= min_piece_mm and total - dj >= min_piece_mm:
-                keep[i, j] = True
-                last_d = dj
+def _row_cuts(i: int, n_acc: FloatArray, n_dec: FloatArray, ta: FloatArray, tc: FloatArray,
+              td: FloatArray, edge_ok: npt.NDArray[np.bool_], m_edge: int, step: float,
+              cruise_edge_s: float, out: FloatArray) -> int:
+    """Candidate cut times of row ``i`` into ``out``, sorted; returns how many."""
+    k_n = 0
+    a, c, d = ta[i], tc[i], td[i]
+    k = 1
+    while k < n_acc[i] or k < n_dec[i]:
+        if a > 0 and k < n_acc[i]:
+            out[k_n] = k / n_acc[i] * a
+            k_n += 1
+        if d > 0 and k < n_dec[i]:
+            out[k_n] = a + c + k / n_dec[i] * d
+            k_n += 1
+        k += 1
+    if a > 0 and c + d > 0:
+        out[k_n] = a
+        k_n += 1
+    if c > 0 and d > 0:
+        out[k_n] = a + c
+        k_n += 1
+    for k in range(1, m_edge + 1):
+        off = min(k * step, cruise_edge_s)
+        if c > 2.0 * off and edge_ok[i]:
+            out[k_n] = a + off
+            out[k_n + 1] = a + c - off
+            k_n += 2
+    for p in range(1, k_n):  # insertion sort
+        x = out[p]
+        q = p - 1
+        while q >= 0 and out[q] > x:
+            out[q + 1] = out[q]
+            q -= 1
+        out[q + 1] = x
+    return k_n
+
+
+@njit(cache=True)
+def _cut_rows(cut: npt.NDArray[np.bool_], edge_ok: npt.NDArray[np.bool_], n_acc: FloatArray,
+              n_dec: FloatArray, ta: FloatArray, tc: FloatArray, td: FloatArray,
+              sv: FloatArray, cv: FloatArray, ev: FloatArray, duration: FloatArray,
+              length: FloatArray, m_edge: int, step: float, cruise_edge_s: float,
+              min_piece_mm: float):  # type: ignore[no-untyped-def]
+    """The pieces of every row (see :func:`split_rows`): row, start and end times after
+    the row's start, distances and speeds at both ends, offsets."""
+    n = cut.shape[0]
+    width = 2 * _MAX_PIECES_PER_PHASE + 2 + 2 * m_edge
+    cand = np.empty(width)
+    counts = np.ones(n, dtype=np.int64)
+    for twice in range(2):
+        if twice:
+            offsets = np.zeros(n + 1, dtype=np.int64)
+            for i in range(n):
+                offsets[i + 1] = offsets[i] + counts[i]
+            total = offsets[n]
+            row = np.empty(total, dtype=np.int64)
+            tau0 = np.zeros(total)
+            tau1 = np.empty(total)
+        for i in range(n):
+            kept = 0
+            if cut[i]:
+                k_n = _row_cuts(i, n_acc, n_dec, ta, tc, td, edge_ok, m_edge, step,
+                                cruise_edge_s, cand)
+                last_d = 0.0
+                for j in range(k_n):
+                    dj, _v = phase_point(sv[i], cv[i], ev[i], ta[i], tc[i], td[i], cand[j])
+                    if dj - last_d >= min_piece_mm and length[i] - dj >= min_piece_mm:
+                        if twice:
+                            o = offsets[i] + kept
+                            tau1[o] = cand[j]
+                            tau0[o + 1] = cand[j]
+                        kept += 1
+                        last_d = dj
+            if not twice:
+                counts[i] = 1 + kept
+            else:
+                for o in range(offsets[i], offsets[i + 1]):
+                    row[o] = i
+                tau1[offsets[i + 1] - 1] = duration[i]
+    s0 = np.empty(total)
+    s1 = np.empty(total)
+    v0 = np.empty(total)
+    v1 = np.empty(total)
+    for o in range(total):
+        i = row[o]
+        s0[o], v0[o] = phase_point(sv[i], cv[i], ev[i], ta[i], tc[i], td[i], tau0[o])
+        s1[o], v1[o] = phase_point(sv[i], cv[i], ev[i], ta[i], tc[i], td[i], tau1[o])
+    for i in range(n):  # exact ends: the row's start speed, its length and end speed
+        s0[offsets[i]] = 0.0
+        v0[offsets[i]] = sv[i]
+        s1[offsets[i + 1] - 1] = length[i]
+        v1[offsets[i + 1] - 1] = ev[i]
+    return row, tau0, tau1, s0, s1, v0, v1, offsets
