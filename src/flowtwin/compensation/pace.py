@@ -98,8 +98,18 @@ class PaceOptions:
         AdvanceOptions` ``relief_min_lags``) is treated as a cross-section step to the next
         run's first piece, the outflow decaying by ``exp(−gap/K)`` in between.
     pull_ratio
-        ``r``: pace for an advance pulling back while slowing (``retract_ratio``; off: 0):
-        ``ẋ = −x/K − r·Q``, so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path.
+        ``r``: pace for an advance pulling back while slowing (off: 0): ``ẋ = −x/K − r·Q``,
+        so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path. ``compensate``
+        uses at most the advance's ``retract_ratio`` (none without an advance).
+    spots
+        Pace only near the spots an advance without pacing leaves wrong
+        (:mod:`flowtwin.compensation.spots`); off: every junction the envelopes name.
+    spot_error
+        A move whose flow error after that advance exceeds this is a spot (fraction).
+    spot_reach_mm
+        Printed path within which a spot lets a junction or a start be paced, mm.
+    spot_rounds
+        Most times the spots are looked for again on the paced, advanced draft.
     """
 
     margin: float = 0.8
@@ -113,7 +123,11 @@ class PaceOptions:
     rise: bool = True
     run_ends: bool = True
     gap_lags: float = 0.5
-    pull_ratio: float = 0.0
+    pull_ratio: float = 4.0
+    spots: bool = True
+    spot_error: float = 0.1
+    spot_reach_mm: float = 5.0
+    spot_rounds: int = 3
 
     def __post_init__(self) -> None:
         checks = {
@@ -129,6 +143,10 @@ class PaceOptions:
                              "0.01 .. 10 mm"),
             "gap_lags": (self.gap_lags, 0.0 <= self.gap_lags <= 100.0, "0 .. 100"),
             "pull_ratio": (self.pull_ratio, 0.0 <= self.pull_ratio <= 20.0, "0 .. 20"),
+            "spot_error": (self.spot_error, 0.001 <= self.spot_error <= 10.0, "0.001 .. 10"),
+            "spot_reach_mm": (self.spot_reach_mm, 0.0 <= self.spot_reach_mm <= 1000.0,
+                              "0 .. 1000 mm"),
+            "spot_rounds": (self.spot_rounds, self.spot_rounds in range(1, 11), "1 .. 10"),
         }
         for name, (value, ok, allowed) in checks.items():
             if not (ok and math.isfinite(float(value))):
@@ -198,7 +216,8 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
                lag_k_s: FloatArray, volume_mm3: FloatArray, start_v_mm_s: FloatArray,
                cruise_v_mm_s: FloatArray, end_v_mm_s: FloatArray, t_start_s: FloatArray,
                t_end_s: FloatArray, speed_factor: FloatArray, push_mm3_s: float,
-               options: PaceOptions) -> tuple[Draft, PaceReport]:
+               options: PaceOptions, only: BoolArray | None = None,
+               no_pull: BoolArray | None = None) -> tuple[Draft, PaceReport]:
     """Cut the pieces that run faster than the pacing envelopes into slower staircases.
 
     Parameters
@@ -225,6 +244,12 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         ``inf``: no rise pacing).
     options
         The limits.
+    only
+        Pieces where a junction, a run end or a start may be paced (an envelope anchored
+        there still slows the pieces before or after it); ``None``: everywhere.
+    no_pull
+        Pieces paced as if the advance could not pull back (``pull_ratio`` 0 there: where
+        it was assumed and a spot remained); ``None``: none.
 
     Returns
     -------
@@ -253,7 +278,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     # walls fall in many small steps) is one step: the largest cross-section within
     # adjust_mm of path before the junction against the one after it
     a_ref = _window_max(a, length, nxt, options.adjust_mm)
-    fall = 1.0 + options.pull_ratio  # pulling back while slowing: the melt falls faster
+    # pulling back while slowing: the melt falls faster
+    fall = 1.0 + options.pull_ratio * (1.0 if no_pull is None else
+                                       ~np.asarray(no_pull, dtype=bool))
     step_cap = np.where(nxt & (a_ref > options.min_step * a_next), fall * step_speed_mm_s(
         a_ref, np.where(a_next > 0, a_next, 1.0), k_j, adjust_mm=options.adjust_mm), np.inf)
     # flow falls by min_drop: from the piece's top flow to the flow after the junction
@@ -271,6 +298,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         run_end &= (end_v < cv) & (a * cv > options.min_drop * q_after)
         anchor = np.where(run_end, end_v, anchor)
         drop = drop | run_end
+    allowed = np.ones(n, dtype=bool) if only is None else np.asarray(only, dtype=bool)
+    drop &= allowed
+    anchor = np.where(allowed, anchor, np.inf)
     report = PaceReport(paced_rows=np.zeros(0, dtype=np.int64),
                         drop_junctions=int(np.count_nonzero(drop)),
                         step_junctions=int(np.count_nonzero(drop & np.isfinite(step_cap)
@@ -286,6 +316,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     anc_l = anchor.tolist()
     pr_l = pr.tolist()
     nxt_l = nxt.tolist()
+    allowed_l = allowed.tolist()
     a_l = a.tolist()
     k_l = k.tolist()
     cv_l = cv.tolist()
@@ -299,7 +330,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
             bound = math.inf
             continue
         b = min(bound if nxt_l[i] else math.inf, anc_l[i])
-        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0:
+        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0 and allowed_l[i]:
             gap = ts_l[next_start] - te_l[i]
             if gap < options.gap_lags * k_l[i] and math.isfinite(next_flow):
                 carried = next_flow * math.exp(m * max(gap, 0.0) / k_l[i]) / a_l[i]
@@ -334,9 +365,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         q_carry[starts] = q
         with np.errstate(divide="ignore", invalid="ignore"):
             v_carry = np.where(a > 0, q_carry / np.where(a > 0, a, 1.0), 0.0)
-        start_ok = run_start & (a * cv > options.min_drop * q_carry)
+        start_ok = run_start & (a * cv > options.min_drop * q_carry) & allowed
         v0 = np.where(start_ok, np.maximum(sv, v_carry),
-                      np.where(rising, np.minimum(sv, cap_rise), np.inf))
+                      np.where(rising & allowed, np.minimum(sv, cap_rise), np.inf))
         report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))
         acc_l = acc.tolist()
         v0_l = v0.tolist()

@@ -246,7 +246,7 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         record.guard_cost_s = guarded.time_cost_s
     if pc is not None:
         step("pace")
-        paced = pace_stage(setting, current, pc)
+        paced = pace_stage(setting, current, pc, adv)
         current, record.pace = paced.current, paced.report
         if paced.applied:
             record.names.append("pace")

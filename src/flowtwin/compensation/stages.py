@@ -10,7 +10,7 @@ trajectory, guard, pace, advance, slip.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,7 @@ from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
 from flowtwin.compensation.slip import SlipOptions, slip_feedforward
+from flowtwin.compensation.spots import spot_pieces
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable
@@ -41,6 +42,7 @@ __all__ = ["AdvanceOutcome", "Current", "GuardOutcome", "PaceOutcome", "Setting"
            "pace_stage", "printing_pieces", "slip_stage", "trajectory_stage"]
 
 BoolArray = npt.NDArray[np.bool_]
+FloatArray = npt.NDArray[np.float64]
 
 #: The advance keeps the predicted feed force below this share of the grinding limit.
 _GRIND_MARGIN = 0.9
@@ -234,9 +236,22 @@ def _guard_step(current: Current, original: OriginalFile,
                        printing, speed_factor, options)
 
 
-def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> PaceOutcome:
+def pace_stage(setting: Setting, current: Current, options: PaceOptions,
+               advance: AdvanceOptions | None = None) -> PaceOutcome:
     """Flow pacing on the current draft with the twin's lag factors and the plan's speeds
-    (:mod:`flowtwin.compensation.pace`)."""
+    (:mod:`flowtwin.compensation.pace`).
+
+    With ``options.spots``, only near the moves that ``advance`` (one pass, when given)
+    leaves beyond ``options.spot_error`` (:mod:`flowtwin.compensation.spots`); then again
+    with the spots the paced and advanced draft still has added, up to
+    ``options.spot_rounds`` times (pacing one junction can move the error to the next).
+    Of these drafts, and the one not paced, the one whose advanced trial has the smaller
+    of the larger ratios (RMS flow error, windowed peak over-extrusion over one nozzle
+    diameter; each after over before) is kept.
+    """
+    pull = 0.0 if advance is None or advance.is_identity else advance.retract_ratio
+    if options.pull_ratio > pull:  # the envelope may count only on the pull-back there is
+        options = replace(options, pull_ratio=pull)
     draft, sim = current.draft, current.sim
     time0 = sim.plan.timeline.total_time_s
     ph = sim.plan.timeline.phases
@@ -249,19 +264,65 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> Pace
     limits = setting.limits
     push = (float(setting.twin.machine.filament.area_mm2)
             * min(limits.jump_mm_s, limits.max_e_speed_mm_s))
-    paced, report = pace_feeds(
-        draft, printing=printing_pieces(sim, draft), cross_section_mm2=area,
-        lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
-        volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
-        cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
-        end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
-        t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
-        t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
-        speed_factor=speed_factor, push_mm3_s=push, options=options)
-    if not report.paced_rows.size:
-        return PaceOutcome(Current(paced, sim), report, 0.0)
-    after = setting.twin.simulate_draft(paced)
-    return PaceOutcome(Current(paced, after), report, after.plan.timeline.total_time_s - time0)
+    printing = printing_pieces(sim, draft)
+
+    def paced_with(only: BoolArray | None, no_pull: BoolArray | None = None) -> PaceOutcome:
+        paced, report = pace_feeds(
+            draft, printing=printing, cross_section_mm2=area,
+            lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
+            volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
+            cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
+            end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
+            t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
+            t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
+            speed_factor=speed_factor, push_mm3_s=push, options=options, only=only,
+            no_pull=no_pull)
+        if not report.paced_rows.size:
+            return PaceOutcome(Current(paced, sim), report, 0.0)
+        after = setting.twin.simulate_draft(paced)
+        return PaceOutcome(Current(paced, after), report,
+                           after.plan.timeline.total_time_s - time0)
+
+    if not options.spots:
+        return paced_with(None)
+
+    def advanced(cur: Current) -> Current:
+        if advance is None or advance.is_identity:
+            return cur
+        return advance_stage(setting, cur, advance, passes=1).current
+
+    original = setting.original
+    window = float(setting.twin.machine.hotend.nozzle_diameter_mm)
+    before = flow_figures(original, original, np.arange(len(original.plan.table)),
+                          window_mm=window)
+
+    def judged(trial: Current) -> tuple[float, FloatArray]:
+        """The larger of the trial's RMS and windowed peak over the original's (the
+        smaller the better), and its flow error per original move."""
+        f = flow_figures(original, trial.sim, trial.draft.row, window_mm=window)
+        rms = f.rms_flow_error / before.rms_flow_error if before.rms_flow_error > 0 else 0.0
+        peak = before.peak_overextrusion_window
+        win = max(f.peak_overextrusion_window, 0.0) / peak if peak > 0 else 0.0
+        return max(rms, win), f.flow_error
+
+    only = np.zeros(len(draft), dtype=bool)
+    stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
+    best_score, err = judged(advanced(current))
+    best = paced_with(only)  # nothing paced: the draft as it is
+    for k in range(options.spot_rounds):
+        found = spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
+                            reach_mm=options.spot_reach_mm)
+        fresh = found & ~stubborn if k else found
+        if not np.any(fresh):
+            break
+        if k:  # still wrong after a paced round: pace there without the pull-back
+            stubborn |= found
+        only |= found
+        out = paced_with(only, stubborn)
+        score, err = judged(advanced(out.current))
+        if score < best_score:
+            best_score, best = score, out
+    return best
 
 
 def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *,
