@@ -41,6 +41,17 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    teeth reach ``R_c + δ`` (the bite and a margin, :data:`TOOTH_REACH_MM`), so rows within
    ``√((R_c + δ)² − R_c²)`` of the axis's row see teeth over the edge. A ``before`` ROI
    that reaches them is refused.
+4. **Stripes along the filament.** Texture that runs along the filament moves along
+   itself: it never changes in the image, so neither the frame groups' means nor the
+   rows' mean average it out. Foreshortened towards the limb it becomes a ripple finer
+   than the blur, which the edge model takes for the limb's shading and moves the
+   silhouette with (renderer 2: both edges 0.24–0.57 px off, the width up to 0.63 px
+   in every frame of a clip, or right by the two errors' chance cancellation). Further
+   in, where the stripes are resolved, the profile departs from a smoothly shaded
+   cylinder (:func:`~flowtwin.vision.silhouette.interior_ripple`); when it does by more
+   than :data:`RIPPLE_MAX` of the edge's contrast beside either edge (median over the
+   groups' means), every width of the clip is refused: the image does not tell the
+   silhouette from the stripes to half a pixel.
 """
 
 from __future__ import annotations
@@ -80,9 +91,10 @@ ROUGH_RATIO = 2.0
 ROUGH_MAX_PX = 1.5
 #: Largest ripple of the filament's interior beside an edge (the median over the frame
 #: groups' means, :func:`~flowtwin.vision.silhouette.interior_ripple`), as a fraction
-#: of the edge's contrast, for which the silhouette is taken to be resolved from the
-#: texture: 0.3–1.4 % on renderer 2's clips and the real clip of [003], 3.9–4.9 % where
-#: a stripe along the filament biased its edges by 0.3–0.6 px (module docstring, 4).
+#: of the edge's contrast, for which the silhouette is taken to be resolved from its
+#: texture (module docstring, 4): 0.2–1.4 % on renderer 2's clips without strong stripes
+#: and on the real clip of [003]; 3.2–7.2 % on the two striped seeds, whose edges read
+#: 0.24–0.57 px off.
 RIPPLE_MAX = 0.025
 #: Height of the row bands of the frame-wide reference scan, rows.
 REFERENCE_BAND_ROWS = 32
