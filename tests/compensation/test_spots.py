@@ -99,3 +99,26 @@ def test_without_an_advance_the_pacing_counts_on_no_pull_back(thin_gcode: Path,
     pulled = tmp_path / "pulled.gcode"
     compensate(thin_gcode, pulled, advance=True, pace=PaceOptions(spots=False))
     assert pulled.read_bytes() != four.read_bytes()
+
+
+def test_the_advance_resumes_from_the_pacings_trial(thin_gcode: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pacing judges each draft by one advance pass; the advance stage goes on from
+    the kept draft's pass instead of computing it again: the same file either way."""
+    import flowtwin.compensation.pipeline as pipeline
+
+    no_pull = AdvanceOptions(retract_ratio=0.0)  # spots left: the pacing is applied
+    resumed = compensate(thin_gcode, tmp_path / "resumed.gcode", advance=no_pull, pace=True)
+    calls: list[object] = []
+    stage = pipeline.advance_stage
+
+    def afresh(*args: object, resume: object = None, **kwargs: object) -> object:
+        calls.append(resume)
+        return stage(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(pipeline, "advance_stage", afresh)
+    fresh = compensate(thin_gcode, tmp_path / "fresh.gcode", advance=no_pull, pace=True)
+    assert calls and calls[0] is not None  # the pacing offered its trial
+    assert "pace" in resumed.transformations
+    assert (tmp_path / "resumed.gcode").read_bytes() == (tmp_path / "fresh.gcode").read_bytes()
+    assert resumed.advance == fresh.advance  # the same passes reported

@@ -127,7 +127,7 @@ class PaceOptions:
     spots: bool = True
     spot_error: float = 0.1
     spot_reach_mm: float = 5.0
-    spot_rounds: int = 3
+    spot_rounds: int = 2
 
     def __post_init__(self) -> None:
         checks = {

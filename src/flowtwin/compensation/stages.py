@@ -151,11 +151,13 @@ class GuardOutcome:
 @dataclass(frozen=True, slots=True)
 class PaceOutcome:
     """The paced draft, the pacing figures and the print time it cost, s (0 when nothing
-    was paced)."""
+    was paced); with the spots, also the one-pass advance of that draft the pacing was
+    judged by (the advance stage's first pass: it resumes from it)."""
 
     current: Current
     report: PaceReport
     time_cost_s: float
+    advanced: AdvanceOutcome | None = None
 
     @property
     def applied(self) -> bool:
@@ -286,20 +288,21 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
     if not options.spots:
         return paced_with(None)
 
-    def advanced(cur: Current) -> Current:
+    def advanced(cur: Current) -> AdvanceOutcome:
         if advance is None or advance.is_identity:
-            return cur
-        return advance_stage(setting, cur, advance, passes=1).current
+            return AdvanceOutcome(cur, (), False, ())
+        return advance_stage(setting, cur, advance, passes=1)
 
     original = setting.original
     window = float(setting.twin.machine.hotend.nozzle_diameter_mm)
     before = flow_figures(original, original, np.arange(len(original.plan.table)),
                           window_mm=window)
 
-    def judged(trial: Current) -> tuple[float, FloatArray]:
+    def judged(trial: AdvanceOutcome) -> tuple[float, FloatArray]:
         """The larger of the trial's RMS and windowed peak over the original's (the
         smaller the better), and its flow error per original move."""
-        f = flow_figures(original, trial.sim, trial.draft.row, window_mm=window)
+        f = flow_figures(original, trial.current.sim, trial.current.draft.row,
+                         window_mm=window)
         rms = f.rms_flow_error / before.rms_flow_error if before.rms_flow_error > 0 else 0.0
         peak = before.peak_overextrusion_window
         win = max(f.peak_overextrusion_window, 0.0) / peak if peak > 0 else 0.0
@@ -307,8 +310,9 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
 
     only = np.zeros(len(draft), dtype=bool)
     stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
-    best_score, err = judged(advanced(current))
-    best = paced_with(only)  # nothing paced: the draft as it is
+    trial = advanced(current)
+    best_score, err = judged(trial)
+    best = replace(paced_with(only), advanced=trial)  # nothing paced: the draft as it is
     for k in range(options.spot_rounds):
         found = spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
                             reach_mm=options.spot_reach_mm)
@@ -319,21 +323,23 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
             stubborn |= found
         only |= found
         out = paced_with(only, stubborn)
-        score, err = judged(advanced(out.current))
+        trial = advanced(out.current)
+        score, err = judged(trial)
         if score < best_score:
-            best_score, best = score, out
+            best_score, best = score, replace(out, advanced=trial)
     return best
 
 
 def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *,
-                  passes: int) -> AdvanceOutcome:
+                  passes: int, resume: AdvanceOutcome | None = None) -> AdvanceOutcome:
     """Pressure advance baked into the E, in ``passes`` passes
     (:mod:`flowtwin.compensation.bake`).
 
     Every pass after the first is tried with the twin's correction of the model, and
     again without it when that raised the twin's RMS flow error; a pass that raises it
     all the same is dropped and ends the stage. The advance is computed and judged on
-    the file without the firmware's own advance.
+    the file without the firmware's own advance. ``resume``: the outcome of one pass of
+    this stage on the same ``current`` (the pacing's trial); the stage goes on from it.
     """
     twin = setting.twin
     cur = (current.sim if not twin.pressure_advance
@@ -345,6 +351,14 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     done: set[int] = set()
     summaries: list[AdvancePassSummary] = []
     warnings: list[str] = []
+    if resume is not None and resume.passes and not twin.pressure_advance:
+        summaries, warnings = list(resume.passes), list(resume.warnings)
+        done.add(0)
+        if resume.applied:
+            kept, kept_rms = resume.current, summaries[-1].rms_flow_error
+            draft, cur = kept.draft, kept.sim
+        else:  # the first pass raised the RMS: the stage ends there
+            attempts = []
     for k, ilc in attempts:
         if k in done:
             continue
