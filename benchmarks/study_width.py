@@ -1,6 +1,7 @@
 """Width accuracy per frame on the independent renderer (not a speed benchmark).
 
-``python -m benchmarks.study_width [--seeds 1,2,3] [--held-out 7,8] [--frames 90] [--out FILE]``
+``python -m benchmarks.study_width [--seeds 1,2,3] [--held-out 7,8] [--frames 90]
+[--codec mpeg4|ffv1] [--texture 1.0] [--out FILE]``
 
 Renders clips with renderer 2 (``tests/vision/realcam.py``: knurled gear, textured white
 filament with a specular stripe, lighting drift, motion blur, MPEG-4 part 2; gear
@@ -14,6 +15,10 @@ development seeds (``--seeds``, 1–6: the ones the width model was tuned on) an
 held-out seeds (``--held-out``, 7, 8 and 11–14: looked at only after a change was
 adopted): over the frames given a width, the median and 95th percentile of ``|error|``,
 the worst frame and the count beyond 0.5 px, and the count of refused frames.
+
+``--codec ffv1`` writes the same frames losslessly (FFV1) instead of MPEG-4 part 2, to
+tell the compression's share of an error from the model's; ``--texture 0`` renders the
+filament without its texture (the renderer's own switch), to tell the texture's share.
 
 Not part of ``make bench`` (about 25 s per seed); figures go to docs/vision.md.
 """
@@ -37,10 +42,14 @@ from tests.vision.realcam import (  # noqa: E402
     RigCamera,
     RigSpec,
     render_clip,
+    write_ffv1,
     write_mpeg4,
 )
 
 from flowtwin.vision import Roi, RoiSet, VisionConfig, measure  # noqa: E402
+
+CODECS = ("mpeg4", "ffv1")
+
 
 DRIVE = DriveProfile((0.0, 1.0, 2.0, 3.0), (2.0, 3.5, 3.0, 2.0), (0.04, 0.20, 0.12, 0.06))
 
@@ -76,17 +85,18 @@ def _line(name: str, t: dict[str, object]) -> str:
             f"{t['beyond_0p5']}, refused {t['refused']}")
 
 
-def study(seeds: list[int], n_frames: int, held_out: list[int] | None = None
-          ) -> dict[str, object]:
+def study(seeds: list[int], n_frames: int, held_out: list[int] | None = None,
+          codec: str = "mpeg4", texture: float = 1.0) -> dict[str, object]:
     """Per-frame width errors of every clip and ROI (see the module docstring)."""
     clips: dict[str, dict[str, object]] = {}
     errors: dict[int, list[np.ndarray]] = {}
     held = list(held_out or [])
     with tempfile.TemporaryDirectory() as tmp:
         for seed in [*seeds, *held]:
-            spec = RigSpec(seed=seed)
+            spec = RigSpec(seed=seed, texture=texture)
             frames = render_clip(spec, DRIVE, n_frames)
-            path = write_mpeg4(frames, Path(tmp) / f"rig{seed}.avi", spec.fps)
+            write = write_ffv1 if codec == "ffv1" else write_mpeg4
+            path = write(frames, Path(tmp) / f"rig{seed}.avi", spec.fps)
             cam = RigCamera(spec, DRIVE)
             rois = _rois(spec)
             for name in ("before", "before2"):
@@ -133,10 +143,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seeds", default="1,2,3,4,5,6")
     ap.add_argument("--held-out", default="7,8,11,12,13,14")
     ap.add_argument("--frames", type=int, default=90)
+    ap.add_argument("--codec", choices=CODECS, default="mpeg4")
+    ap.add_argument("--texture", type=float, default=1.0)
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
     held = [int(s) for s in args.held_out.split(",") if s]
-    out = study([int(s) for s in args.seeds.split(",")], args.frames, held)
+    out = study([int(s) for s in args.seeds.split(",")], args.frames, held, args.codec,
+                args.texture)
     if args.out:
         args.out.write_text(json.dumps(out, indent=1))
 

@@ -382,3 +382,16 @@ def write_mpeg4(frames: Sequence[RigFrame], path: Path, fps: float) -> Path:
         writer.write(f.bgr)
     writer.release()
     return path
+
+
+def write_ffv1(frames: Sequence[RigFrame], path: Path, fps: float) -> Path:
+    """Encode BGR frames losslessly (FFV1) with ``cv2.VideoWriter``: the same frames as
+    :func:`write_mpeg4` without the compression, to tell its share of an error."""
+    h, w = frames[0].bgr.shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), fps, (w, h))
+    if not writer.isOpened():
+        raise RuntimeError("cv2.VideoWriter cannot write FFV1 here")
+    for f in frames:
+        writer.write(f.bgr)
+    writer.release()
+    return path
