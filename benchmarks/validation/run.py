@@ -1,11 +1,14 @@
 """Compensate the validation prints and report the spread of the improvement.
 
-    python -m benchmarks.validation.run --split dev|check [--pace [--pull-ratio R]] [--slip]
+    python -m benchmarks.validation.run --split dev|check [--pace [--everywhere]
+                                        [--pull-ratio R] [--spots ERROR]] [--slip]
                                         [--only SUBSTR]
 
 For every print of the split (made by :mod:`benchmarks.validation.generate` first when
-missing), ``compensate(advance=True)`` (``--pace``: also the flow pacing; ``--slip``: also
-the slip feed-forward; ``--pull-ratio``: the pacing's ``PaceOptions.pull_ratio``) on the
+missing), ``compensate(advance=True)`` (``--pace``: also the flow pacing, near the spots the advance
+leaves; ``--everywhere``: at every junction, without the pull-back, as before the spots;
+``--pull-ratio``, ``--spots``: ``PaceOptions.pull_ratio``, ``spot_error``; ``--slip``: also
+the slip feed-forward) on the
 print's machine; per print the RMS flow error and the peak
 over-extrusion over one nozzle diameter of path before and after, their improvement
 factors, the print time before and after and the wall time; then the median and the worst
@@ -21,10 +24,15 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import asdict, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from benchmarks.validation.generate import OUT, generate, machine_of
 from benchmarks.validation.prints import PRINTS, Print
+
+if TYPE_CHECKING:
+    from flowtwin.compensation.pace import PaceOptions
 
 TARGET = 5.0
 
@@ -33,23 +41,34 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else math.inf
 
 
-def run_print(p: Print, out: Path, *, pace: bool, slip: bool,
-              pull_ratio: float = 0.0) -> dict[str, object]:
+def pace_options(*, everywhere: bool, pull_ratio: float | None,
+                 spot_error: float | None) -> PaceOptions:
+    """``PaceOptions()`` (near the spots), or everywhere without the pull-back (as before
+    the spots), with the ratio and the spot error given."""
+    from flowtwin.compensation.pace import PaceOptions
+
+    o = PaceOptions(spots=False, pull_ratio=0.0) if everywhere else PaceOptions()
+    if pull_ratio is not None:
+        o = replace(o, pull_ratio=pull_ratio)
+    return o if spot_error is None else replace(o, spot_error=spot_error)
+
+
+def run_print(p: Print, out: Path, *, pace: PaceOptions | None, slip: bool
+              ) -> dict[str, object]:
     """Compensate one print; its figures."""
     from flowtwin.compensation import compensate
-    from flowtwin.compensation.pace import PaceOptions
 
     machine, cfg = machine_of(p, out)
     src = out / f"{p.name}.gcode"
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         report = compensate(src, Path(tmp) / "out.gcode", machine=machine, klipper_config=cfg,
-                            advance=True, pace=PaceOptions(pull_ratio=pull_ratio) if pace
-                            else None, slip=slip or None)
+                            advance=True, pace=pace, slip=slip or None)
         wall = time.perf_counter() - t0
     b, a = report.before, report.after
     return {
-        "name": p.name, "split": p.split, "pace": pace, "slip": slip, "pull_ratio": pull_ratio,
+        "name": p.name, "split": p.split, "pace": pace is not None, "slip": slip,
+        "pace_options": None if pace is None else asdict(pace),
         "rms_before": b.rms_flow_error, "rms_after": a.rms_flow_error,
         "rms_x": _ratio(b.rms_flow_error, a.rms_flow_error),
         "window_before": b.peak_overextrusion_window,
@@ -79,8 +98,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", choices=["dev", "check"], required=True)
     parser.add_argument("--pace", action="store_true")
     parser.add_argument("--slip", action="store_true")
-    parser.add_argument("--pull-ratio", type=float, default=0.0,
-                        help="PaceOptions.pull_ratio with --pace (default 0)")
+    parser.add_argument("--everywhere", action="store_true",
+                        help="with --pace: pace every junction the envelopes name, without "
+                             "the pull-back (the pacing before the spots)")
+    parser.add_argument("--pull-ratio", type=float, default=None,
+                        help="PaceOptions.pull_ratio with --pace")
+    parser.add_argument("--spots", type=float, default=None, metavar="ERROR",
+                        help="PaceOptions.spot_error with --pace")
     parser.add_argument("--only", help="run the prints whose name contains this")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
@@ -92,7 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'print':<72} {'RMS before→after':>20} {'×':>6} {'peak/0.4mm':>20} {'×':>6} "
           f"{'time':>7} {'wall':>6}")
     for p in prints:
-        r = run_print(p, args.out, pace=args.pace, slip=args.slip, pull_ratio=args.pull_ratio)
+        pace = pace_options(everywhere=args.everywhere, pull_ratio=args.pull_ratio,
+                            spot_error=args.spots) if args.pace else None
+        r = run_print(p, args.out, pace=pace, slip=args.slip)
         rows.append(r)
         print(f"{p.name:<72} {100 * float(r['rms_before']):8.2f} → "  # type: ignore[arg-type]
               f"{100 * float(r['rms_after']):6.2f} % {float(r['rms_x']):6.1f} "  # type: ignore[arg-type]
@@ -107,7 +133,9 @@ def main(argv: list[str] | None = None) -> int:
           f"{100 * s['time_cost_median']:+.1f} % median, {100 * s['time_cost_worst']:+.1f} % "
           f"worst; {s['at_target']} of {s['prints']} at {TARGET:g}x on both")
     tag = (args.split + ("-pace" if args.pace else "")
-           + (f"-pull{args.pull_ratio:g}" if args.pace and args.pull_ratio else "")
+           + ("-everywhere" if args.pace and args.everywhere else "")
+           + (f"-pull{args.pull_ratio:g}" if args.pace and args.pull_ratio is not None else "")
+           + (f"-spots{args.spots:g}" if args.pace and args.spots is not None else "")
            + ("-slip" if args.slip else ""))
     if args.only is None:
         (args.out / f"results-{tag}.json").write_text(

@@ -102,7 +102,8 @@ def _draft(path: Path) -> tuple[Draft, SimulationResult, float]:
 
 
 def _pace(draft: Draft, sim: SimulationResult, options: PaceOptions,
-          push: float = math.inf) -> tuple[Draft, object]:
+          push: float = math.inf, only: np.ndarray | None = None,
+          no_pull: np.ndarray | None = None) -> tuple[Draft, object]:
     ph = sim.plan.timeline.phases
     length = np.linalg.norm(draft.xyz_mm - draft.start_xyz(), axis=1)
     cmd = sim.dynamics.moves["cmd_mm3"]
@@ -112,7 +113,8 @@ def _pace(draft: Draft, sim: SimulationResult, options: PaceOptions,
                       start_v_mm_s=ph["start_v"],
                       cruise_v_mm_s=ph["cruise_v"], end_v_mm_s=ph["end_v"],
                       t_start_s=ph["t_start"], t_end_s=sim.plan.timeline.end_time_s,
-                      speed_factor=np.ones(len(draft)), push_mm3_s=push, options=options)
+                      speed_factor=np.ones(len(draft)), push_mm3_s=push, options=options,
+                      only=only, no_pull=no_pull)
 
 
 def test_step_speed_and_envelopes_are_their_closed_forms() -> None:
@@ -166,7 +168,7 @@ def test_paced_step_drop_meets_the_exponential_bound(tmp_path: Path) -> None:
     src = tmp_path / "step.gcode"
     step_drop_gcode(src)
     draft, sim, e_unit = _draft(src)
-    opts = PaceOptions(rise=False, run_ends=False)
+    opts = PaceOptions(rise=False, run_ends=False, pull_ratio=0.0)
     paced, report = _pace(draft, sim, opts)
     assert report.drop_junctions == 1 and report.step_junctions == 1  # type: ignore[attr-defined]
     first = int(np.flatnonzero(sim.dynamics.moves["cmd_mm3"] > 0)[0])
@@ -206,7 +208,7 @@ def test_a_cross_section_ramp_is_paced_as_one_step(tmp_path: Path) -> None:
     src = tmp_path / "ramp.gcode"
     ramp_gcode(src)
     draft, sim, _ = _draft(src)
-    opts = PaceOptions(rise=False, run_ends=False)
+    opts = PaceOptions(rise=False, run_ends=False, pull_ratio=0.0)
     paced, report = _pace(draft, sim, opts)
     assert report.step_junctions >= 1  # type: ignore[attr-defined]
     cmd = sim.dynamics.moves["cmd_mm3"]
@@ -364,7 +366,7 @@ def test_pulling_back_makes_the_falling_envelope_steeper(thin_gcode: Path, tmp_p
     outflow falls as d ln Q/dt >= -m(1 + r)/K: the paced speeds are never lower, and the
     paced file is faster to print; compensate passes the advance's retract_ratio."""
     draft, sim, _unit = _draft(thin_gcode)
-    alone, _ = _pace(draft, sim, PaceOptions(rise=False))
+    alone, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=0.0))
     pulled, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0))
     t_alone = simulate_draft_time(alone, tmp_path / "alone.gcode")
     t_pulled = simulate_draft_time(pulled, tmp_path / "pulled.gcode")
@@ -378,3 +380,41 @@ def simulate_draft_time(draft: Draft, path: Path) -> float:
     """Planned print time of a draft's rendered file, s."""
     draft.render(path)
     return float(simulate(path, pressure_advance=False).plan.timeline.total_time_s)
+
+
+def test_pacing_is_placed_only_where_allowed(thin_gcode: Path, tmp_path: Path) -> None:
+    """``only``: a junction, run end or start outside it is not an anchor; allowing every
+    piece is the pacing everywhere; allowing none paces nothing; allowing the pieces of one
+    thin transition paces the walls before it and no other."""
+    draft, sim, _unit = _draft(thin_gcode)
+    opts = PaceOptions(rise=False, pull_ratio=0.0)
+    everywhere, rep_all = _pace(draft, sim, opts)
+    same, rep_same = _pace(draft, sim, opts, only=np.ones(len(draft), dtype=bool))
+    assert np.array_equal(same.piece_feed_mm_min, everywhere.piece_feed_mm_min, equal_nan=True)
+    assert np.array_equal(rep_same.paced_rows, rep_all.paced_rows)  # type: ignore[attr-defined]
+    none, rep_none = _pace(draft, sim, opts, only=np.zeros(len(draft), dtype=bool))
+    assert none is draft and rep_none.paced_rows.size == 0  # type: ignore[attr-defined]
+    assert rep_none.drop_junctions == 0  # type: ignore[attr-defined]
+    paced_all = set(rep_all.paced_rows.tolist())  # type: ignore[attr-defined]
+    assert len(paced_all) >= 4  # the fixture has several transitions to pace
+    # the first paced row's own piece and its neighbour only
+    first = min(paced_all)
+    one = np.isin(draft.row, [first, first + 1])
+    _d, rep_one = _pace(draft, sim, opts, only=one)
+    paced_one = set(rep_one.paced_rows.tolist())  # type: ignore[attr-defined]
+    assert first in paced_one and paced_one < paced_all
+
+
+def test_no_pull_pieces_are_paced_as_without_the_pull_back(thin_gcode: Path) -> None:
+    """``no_pull``: where the pull-back was assumed and a spot remained, the envelope is the
+    one without it (slower), elsewhere the pull-back's steeper one."""
+    draft, sim, _unit = _draft(thin_gcode)
+    pulled, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0))
+    plain, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=0.0))
+    every = np.ones(len(draft), dtype=bool)
+    off, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0), no_pull=every)
+    assert np.array_equal(off.piece_feed_mm_min, plain.piece_feed_mm_min, equal_nan=True)
+    assert not np.array_equal(pulled.piece_feed_mm_min, plain.piece_feed_mm_min, equal_nan=True)
+    none, _ = _pace(draft, sim, PaceOptions(rise=False, pull_ratio=4.0), no_pull=~every)
+    assert np.array_equal(none.piece_feed_mm_min, pulled.piece_feed_mm_min, equal_nan=True)
+

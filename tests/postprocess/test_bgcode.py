@@ -108,3 +108,23 @@ def test_bgcode_in_bgcode_out_with_the_planners_times(flowtwin_exe: str, pph: An
                 if ln.split(";")[0].strip()]
     assert commands(text) == commands(text_in.read_text())
     assert json.loads((tmp_path / "mk4s.bgcode.flowtwin.json").read_text())["written"]
+
+
+def test_the_embedded_block_from_comments_equals_the_readers(tmp_path: Path) -> None:
+    """``postprocess`` takes the embedded configuration from the comments alone (one cheap
+    pass) instead of reading the file twice: the same mapping as the reader's metadata, on
+    every corpus file and on a ``.bgcode`` converted by the oracle (metadata blocks)."""
+    from flowtwin.gcode.reader import read_gcode
+    from flowtwin.postprocess.stream import slicer_config_streamed
+
+    from .conftest import CORPUS, corpus_copy
+
+    files = sorted(CORPUS.glob("*.gcode.gz"))
+    binary = tmp_path / "mk4s.bgcode"
+    _convert(corpus_copy(MK4S, tmp_path / "mk4s.gcode"), binary, to_binary=True)
+    with_config = 0
+    for f in (*files, binary):
+        embedded = slicer_config_streamed(f)
+        assert embedded == read_gcode(f).metadata.get("slicer_config"), f.name
+        with_config += bool(embedded)
+    assert with_config >= 14  # most slicers embed their settings

@@ -374,10 +374,21 @@ def render_clip(spec: RigSpec, drive: DriveProfile, n_frames: int) -> list[RigFr
 
 def write_mpeg4(frames: Sequence[RigFrame], path: Path, fps: float) -> Path:
     """Encode BGR frames as MPEG-4 part 2 (``FMP4``) with ``cv2.VideoWriter``."""
+    return _write(frames, path, fps, "FMP4", "MPEG-4 part 2")
+
+
+def write_ffv1(frames: Sequence[RigFrame], path: Path, fps: float) -> Path:
+    """Encode BGR frames losslessly (FFV1) with ``cv2.VideoWriter``: the same frames as
+    :func:`write_mpeg4` without the compression, to tell its share of an error."""
+    return _write(frames, path, fps, "FFV1", "FFV1")
+
+
+def _write(frames: Sequence[RigFrame], path: Path, fps: float, fourcc: str,
+           codec: str) -> Path:
     h, w = frames[0].bgr.shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FMP4"), fps, (w, h))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), fps, (w, h))
     if not writer.isOpened():
-        raise RuntimeError("cv2.VideoWriter cannot write MPEG-4 part 2 here")
+        raise RuntimeError(f"cv2.VideoWriter cannot write {codec} here")
     for f in frames:
         writer.write(f.bgr)
     writer.release()

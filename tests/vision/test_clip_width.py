@@ -6,13 +6,17 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
+import flowtwin.vision.clip_width as clip_width
 from flowtwin.vision import Quality, Roi, RoiSet, VisionConfig, measure
-from flowtwin.vision.clip_width import FrameGroups, contact_rows, is_clean
+from flowtwin.vision.clip_width import RIPPLE_MAX, FrameGroups, contact_rows, is_clean
+from flowtwin.vision.silhouette import interior_ripple
+from flowtwin.vision.width import expected_width_px, measure_width_px
 
-from .realcam import DriveProfile, RigSpec, render_clip, write_mpeg4
+from .realcam import DriveProfile, RigCamera, RigSpec, render_clip, write_mpeg4
 
 
 def test_contact_rows_known_answer() -> None:
@@ -103,3 +107,85 @@ def test_a_before_roi_in_the_gears_contact_zone_is_refused(
     assert moved.width_note is None and moved.width_valid_frames == 24
     assert moved.width_mm == pytest.approx(spec.filament_diameter_mm,
                                            abs=spec.width_wave_mm + 0.5 * spec.mm_per_px)
+
+
+def _cylinder_crop(stripe: float, h: int = 60, w: int = 200) -> np.ndarray:
+    """A front-lit 2.85 mm filament at 18.5 µm/px (radiance 0.3 + 0.7·cos θ of 205 DN,
+    backgrounds 25 and 40 DN), 8 sub-columns per pixel, 1.2 px Gaussian blur, 1.5 DN
+    noise; ``stripe``: the relative amplitude of a stripe pattern running along it,
+    3.56 cycles/mm around its surface (the strongest static wave of renderer 2's seed 5).
+    """
+    r_px, k, sub = 0.5 * 2.85 / 0.0185, 0.0185, 8
+    xs = (np.arange(w * sub) + 0.5) / sub
+    xc = 0.5 * w + 0.3
+    u = np.clip((xs - xc) / r_px, -1.0, 1.0)
+    arc_mm = np.arcsin(u) * r_px * k
+    lit = 205.0 * (0.3 + 0.7 * np.sqrt(1.0 - u * u)) \
+        * (1.0 + stripe * np.cos(2 * np.pi * 3.56 * arc_mm + 0.7))
+    row = np.where(np.abs(xs - xc) < r_px, lit, np.where(xs < xc, 25.0, 40.0))
+    img = np.tile(row.reshape(w, sub).mean(axis=1).astype(np.float32), (h, 1))
+    img = cv2.GaussianBlur(img, (0, 0), 1.2)
+    noisy = img + np.random.default_rng(0).normal(0.0, 1.5, img.shape)
+    return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+
+
+def test_interior_ripple_tells_a_striped_filament_from_a_shaded_one() -> None:
+    """A smoothly shaded cylinder's interior is a cubic in √d to the noise (ripple
+    0.2-0.3 % of the contrast); stripes running along it at 5 % (foreshortened into a
+    ripple finer than the blur at the limb) move the silhouette fit by more than a
+    pixel, and show further in as a ripple of 4-5 %: the criterion that refuses them."""
+    true_px = 2.85 / 0.0185
+    expected = expected_width_px(0.0185, 2.85)
+    for stripe, width_tol, lo, hi in ((0.0, 0.2, 0.0, 0.006), (0.05, None, RIPPLE_MAX, 0.1)):
+        crop = _cylinder_crop(stripe)
+        em = measure_width_px(crop, expected_px=expected)
+        assert em.ok and em.silhouette is not None and em.lines is not None
+        ripple = interior_ripple(crop.astype(np.float32), np.flatnonzero(em.row_used),
+                                 em.lines, em.silhouette, 0.5 * em.width_px)
+        assert lo < max(ripple) < hi
+        if width_tol is not None:
+            assert abs(em.width_px - true_px) <= width_tol
+        else:               # the ambiguity the refusal guards: the fit reads it wrong
+            assert abs(em.width_px - true_px) > 0.5
+
+
+def test_a_striped_filament_is_refused_not_read_confidently_wrong(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Renderer 2, seed 5: a texture wave runs along the filament (12.5 mm along it,
+    surface period 0.28 mm across), so it never moves in the image. Without the
+    refusal the rows 130-170 read 1.2 px wide in every frame (measured); with it both
+    ROIs are refused in every frame with the reason. The same scene without texture is
+    measured, within 0.5 px in every frame."""
+    drive = DriveProfile((0.0, 1.0), (2.0, 2.0), (0.1, 0.1))
+    results = {}
+    for texture in (1.0, 0.0):
+        spec = RigSpec(seed=5, texture=texture)
+        frames = render_clip(spec, drive, 24)
+        path = write_mpeg4(frames, tmp_path / f"t{texture}.avi", spec.fps)
+        cam = RigCamera(spec, drive)
+        cx, cy = spec.gear_center_px
+        xl = spec.filament_x_px - spec.radius_px
+        face = Roi("gear", int(cx - 60), int(cy - 100), 120, 200)
+        after = Roi("after", int(xl + 20), 330, int(2 * spec.radius_px - 40), 140)
+        for y, h in ((20, 100), (130, 40)):
+            before = _before(spec, y, h)
+            cfg = VisionConfig(rois=RoiSet(face, before, after), mm_per_px=spec.mm_per_px,
+                               diameter_mm=spec.filament_diameter_mm,
+                               gear_center_px=(cx, cy), gear_radius_mm=spec.drive_radius_mm)
+            true = np.array([cam.true_width_mm(f.t_s, slice(before.y, before.y1))
+                             for f in frames]) / spec.mm_per_px
+            results[texture, y] = (measure(path, cfg), true)
+            if texture and y == 130:
+                monkeypatch.setattr(clip_width, "RIPPLE_MAX", 1.0)
+                unguarded = measure(path, cfg).series.width_px - true
+                monkeypatch.undo()
+                assert np.all(unguarded > 0.5)
+    for y in (20, 130):
+        res, _ = results[1.0, y]
+        s = res.summary
+        assert s.width_valid_frames == 0 and "striped" in (s.width_note or "")
+        assert np.all(res.series.flags & int(Quality.WIDTH_INVALID | Quality.WIDTH_AMBIGUOUS))
+        assert any(w.startswith("width refused in every frame") for w in s.warnings)
+    res, true = results[0.0, 20]
+    assert res.summary.width_note is None and res.summary.width_valid_frames == 24
+    assert np.max(np.abs(res.series.width_px - true)) <= 0.5

@@ -17,7 +17,7 @@ from flowtwin.defaults import DEFAULT_MACHINE
 
 if TYPE_CHECKING:
     from flowtwin.calibration.tuning.nonlinear_extrusion import NonlinearExtrusionFit
-    from flowtwin.compensation import CompensationReport
+    from flowtwin.compensation import CompensationReport, PaceOptions
 
 __all__ = ["nonlinear_settings", "register", "render_nonlinear", "render_report"]
 
@@ -110,7 +110,15 @@ def register(app: typer.Typer) -> None:
             "--trajectory", help="Nozzle paths that lay the intended road [004].")] = False,
         pace: Annotated[bool, typer.Option(
             "--pace", help="Slow the path where the flow would change faster than the melt "
-                           "can follow (before the advance).")] = False,
+                           "can follow (before the advance): near the spots the advance "
+                           "alone leaves wrong.")] = False,
+        pace_spot_error: Annotated[float, typer.Option(
+            "--pace-spot-error", help="Pacing: flow error the advance may leave before a "
+                                      "spot is paced (fraction).")] = 0.1,
+        pace_everywhere: Annotated[bool, typer.Option(
+            "--pace-everywhere", help="Pacing: every junction the envelopes name, as if the "
+                                      "advance could not pull back (slower prints).")
+        ] = False,
         pace_min_speed: Annotated[float, typer.Option(
             "--pace-min-speed", help="Pacing: lowest paced speed, mm/s.")] = 2.0,
         pace_max_slowdown: Annotated[float, typer.Option(
@@ -141,7 +149,6 @@ def register(app: typer.Typer) -> None:
             AdvanceLaw,
             AdvanceOptions,
             GuardOptions,
-            PaceOptions,
             RefineOptions,
             SlipOptions,
             TrajectoryOptions,
@@ -156,8 +163,8 @@ def register(app: typer.Typer) -> None:
             slip=SlipOptions() if slip else None,
             guard=GuardOptions(safety=safety, max_flow_mm3_s=max_flow) if guard else None,
             trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None,
-            pace=PaceOptions(min_speed_mm_s=pace_min_speed, max_slowdown=pace_max_slowdown)
-            if pace else None)
+            pace=_pace_options(pace_min_speed, pace_max_slowdown, pace_spot_error,
+                               pace_everywhere) if pace or pace_everywhere else None)
         written = None
         if report_out is not None:
             from flowtwin.report import write_comparison
@@ -262,3 +269,16 @@ def render_nonlinear(fit: NonlinearExtrusionFit) -> None:
                          f"{100 * fit.max_residual:.2f} % worst")]
     console.print(table_from_rows("Nonlinear extrusion (the twin's slip)", ["", ""], rows))
     console.print(fit.note)
+
+
+def _pace_options(min_speed: float, max_slowdown: float, spot_error: float,
+                  everywhere: bool) -> PaceOptions:
+    """The pacing the options ask for: near the spots (default), or everywhere as if the
+    advance could not pull back (the pacing before spots existed)."""
+    from dataclasses import replace
+
+    from flowtwin.compensation import PaceOptions
+
+    opts = PaceOptions(min_speed_mm_s=min_speed, max_slowdown=max_slowdown,
+                       spot_error=spot_error)
+    return replace(opts, spots=False, pull_ratio=0.0) if everywhere else opts

@@ -44,7 +44,6 @@ added print time. The pipeline re-plans the paced file before the advance.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -53,6 +52,8 @@ import numpy.typing as npt
 
 from flowtwin.compensation.column import carried_flows, feed_after
 from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.envelopes import SAME as _SAME
+from flowtwin.compensation.envelopes import drop_envelope, rise_envelope, staircase, step_speed_mm_s
 from flowtwin.errors import ProfileError
 
 __all__ = ["PaceOptions", "PaceReport", "drop_envelope", "pace_feeds", "rise_envelope",
@@ -61,10 +62,6 @@ __all__ = ["PaceOptions", "PaceReport", "drop_envelope", "pace_feeds", "rise_env
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
-
-#: Relative tolerance below which a speed counts as the planned one (no new piece).
-_SAME = 1e-6
-
 
 @dataclass(frozen=True, slots=True)
 class PaceOptions:
@@ -101,8 +98,18 @@ class PaceOptions:
         AdvanceOptions` ``relief_min_lags``) is treated as a cross-section step to the next
         run's first piece, the outflow decaying by ``exp(−gap/K)`` in between.
     pull_ratio
-        ``r``: pace for an advance pulling back while slowing (``retract_ratio``; off: 0):
-        ``ẋ = −x/K − r·Q``, so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path.
+        ``r``: pace for an advance pulling back while slowing (off: 0): ``ẋ = −x/K − r·Q``,
+        so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path. ``compensate``
+        uses at most the advance's ``retract_ratio`` (none without an advance).
+    spots
+        Pace only near the spots an advance without pacing leaves wrong
+        (:mod:`flowtwin.compensation.spots`); off: every junction the envelopes name.
+    spot_error
+        A move whose flow error after that advance exceeds this is a spot (fraction).
+    spot_reach_mm
+        Printed path within which a spot lets a junction or a start be paced, mm.
+    spot_rounds
+        Most times the spots are looked for again on the paced, advanced draft.
     """
 
     margin: float = 0.8
@@ -116,7 +123,11 @@ class PaceOptions:
     rise: bool = True
     run_ends: bool = True
     gap_lags: float = 0.5
-    pull_ratio: float = 0.0
+    pull_ratio: float = 4.0
+    spots: bool = True
+    spot_error: float = 0.1
+    spot_reach_mm: float = 5.0
+    spot_rounds: int = 2
 
     def __post_init__(self) -> None:
         checks = {
@@ -132,6 +143,10 @@ class PaceOptions:
                              "0.01 .. 10 mm"),
             "gap_lags": (self.gap_lags, 0.0 <= self.gap_lags <= 100.0, "0 .. 100"),
             "pull_ratio": (self.pull_ratio, 0.0 <= self.pull_ratio <= 20.0, "0 .. 20"),
+            "spot_error": (self.spot_error, 0.001 <= self.spot_error <= 10.0, "0.001 .. 10"),
+            "spot_reach_mm": (self.spot_reach_mm, 0.0 <= self.spot_reach_mm <= 1000.0,
+                              "0 .. 1000 mm"),
+            "spot_rounds": (self.spot_rounds, self.spot_rounds in range(1, 11), "1 .. 10"),
         }
         for name, (value, ok, allowed) in checks.items():
             if not (ok and math.isfinite(float(value))):
@@ -175,193 +190,6 @@ class PaceReport:
                 "floored_pieces": self.floored_pieces}
 
 
-def step_speed_mm_s(a_before_mm2: FloatArray, a_after_mm2: FloatArray, lag_k_s: FloatArray, *,
-                    adjust_mm: float) -> FloatArray:
-    """Junction speed at which the melt follows a cross-section step within ``adjust_mm``.
-
-    The outflow of the lag ``K·Q̇ = v_in − Q`` [001 Eq. 15] changes by a factor
-    ``ρ = a_before/a_after`` in ``K·ln ρ`` at best (``v_in = 0`` falling); at path speed
-    ``v`` that is ``v·K·ln ρ`` of path, so ``v ≤ adjust / (K·|ln ρ|)``.
-
-    Parameters
-    ----------
-    a_before_mm2, a_after_mm2
-        Cross-sections before and after the junction, mm², shape ``(n,)``.
-    lag_k_s
-        Lag factor at the junction, s, shape ``(n,)``.
-    adjust_mm
-        Path over which the melt may adjust, mm.
-
-    Returns
-    -------
-    ndarray
-        Largest junction speed, mm/s (``inf`` where the cross-section does not change).
-    """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        log_rho = np.abs(np.log(np.asarray(a_before_mm2, dtype=np.float64)
-                                / np.asarray(a_after_mm2, dtype=np.float64)))
-        v = np.where(log_rho > 0, adjust_mm / (np.asarray(lag_k_s, dtype=np.float64)
-                                               * log_rho), np.inf)
-    return np.asarray(v)
-
-
-def drop_envelope(v_anchor_mm_s: float, lag_k_s: float, distance_mm: FloatArray, *,
-                  margin: float) -> FloatArray:
-    """Largest path speed ``d`` before a junction of speed ``v_J`` for a paced fall.
-
-    ``d ln Q/dt ≥ −m/K`` with ``Q = a·v`` and ``a`` constant is ``dv/ds ≥ −m/K``
-    (``d ln v/dt = v'(s)``), so ``v(d) = v_J + (m/K)·d``: the flow then decays as
-    ``exp(−m·t/K)``, the fastest the lag [001 Eq. 15] can follow with a feed of
-    ``(1 − m)·Q``.
-
-    Parameters
-    ----------
-    v_anchor_mm_s
-        Speed at the junction, mm/s.
-    lag_k_s
-        Lag factor ``K``, s.
-    distance_mm
-        Path distance before the junction, mm, shape ``(n,)``.
-    margin
-        ``m`` (0 < m < 1).
-
-    Returns
-    -------
-    ndarray
-        Speed bound, mm/s, shape ``(n,)``.
-    """
-    d = np.asarray(distance_mm, dtype=np.float64)
-    return np.asarray(v_anchor_mm_s + margin / lag_k_s * d)
-
-
-def rise_envelope(v_start_mm_s: float, accel_mm_s2: float, distance_mm: FloatArray
-                  ) -> FloatArray:
-    """Largest path speed ``s`` after a start when the flow may rise at ``a·A`` only.
-
-    The outflow rises at most as ``Q̇ ≤ V/K`` when the feed may exceed the intent by ``V``
-    (lag [001 Eq. 15]); with ``Q = a·v`` that is a path acceleration ``A = m·V/(K·a)``:
-    ``v(s) = sqrt(v₀² + 2·A·s)``.
-
-    Parameters
-    ----------
-    v_start_mm_s
-        Speed at the start, mm/s.
-    accel_mm_s2
-        Paced acceleration ``A``, mm/s².
-    distance_mm
-        Path distance after the start, mm, shape ``(n,)``.
-
-    Returns
-    -------
-    ndarray
-        Speed bound, mm/s.
-    """
-    s = np.maximum(np.asarray(distance_mm, dtype=np.float64), 0.0)
-    return np.asarray(np.sqrt(v_start_mm_s ** 2 + 2.0 * accel_mm_s2 * s))
-
-
-def staircase(length_mm: float, v_plan_mm_s: float, *, end_v_mm_s: float, end_slope_1_s: float,
-              start_v_mm_s: float, start_accel_mm_s2: float, step_ratio: float,
-              min_piece_mm: float, floor_mm_s: float) -> tuple[list[float], list[float]]:
-    """Cut a straight piece into sub-pieces whose speeds lie under both envelopes.
-
-    The bound at distance ``s`` from the start is
-    ``min(v_plan, end_v + g·(L − s), sqrt(start_v² + 2·A·s))``; a sub-piece runs at the
-    bound's minimum over its extent (the drop bound is smallest at the sub-piece's end, the
-    rise bound at its start), never below ``floor``. Cuts sit where the envelopes cross the
-    speed levels ``v·step_ratioᵏ``, so neighbouring feeds differ by about ``step_ratio``;
-    sub-pieces shorter than ``min_piece_mm`` are merged into the slower neighbour.
-
-    Parameters
-    ----------
-    length_mm
-        Length ``L`` of the piece, mm.
-    v_plan_mm_s
-        Planned top speed, mm/s (the result never exceeds it).
-    end_v_mm_s, end_slope_1_s
-        Drop envelope: speed at the piece's end and slope ``g = m/K``, 1/s (``inf`` end
-        speed: none).
-    start_v_mm_s, start_accel_mm_s2
-        Rise envelope: speed at the start and acceleration ``A``, mm/s² (``inf`` start
-        speed: none).
-    step_ratio
-        Feed ratio between sub-pieces.
-    min_piece_mm
-        Shortest sub-piece, mm.
-    floor_mm_s
-        Lowest speed, mm/s.
-
-    Returns
-    -------
-    tuple of list
-        End distances of the sub-pieces from the piece's start (last = ``L``) and their
-        speeds (``v_plan`` where the piece is not paced), mm and mm/s.
-    """
-    big = v_plan_mm_s * (1.0 - _SAME)
-    cuts = {0.0, length_mm}
-    q = step_ratio
-    if math.isfinite(end_v_mm_s) and end_v_mm_s < big:
-        level = max(end_v_mm_s, floor_mm_s, 1e-9)
-        while level < big:
-            d = (level - end_v_mm_s) / end_slope_1_s
-            if 0.0 < d < length_mm:
-                cuts.add(length_mm - d)
-            level *= q
-        d = (v_plan_mm_s - end_v_mm_s) / end_slope_1_s
-        if 0.0 < d < length_mm:
-            cuts.add(length_mm - d)
-    if math.isfinite(start_v_mm_s) and start_v_mm_s < big:
-        level = max(start_v_mm_s, floor_mm_s, 1e-9)
-        while level < big:
-            s = (level * level - start_v_mm_s ** 2) / (2.0 * start_accel_mm_s2)
-            if 0.0 < s < length_mm:
-                cuts.add(s)
-            level *= q
-        s = (v_plan_mm_s ** 2 - start_v_mm_s ** 2) / (2.0 * start_accel_mm_s2)
-        if 0.0 < s < length_mm:
-            cuts.add(s)
-    pts = sorted(cuts)
-    ends: list[float] = []
-    speeds: list[float] = []
-    for s0, s1 in itertools.pairwise(pts):
-        v = v_plan_mm_s
-        if math.isfinite(end_v_mm_s):
-            v = min(v, end_v_mm_s + end_slope_1_s * (length_mm - s1))
-        if math.isfinite(start_v_mm_s):
-            v = min(v, math.sqrt(start_v_mm_s ** 2 + 2.0 * start_accel_mm_s2 * s0))
-        v = max(v, min(floor_mm_s, v_plan_mm_s))
-        ends.append(s1)
-        speeds.append(v)
-    # merge short sub-pieces into the slower neighbour (keeps every speed under the bound)
-    k = 0
-    while len(ends) > 1 and k < len(ends):
-        start = ends[k - 1] if k > 0 else 0.0
-        if ends[k] - start >= min_piece_mm:
-            k += 1
-            continue
-        if k == 0:
-            j = 1
-        elif k == len(ends) - 1:
-            j = k - 1
-        else:
-            j = k - 1 if speeds[k - 1] <= speeds[k + 1] else k + 1
-        lo, hi = min(j, k), max(j, k)
-        speeds[lo] = min(speeds[lo], speeds[hi])
-        ends[lo] = ends[hi]
-        del ends[hi], speeds[hi]
-        k = max(lo - 1, 0) if lo == k else lo
-    # neighbours at the same speed become one
-    out_e: list[float] = []
-    out_v: list[float] = []
-    for e, v in zip(ends, speeds, strict=True):
-        if out_v and abs(out_v[-1] - v) <= _SAME * max(v, 1e-9):
-            out_e[-1] = e
-        else:
-            out_e.append(e)
-            out_v.append(v)
-    return out_e, out_v
-
-
 def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: float
                 ) -> FloatArray:
     """Largest ``a`` of the pieces within ``window_mm`` of path before the end of each
@@ -388,7 +216,8 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
                lag_k_s: FloatArray, volume_mm3: FloatArray, start_v_mm_s: FloatArray,
                cruise_v_mm_s: FloatArray, end_v_mm_s: FloatArray, t_start_s: FloatArray,
                t_end_s: FloatArray, speed_factor: FloatArray, push_mm3_s: float,
-               options: PaceOptions) -> tuple[Draft, PaceReport]:
+               options: PaceOptions, only: BoolArray | None = None,
+               no_pull: BoolArray | None = None) -> tuple[Draft, PaceReport]:
     """Cut the pieces that run faster than the pacing envelopes into slower staircases.
 
     Parameters
@@ -415,6 +244,12 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         ``inf``: no rise pacing).
     options
         The limits.
+    only
+        Pieces where a junction, a run end or a start may be paced (an envelope anchored
+        there still slows the pieces before or after it); ``None``: everywhere.
+    no_pull
+        Pieces paced as if the advance could not pull back (``pull_ratio`` 0 there: where
+        it was assumed and a spot remained); ``None``: none.
 
     Returns
     -------
@@ -443,7 +278,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     # walls fall in many small steps) is one step: the largest cross-section within
     # adjust_mm of path before the junction against the one after it
     a_ref = _window_max(a, length, nxt, options.adjust_mm)
-    fall = 1.0 + options.pull_ratio  # pulling back while slowing: the melt falls faster
+    # pulling back while slowing: the melt falls faster
+    fall = 1.0 + options.pull_ratio * (1.0 if no_pull is None else
+                                       ~np.asarray(no_pull, dtype=bool))
     step_cap = np.where(nxt & (a_ref > options.min_step * a_next), fall * step_speed_mm_s(
         a_ref, np.where(a_next > 0, a_next, 1.0), k_j, adjust_mm=options.adjust_mm), np.inf)
     # flow falls by min_drop: from the piece's top flow to the flow after the junction
@@ -461,6 +298,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         run_end &= (end_v < cv) & (a * cv > options.min_drop * q_after)
         anchor = np.where(run_end, end_v, anchor)
         drop = drop | run_end
+    allowed = np.ones(n, dtype=bool) if only is None else np.asarray(only, dtype=bool)
+    drop &= allowed
+    anchor = np.where(allowed, anchor, np.inf)
     report = PaceReport(paced_rows=np.zeros(0, dtype=np.int64),
                         drop_junctions=int(np.count_nonzero(drop)),
                         step_junctions=int(np.count_nonzero(drop & np.isfinite(step_cap)
@@ -476,6 +316,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     anc_l = anchor.tolist()
     pr_l = pr.tolist()
     nxt_l = nxt.tolist()
+    allowed_l = allowed.tolist()
     a_l = a.tolist()
     k_l = k.tolist()
     cv_l = cv.tolist()
@@ -489,7 +330,7 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
             bound = math.inf
             continue
         b = min(bound if nxt_l[i] else math.inf, anc_l[i])
-        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0:
+        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0 and allowed_l[i]:
             gap = ts_l[next_start] - te_l[i]
             if gap < options.gap_lags * k_l[i] and math.isfinite(next_flow):
                 carried = next_flow * math.exp(m * max(gap, 0.0) / k_l[i]) / a_l[i]
@@ -524,9 +365,9 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         q_carry[starts] = q
         with np.errstate(divide="ignore", invalid="ignore"):
             v_carry = np.where(a > 0, q_carry / np.where(a > 0, a, 1.0), 0.0)
-        start_ok = run_start & (a * cv > options.min_drop * q_carry)
+        start_ok = run_start & (a * cv > options.min_drop * q_carry) & allowed
         v0 = np.where(start_ok, np.maximum(sv, v_carry),
-                      np.where(rising, np.minimum(sv, cap_rise), np.inf))
+                      np.where(rising & allowed, np.minimum(sv, cap_rise), np.inf))
         report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))
         acc_l = acc.tolist()
         v0_l = v0.tolist()

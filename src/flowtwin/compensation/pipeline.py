@@ -246,14 +246,15 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         record.guard_cost_s = guarded.time_cost_s
     if pc is not None:
         step("pace")
-        paced = pace_stage(setting, current, pc)
+        paced = pace_stage(setting, current, pc, adv)
         current, record.pace = paced.current, paced.report
         if paced.applied:
             record.names.append("pace")
             record.pace_cost_s = paced.time_cost_s
     if adv is not None and not adv.is_identity:
         step("advance")
-        advanced = advance_stage(setting, current, adv, passes=advance_passes)
+        advanced = advance_stage(setting, current, adv, passes=advance_passes,
+                                 resume=None if pc is None else paced.advanced)
         current, record.passes = advanced.current, advanced.passes
         record.warnings.extend(advanced.warnings)
         if advanced.applied:

@@ -10,7 +10,7 @@ trajectory, guard, pace, advance, slip.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,7 @@ from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
 from flowtwin.compensation.slip import SlipOptions, slip_feedforward
+from flowtwin.compensation.spots import spot_pieces
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable
@@ -41,6 +42,7 @@ __all__ = ["AdvanceOutcome", "Current", "GuardOutcome", "PaceOutcome", "Setting"
            "pace_stage", "printing_pieces", "slip_stage", "trajectory_stage"]
 
 BoolArray = npt.NDArray[np.bool_]
+FloatArray = npt.NDArray[np.float64]
 
 #: The advance keeps the predicted feed force below this share of the grinding limit.
 _GRIND_MARGIN = 0.9
@@ -149,11 +151,13 @@ class GuardOutcome:
 @dataclass(frozen=True, slots=True)
 class PaceOutcome:
     """The paced draft, the pacing figures and the print time it cost, s (0 when nothing
-    was paced)."""
+    was paced); with the spots, also the one-pass advance of that draft the pacing was
+    judged by (the advance stage's first pass: it resumes from it)."""
 
     current: Current
     report: PaceReport
     time_cost_s: float
+    advanced: AdvanceOutcome | None = None
 
     @property
     def applied(self) -> bool:
@@ -234,9 +238,22 @@ def _guard_step(current: Current, original: OriginalFile,
                        printing, speed_factor, options)
 
 
-def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> PaceOutcome:
+def pace_stage(setting: Setting, current: Current, options: PaceOptions,
+               advance: AdvanceOptions | None = None) -> PaceOutcome:
     """Flow pacing on the current draft with the twin's lag factors and the plan's speeds
-    (:mod:`flowtwin.compensation.pace`)."""
+    (:mod:`flowtwin.compensation.pace`).
+
+    With ``options.spots``, only near the moves that ``advance`` (one pass, when given)
+    leaves beyond ``options.spot_error`` (:mod:`flowtwin.compensation.spots`); then again
+    with the spots the paced and advanced draft still has added, up to
+    ``options.spot_rounds`` times (pacing one junction can move the error to the next).
+    Of these drafts, and the one not paced, the one whose advanced trial has the smaller
+    of the larger ratios (RMS flow error, windowed peak over-extrusion over one nozzle
+    diameter; each after over before) is kept.
+    """
+    pull = 0.0 if advance is None or advance.is_identity else advance.retract_ratio
+    if options.pull_ratio > pull:  # the envelope may count only on the pull-back there is
+        options = replace(options, pull_ratio=pull)
     draft, sim = current.draft, current.sim
     time0 = sim.plan.timeline.total_time_s
     ph = sim.plan.timeline.phases
@@ -249,30 +266,80 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions) -> Pace
     limits = setting.limits
     push = (float(setting.twin.machine.filament.area_mm2)
             * min(limits.jump_mm_s, limits.max_e_speed_mm_s))
-    paced, report = pace_feeds(
-        draft, printing=printing_pieces(sim, draft), cross_section_mm2=area,
-        lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
-        volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
-        cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
-        end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
-        t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
-        t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
-        speed_factor=speed_factor, push_mm3_s=push, options=options)
-    if not report.paced_rows.size:
-        return PaceOutcome(Current(paced, sim), report, 0.0)
-    after = setting.twin.simulate_draft(paced)
-    return PaceOutcome(Current(paced, after), report, after.plan.timeline.total_time_s - time0)
+    printing = printing_pieces(sim, draft)
+
+    def paced_with(only: BoolArray | None, no_pull: BoolArray | None = None) -> PaceOutcome:
+        paced, report = pace_feeds(
+            draft, printing=printing, cross_section_mm2=area,
+            lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
+            volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
+            cruise_v_mm_s=np.asarray(ph["cruise_v"], dtype=np.float64),
+            end_v_mm_s=np.asarray(ph["end_v"], dtype=np.float64),
+            t_start_s=np.asarray(ph["t_start"], dtype=np.float64),
+            t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
+            speed_factor=speed_factor, push_mm3_s=push, options=options, only=only,
+            no_pull=no_pull)
+        if not report.paced_rows.size:
+            return PaceOutcome(Current(paced, sim), report, 0.0)
+        after = setting.twin.simulate_draft(paced)
+        return PaceOutcome(Current(paced, after), report,
+                           after.plan.timeline.total_time_s - time0)
+
+    if not options.spots:
+        return paced_with(None)
+
+    def advanced(cur: Current) -> AdvanceOutcome:
+        if advance is None or advance.is_identity:
+            return AdvanceOutcome(cur, (), False, ())
+        return advance_stage(setting, cur, advance, passes=1)
+
+    original = setting.original
+    window = float(setting.twin.machine.hotend.nozzle_diameter_mm)
+    before = flow_figures(original, original, np.arange(len(original.plan.table)),
+                          window_mm=window)
+
+    def judged(trial: AdvanceOutcome) -> tuple[float, FloatArray]:
+        """The larger of the trial's RMS and windowed peak over the original's (the
+        smaller the better), and its flow error per original move."""
+        f = flow_figures(original, trial.current.sim, trial.current.draft.row,
+                         window_mm=window)
+        rms = f.rms_flow_error / before.rms_flow_error if before.rms_flow_error > 0 else 0.0
+        peak = before.peak_overextrusion_window
+        win = max(f.peak_overextrusion_window, 0.0) / peak if peak > 0 else 0.0
+        return max(rms, win), f.flow_error
+
+    only = np.zeros(len(draft), dtype=bool)
+    stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
+    trial = advanced(current)
+    best_score, err = judged(trial)
+    best = replace(paced_with(only), advanced=trial)  # nothing paced: the draft as it is
+    for k in range(options.spot_rounds):
+        found = spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
+                            reach_mm=options.spot_reach_mm)
+        fresh = found & ~stubborn if k else found
+        if not np.any(fresh):
+            break
+        if k:  # still wrong after a paced round: pace there without the pull-back
+            stubborn |= found
+        only |= found
+        out = paced_with(only, stubborn)
+        trial = advanced(out.current)
+        score, err = judged(trial)
+        if score < best_score:
+            best_score, best = score, replace(out, advanced=trial)
+    return best
 
 
 def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *,
-                  passes: int) -> AdvanceOutcome:
+                  passes: int, resume: AdvanceOutcome | None = None) -> AdvanceOutcome:
     """Pressure advance baked into the E, in ``passes`` passes
     (:mod:`flowtwin.compensation.bake`).
 
     Every pass after the first is tried with the twin's correction of the model, and
     again without it when that raised the twin's RMS flow error; a pass that raises it
     all the same is dropped and ends the stage. The advance is computed and judged on
-    the file without the firmware's own advance.
+    the file without the firmware's own advance. ``resume``: the outcome of one pass of
+    this stage on the same ``current`` (the pacing's trial); the stage goes on from it.
     """
     twin = setting.twin
     start = (current.sim if not twin.pressure_advance
@@ -287,6 +354,14 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     done: set[int] = set()
     summaries: list[AdvancePassSummary] = []
     warnings: list[str] = []
+    if resume is not None and resume.passes and not twin.pressure_advance:
+        summaries, warnings = list(resume.passes), list(resume.warnings)
+        done.add(0)
+        if resume.applied:
+            kept, kept_rms = resume.current, summaries[-1].rms_flow_error
+            draft, cur = kept.draft, kept.sim
+        else:  # the first pass raised the RMS: the stage ends there
+            attempts = []
     for k, ilc in attempts:
         if k in done:
             continue

@@ -332,15 +332,12 @@ def postprocess(gcode: str | os.PathLike[str], options: PostprocessOptions | Non
 
         streamed = opts.stream if opts.stream is not None else is_large(path)
         settings = ctx.settings(None)
-        if settings is None and streamed:
+        if settings is None:
+            # the embedded block from the comments alone: planning the file here, before
+            # the printer that chooses the reader's options is known, would read it twice
             from flowtwin.postprocess.stream import slicer_config_streamed
 
             settings = ctx.settings(slicer_config_streamed(path))
-        elif settings is None:
-            from flowtwin.gcode.reader import read_gcode
-
-            settings = ctx.settings(read_gcode(path).metadata.get("slicer_config")  # type: ignore[arg-type]
-                                    )
         choice = resolve_printer(setup=opts.setup, klipper_config=cfg, settings=settings,
                                  config_source=cfg_source)
         if streamed:

@@ -41,6 +41,17 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    teeth reach ``R_c + δ`` (the bite and a margin, :data:`TOOTH_REACH_MM`), so rows within
    ``√((R_c + δ)² − R_c²)`` of the axis's row see teeth over the edge. A ``before`` ROI
    that reaches them is refused.
+4. **Stripes along the filament.** Texture that runs along the filament moves along
+   itself: it never changes in the image, so neither the frame groups' means nor the
+   rows' mean average it out. Foreshortened towards the limb it becomes a ripple finer
+   than the blur, which the edge model takes for the limb's shading and moves the
+   silhouette with (renderer 2: both edges 0.24–0.57 px off, the width up to 0.63 px
+   in every frame of a clip, or right by the two errors' chance cancellation). Further
+   in, where the stripes are resolved, the profile departs from a smoothly shaded
+   cylinder (:func:`~flowtwin.vision.silhouette.interior_ripple`); when it does by more
+   than :data:`RIPPLE_MAX` of the edge's contrast beside either edge (median over the
+   groups' means), every width of the clip is refused: the image does not tell the
+   silhouette from the stripes to half a pixel.
 """
 
 from __future__ import annotations
@@ -54,12 +65,12 @@ import numpy.typing as npt
 
 from flowtwin.vision.readings import Quality
 from flowtwin.vision.roi import Roi
-from flowtwin.vision.silhouette import Silhouette, clip_model
+from flowtwin.vision.silhouette import Silhouette, clip_model, interior_ripple
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
 
-__all__ = ["BLUR_FRAMES", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO", "TOOTH_REACH_MM",
-           "ClipWidth", "contact_rows", "is_clean"]
+__all__ = ["BLUR_FRAMES", "RIPPLE_MAX", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO",
+           "TOOTH_REACH_MM", "ClipWidth", "contact_rows", "is_clean"]
 
 #: Frames whose blur is fitted freely before the clip's blur is fixed.
 BLUR_FRAMES = 15
@@ -78,6 +89,13 @@ ROUGH_PX = 0.6
 ROUGH_RATIO = 2.0
 #: An edge scattering more than this is refused whatever the other does, px.
 ROUGH_MAX_PX = 1.5
+#: Largest ripple of the filament's interior beside an edge (the median over the frame
+#: groups' means, :func:`~flowtwin.vision.silhouette.interior_ripple`), as a fraction
+#: of the edge's contrast, for which the silhouette is taken to be resolved from its
+#: texture (module docstring, 4): 0.2–1.4 % on renderer 2's clips without strong stripes
+#: and on the real clip of [003]; 3.2–7.2 % on the two striped seeds, whose edges read
+#: 0.24–0.57 px off.
+RIPPLE_MAX = 0.025
 #: Height of the row bands of the frame-wide reference scan, rows.
 REFERENCE_BAND_ROWS = 32
 #: The ROI's width may differ from the filament's width elsewhere in the frame by this
@@ -190,6 +208,7 @@ class ClipWidth:
     _groups: FrameGroups = field(default_factory=FrameGroups)
     _stored: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
     _scatter: list[tuple[float, float]] = field(default_factory=list)
+    _ripple: list[tuple[float, float]] = field(default_factory=list)
 
     def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
         """Width of one frame's ``before`` crop. Until the clip's blur is fixed, the
@@ -311,7 +330,12 @@ class ClipWidth:
                                   expected_px=self.expected_px, blur_px=self.blur_px,
                                   fit=False) for mean in self._groups.means]
         fitted = refit_widths(found, self.blur_px, self.roi.h, self.expected_px)
-        return [em.silhouette for em in fitted if em.ok and em.silhouette is not None]
+        ok = [(mean, em) for mean, em in zip(self._groups.means, fitted, strict=True)
+              if em.ok and em.silhouette is not None and em.lines is not None]
+        self._ripple = [interior_ripple(mean, np.flatnonzero(em.row_used), em.lines,
+                                        em.silhouette, 0.5 * em.width_px)
+                        for mean, em in ok if em.silhouette is not None and em.lines]
+        return [em.silhouette for _, em in ok if em.silhouette is not None]
 
     def finish(self, rows: RowLog, gear_center_px: tuple[float, float] | None,
                mm_per_px: float | None) -> str | None:
@@ -334,6 +358,8 @@ class ClipWidth:
         """
         self._refit_all(rows)
         note = self.rough_edges()
+        if note is None:
+            note = self.striped()
         if note is None:
             note = self.against_reference(rows)
         if note is None and gear_center_px is not None:
@@ -359,6 +385,24 @@ class ClipWidth:
                     f"the other edge {other:.1f} px) - gear teeth over the edge or teeth "
                     "marks in it; place the before ROI where the filament runs clear")
         return None
+
+    def striped(self) -> str | None:
+        """Why the silhouettes cannot be told from the texture next to them (None if
+        they can, or without frame groups): a ripple of the interior above
+        :data:`RIPPLE_MAX` of the contrast beside either edge."""
+        rp = np.array([r for r in self._ripple if math.isfinite(r[0] + r[1])])
+        if rp.size == 0:
+            return None
+        left, right = (float(v) for v in np.median(rp, axis=0))
+        worst, name = max((left, "left"), (right, "right"))
+        if worst <= RIPPLE_MAX:
+            return None
+        return (f"the filament's interior beside its {name} edge is striped: it departs "
+                f"from a smoothly shaded cylinder by {100 * worst:.1f} % of the edge's "
+                f"contrast (median over {len(rp)} groups of frames; at most "
+                f"{100 * RIPPLE_MAX:.1f} % allowed) - stripes along the filament do not "
+                "move in the image and, foreshortened at the limb, cannot be told from "
+                "its edge; the width could be off by more than half a pixel")
 
     def against_reference(self, rows: RowLog) -> str | None:
         """Why the ROI's width is not the filament's elsewhere in the frame (None if it

@@ -30,8 +30,9 @@ from flowtwin.vision.edge_model import (
     stack_profiles,
 )
 
-__all__ = ["IN_PX", "NO_FIT", "OUT_PX", "Silhouette", "clip_model", "edge_profiles",
-           "fit_silhouette", "fit_silhouettes"]
+__all__ = ["IN_PX", "NO_FIT", "OUT_PX", "RIPPLE_FROM_PX", "RIPPLE_TO_RADIUS", "Silhouette",
+           "clip_model", "edge_profiles", "fit_silhouette", "fit_silhouettes",
+           "interior_ripple"]
 
 F64 = npt.NDArray[np.float64]
 
@@ -39,6 +40,10 @@ F64 = npt.NDArray[np.float64]
 #: Extent of the edge profiles: outside the filament (background) and inside, px.
 OUT_PX = 6
 IN_PX = 10
+#: The interior span whose smoothness :func:`interior_ripple` measures: from this many px
+#: inside the silhouette (clear of the blurred limb) to this fraction of the radius.
+RIPPLE_FROM_PX = 2.5
+RIPPLE_TO_RADIUS = 0.33
 #: Outside the edge, samples beyond the point where the profile turns back from the
 #: background by this fraction of the edge's contrast (another object: a gear rim) are
 #: left out.
@@ -294,3 +299,56 @@ def clip_model(pairs: list[tuple[EdgeProfile, EdgeProfile]],
     al, _ = _parabola_min(res[0::2].sum(axis=0), _MIXES)
     ar, _ = _parabola_min(res[1::2].sum(axis=0), _MIXES)
     return sigma, (al, ar)
+
+
+def interior_ripple(grey: npt.NDArray[np.float32], rows: npt.NDArray[np.intp],
+                    lines: tuple[tuple[float, float], tuple[float, float]], sil: Silhouette,
+                    radius_px: float) -> tuple[float, float]:
+    """How far the filament's interior next to each edge departs from a smooth shaded
+    cylinder, as a fraction of the edge's contrast.
+
+    A front-lit cylinder's radiance inward of its limb is a smooth function of
+    ``cos θ = √(2d/R − d²/R²)`` (:mod:`~flowtwin.vision.edge_model`), so over
+    ``d`` from :data:`RIPPLE_FROM_PX` to :data:`RIPPLE_TO_RADIUS` · ``R`` the edge-aligned
+    mean profile is a cubic in ``√d`` to well within the noise. Structure that survives
+    the mean over the rows runs *along* the filament — stripes of its texture, which
+    move along themselves and so never change in the image. Foreshortened towards the
+    limb, such a stripe there is a ripple finer than the blur, which the edge model
+    takes for limb shading and the edge's position; its amplitude further in, where it
+    is resolved, is this measure: the rms departure of the profile from its best cubic
+    in ``√d``, over the edge's contrast (:attr:`EdgeFit.contrast_dn`).
+
+    Parameters
+    ----------
+    grey
+        Image crop (e.g. a mean of several frames), shape ``(H, W)``.
+    rows
+        Rows on both edge lines.
+    lines
+        ``(slope, intercept)`` of the left and right edge lines in crop coordinates.
+    sil
+        The fitted silhouette (``ok``) of that crop.
+    radius_px
+        The filament's radius, px.
+
+    Returns
+    -------
+    tuple of float
+        Left and right ripple, fractions of the contrast (NaN where the span has fewer
+        than 8 samples inside the crop).
+    """
+    out = []
+    d_max = RIPPLE_TO_RADIUS * radius_px
+    for (a, b), inside, fit in ((lines[0], 1, sil.left), (lines[1], -1, sil.right)):
+        p = aligned_profile(grey, rows, a, b, inside, 0, math.ceil(d_max) + 2)
+        d = p.inside * p.offset_px - fit.offset_px * inside
+        m = (d >= RIPPLE_FROM_PX) & (d <= d_max)
+        if int(m.sum()) < 8 or not math.isfinite(fit.contrast_dn):
+            out.append(math.nan)
+            continue
+        s = np.sqrt(d[m])
+        x = np.stack([np.ones_like(s), s, s * s, s * s * s], axis=1)
+        coef, *_ = np.linalg.lstsq(x, p.value_dn[m], rcond=None)
+        res = p.value_dn[m] - x @ coef
+        out.append(float(np.sqrt(np.mean(res * res))) / max(abs(fit.contrast_dn), 1.0))
+    return out[0], out[1]

@@ -1,0 +1,91 @@
+"""Where the pacing is needed: the spots the advance alone leaves wrong.
+
+The flow pacing (:mod:`flowtwin.compensation.pace`) slows the path wherever the intended
+flow changes faster than the melt's lag follows. Most of those changes the baked advance
+already meets: it pushes ahead of a rise and pulls back in a deceleration. Slowing them all
+costs print time for nothing. So the pacing may be placed only near the *spots*: the
+original moves whose flow error, after an advance computed without pacing and simulated by
+the twin, is still beyond a tolerance (``Σ delivered / commanded − 1``,
+:func:`flowtwin.compensation.metrics.flow_figures`). A junction, a run end or a start is
+paced when a spot lies within ``reach_mm`` of printed path of it, before or after: the
+melt's stored volume lands on the stretch after a falling junction and the shortfall of a
+start follows it, each over ``K·v`` of path (0.5–10 mm at ``K`` 0.05–0.1 s and 10–100 mm/s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.errors import DataError
+
+__all__ = ["spot_pieces"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+def spot_pieces(flow_error: FloatArray, piece_row: IntArray, length_mm: FloatArray,
+                printing: BoolArray, *, tolerance: float, reach_mm: float) -> BoolArray:
+    """Pieces within ``reach_mm`` of printed path of a move whose flow error exceeds
+    ``tolerance``.
+
+    Parameters
+    ----------
+    flow_error
+        Flow error of every original move (fraction; 0 where a move does not print),
+        shape ``(n_moves,)``.
+    piece_row
+        Original move of every piece of the draft to pace, shape ``(n,)``.
+    length_mm
+        Path length of every piece, mm, shape ``(n,)``.
+    printing
+        Pieces that print, shape ``(n,)``; the path is measured along them only, so a
+        travel between two runs adds none (a run end and the next start are neighbours).
+    tolerance
+        Largest flow error left alone (fraction, > 0).
+    reach_mm
+        Printed path within which a spot makes a piece pace-able, mm (≥ 0).
+
+    Returns
+    -------
+    ndarray of bool
+        Shape ``(n,)``.
+
+    Raises
+    ------
+    DataError
+        Arrays of different lengths, a row outside ``flow_error``, or a bad tolerance or
+        reach.
+    """
+    err = np.asarray(flow_error, dtype=np.float64)
+    row = np.asarray(piece_row, dtype=np.int64)
+    length = np.asarray(length_mm, dtype=np.float64)
+    pr = np.asarray(printing, dtype=bool)
+    if not (row.shape == length.shape == pr.shape):
+        raise DataError("piece arrays differ in length", field="piece_row",
+                        value=(row.shape, length.shape, pr.shape), allowed="one per piece")
+    if row.size and (row.min() < 0 or row.max() >= err.size):
+        raise DataError("piece maps to no original move", field="piece_row",
+                        value=int(row.max()), allowed=f"0 .. {err.size - 1}")
+    if not (np.isfinite(tolerance) and tolerance > 0.0):
+        raise DataError("spot tolerance must be positive", field="tolerance",
+                        value=tolerance, allowed="> 0")
+    if not (np.isfinite(reach_mm) and reach_mm >= 0.0):
+        raise DataError("spot reach must not be negative", field="reach_mm",
+                        value=reach_mm, allowed=">= 0 mm")
+    bad = pr & (np.abs(err[row]) > tolerance)
+    if not bad.any():
+        return np.zeros(row.size, dtype=bool)
+    end = np.cumsum(np.where(pr, length, 0.0))  # printed path at the end of every piece
+    begin = end - np.where(pr, length, 0.0)
+    spot_begin, spot_end = begin[bad], end[bad]  # both non-decreasing
+    # nearest spot ending at or after the piece's start, and starting at or before its end
+    after = np.searchsorted(spot_end, begin, side="left")
+    before = np.searchsorted(spot_begin, end, side="right") - 1
+    gap_after = np.where(after < spot_begin.size,
+                         spot_begin[np.minimum(after, spot_begin.size - 1)] - end, np.inf)
+    gap_before = np.where(before >= 0, begin - spot_end[np.maximum(before, 0)], np.inf)
+    return np.asarray(np.minimum(np.maximum(gap_after, 0.0), np.maximum(gap_before, 0.0))
+                      <= reach_mm)
