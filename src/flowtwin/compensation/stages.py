@@ -358,8 +358,9 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         summaries, warnings = list(resume.passes), list(resume.warnings)
         done.add(0)
         if resume.applied:
-            kept, kept_rms = resume.current, summaries[-1].rms_flow_error
-            draft, cur = kept.draft, kept.sim
+            kept_draft, kept_sim = resume.current.draft, resume.current.sim
+            kept_rms = summaries[-1].rms_flow_error
+            draft, cur = kept_draft, kept_sim
         else:  # the first pass raised the RMS: the stage ends there
             attempts = []
     for k, ilc in attempts:
