@@ -103,3 +103,24 @@ def test_a_prusa_file_without_progress_lines_gets_both_modes(pph: Any, tmp_path:
     assert text[normal[0]] == f"M73 P0 R{int((total + 0.5) / 60)}"
     assert text[silent[0]] == f"M73 Q0 S{int((quiet + 0.5) / 60)}"
     assert (text[normal[-1]], text[silent[-1]]) == ("M73 P100 R0", "M73 Q100 S0")
+
+
+def test_the_candidate_lines_are_the_expressions_matches() -> None:
+    """The scan tries its expression only on lines holding one of its needles: the same
+    matches as the expression over the whole text, on every corpus file and on edge
+    cases (upper case, CRLF, a mid-line M73, a last line without an ending)."""
+    import gzip
+
+    from flowtwin.postprocess.scan import _CANDIDATE, _candidates
+
+    from .conftest import CORPUS
+
+    texts = [gzip.decompress(f.read_bytes()) for f in sorted(CORPUS.glob("*.gcode.gz"))]
+    texts.append(b"M73 P0 R5\r\n;TIME:120\r\nG1 X1 ; M73 P1\n  M600\n; Print TIME = 1h\n"
+                 b"M730\n;timelapse\n; postprocessed by flowtwin 0.1\nM601")
+    found = 0
+    for text in texts:
+        got = [(m.start(), m.group(0)) for m in _candidates(text)]
+        assert got == [(m.start(), m.group(0)) for m in _CANDIDATE.finditer(text)]
+        found += len(got)
+    assert found > 100

@@ -122,3 +122,36 @@ def test_path_lengths_and_bad_input() -> None:
         windowed_flow(np.ones(2), np.ones(3), np.ones(2), np.ones(2, bool), window_mm=0.4)
     empty = windowed_flow(np.ones(2), np.ones(2), np.ones(2), np.zeros(2, bool), window_mm=0.4)
     assert empty.peak_over == 0.0 and empty.worst_over == () and np.isnan(empty.centred_error).all()
+
+
+@pytest.mark.parametrize("ties", [False, True])
+def test_spots_from_the_partial_sort_are_the_full_sorts(monkeypatch: pytest.MonkeyPatch,
+                                                        ties: bool) -> None:
+    """The worst windows are looked for among the few hundred worst candidates first (a
+    partial sort); the spots are those of the sort of every candidate, ties included."""
+    import flowtwin.simulation.windowed as windowed
+
+    rng = np.random.default_rng(11)
+    n = 30_000
+    length = rng.exponential(0.5, n) * (rng.random(n) < 0.95)
+    cmd = rng.exponential(0.05, n)
+    dlv = cmd * (1.0 + rng.normal(0.0, 0.3, n))
+    if ties:
+        dlv = cmd.copy()
+        dlv[::7] *= 1.5
+        dlv[3::11] *= 0.5
+    printed = (length > 0) & (rng.random(n) < 0.97)
+    fields = ("error", "first_move", "last_move", "centre_move", "length_mm",
+              "commanded_mm3", "delivered_mm3")
+
+    def spots(s: int) -> tuple[list[tuple[object, ...]], list[tuple[object, ...]]]:
+        wf = windowed_flow(length, cmd, dlv, printed, window_mm=0.4, spots=s)
+        return ([tuple(getattr(x, f) for f in fields) for x in wf.worst_over],
+                [tuple(getattr(x, f) for f in fields) for x in wf.worst_under])
+
+    partial = {s: spots(s) for s in (1, 10, 40)}
+    monkeypatch.setattr(windowed, "_HEAD_PER_SPOT", 10**9)  # every candidate sorted
+    for s, got in partial.items():
+        assert got == spots(s)
+        assert len(got[0]) == s and len(got[1]) == s
+

@@ -85,7 +85,7 @@ def scan_gcode(source: str | os.PathLike[str], wanted: Iterable[int] = ()) -> Sc
             if out.first_command is None:
                 out.first_command = _first_command(chunk, base)
             pos, line = 0, base + 1
-            for m in _CANDIDATE.finditer(chunk):
+            for m in _candidates(chunk):
                 line += chunk.count(b"\n", pos, m.start())
                 pos = m.start()
                 raw = m.group(0)
@@ -108,6 +108,30 @@ def scan_gcode(source: str | os.PathLike[str], wanted: Iterable[int] = ()) -> Sc
     finally:
         stream.close()
     out.lines = base
+    return out
+
+
+#: What every candidate line holds (lower case): the expression is tried only there.
+_NEEDLES = (b"m73", b"m600", b"m601", b"time", b"postprocessed by flowtwin")
+
+
+def _candidates(chunk: bytes) -> list[re.Match[bytes]]:
+    """The matches of ``_CANDIDATE`` in ``chunk``, in order: the expression is tried at
+    the starts of the lines that hold one of ``_NEEDLES`` (found by substring search,
+    much faster than the expression over every line)."""
+    low = chunk.lower()
+    starts: set[int] = set()
+    for needle in _NEEDLES:
+        at = low.find(needle)
+        while at >= 0:
+            starts.add(low.rfind(b"\n", 0, at) + 1)
+            end = low.find(b"\n", at)
+            at = -1 if end < 0 else low.find(needle, end)
+    out = []
+    for start in sorted(starts):
+        m = _CANDIDATE.match(chunk, start)
+        if m is not None:
+            out.append(m)
     return out
 
 

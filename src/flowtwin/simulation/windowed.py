@@ -37,6 +37,9 @@ from flowtwin.errors import DataError
 
 __all__ = ["Window", "WindowedFlow", "path_lengths_mm", "windowed_flow"]
 
+#: Candidate windows sorted first per spot asked for (the rest only when these overlap).
+_HEAD_PER_SPOT = 64
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -233,9 +236,20 @@ def windowed_flow(path_mm: npt.ArrayLike, commanded_mm3: npt.ArrayLike,
     if spots <= 0:
         return WindowedFlow(w, peak_over, peak_under, (), (), centred, move_max, move_min)
     valid = np.flatnonzero(ok)
-    over_order = valid[np.argsort(-err[valid], kind="stable")]
-    under_order = valid[np.argsort(err[valid], kind="stable")]
-    worst_over = pick(over_order[err[over_order] > 0.0])
-    worst_under = pick(under_order[err[under_order] < 0.0])
-    return WindowedFlow(w, peak_over, peak_under, worst_over, worst_under, centred, move_max,
+
+    def worst(key: FloatArray) -> tuple[Window, ...]:
+        # candidates with key < 0, by key then position (a stable sort's order); the
+        # few hundred smallest keys are sorted first, which finds the separate spots
+        # unless those candidates overlap too much (then all of them are sorted)
+        cand = valid[key[valid] < 0.0]
+        k = _HEAD_PER_SPOT * spots
+        if cand.size > 4 * k:
+            thr = np.partition(key[cand], k)[k]
+            head = cand[key[cand] <= thr]
+            found = pick(head[np.argsort(key[head], kind="stable")])
+            if len(found) >= spots:
+                return found
+        return pick(cand[np.argsort(key[cand], kind="stable")])
+
+    return WindowedFlow(w, peak_over, peak_under, worst(-err), worst(err), centred, move_max,
                         move_min)
