@@ -295,7 +295,8 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     ``|c_p − c_(p−1)| ≤ j_p`` between neighbouring pieces of a run (a larger step makes the
     planner slow the junction down: Marlin's E jerk, Klipper's extruder corner velocity,
     :mod:`flowtwin.compensation.limits`) is a banded convex QP
-    (:func:`flowtwin.compensation._qp.solve_box_qp`).
+    (:func:`flowtwin.compensation._qp.solve_program`, assembled by
+    :mod:`flowtwin.compensation.program`).
 
     A relieved travel (a retraction whose push-back leaves the column relaxed, see
     :func:`flowtwin.compensation.bake.advance_pass`) starts the next run from ``x = 0``;
