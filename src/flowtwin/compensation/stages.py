@@ -247,9 +247,9 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
     leaves beyond ``options.spot_error`` (:mod:`flowtwin.compensation.spots`); then again
     with the spots the paced and advanced draft still has added, up to
     ``options.spot_rounds`` times (pacing one junction can move the error to the next).
-    Of these drafts, and the one not paced, the one whose advanced trial has the smaller
-    of the larger ratios (RMS flow error, windowed peak over-extrusion over one nozzle
-    diameter; each after over before) is kept.
+    Of these drafts, and the one not paced, the one whose advanced trial scores best is
+    kept: the score is the larger of two ratios, after over before, of the RMS flow error
+    and of the windowed peak over-extrusion over one nozzle diameter (smaller is better).
     """
     pull = 0.0 if advance is None or advance.is_identity else advance.retract_ratio
     if options.pull_ratio > pull:  # the envelope may count only on the pull-back there is
@@ -312,7 +312,9 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
     stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
     trial = advanced(current)
     best_score, err = judged(trial)
-    best = replace(paced_with(only), advanced=trial)  # nothing paced: the draft as it is
+    # nothing paced: the draft as it is (what pace_feeds gives with no piece allowed)
+    best = PaceOutcome(current, PaceReport(paced_rows=np.zeros(0, dtype=np.int64)), 0.0,
+                       advanced=trial)
     for k in range(options.spot_rounds):
         found = spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
                             reach_mm=options.spot_reach_mm)
