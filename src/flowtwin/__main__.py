@@ -1,5 +1,5 @@
 """``python -m flowtwin``: the ``flowtwin`` command."""
 
-from flowtwin.cli.main import main
+from flowtwin.cli.main import run
 
-main()
+run()

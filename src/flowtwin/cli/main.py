@@ -10,6 +10,7 @@ exit status (never a traceback to a user).
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import sys
@@ -25,7 +26,7 @@ from flowtwin.errors import FlowtwinError, file_access_error
 if TYPE_CHECKING:
     from rich.console import Console
 
-__all__ = ["COMMANDS", "app", "build_app", "main"]
+__all__ = ["COMMANDS", "app", "build_app", "main", "run"]
 
 #: Every command of ``flowtwin``: name -> (module under ``flowtwin.cli`` whose
 #: ``register(app)`` adds it, the line ``flowtwin --help`` shows for it). A module is imported
@@ -166,6 +167,44 @@ def main(argv: list[str] | None = None) -> None:
         if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C or our SIGTERM)
             _interrupted(terminated)
         sys.exit(code if isinstance(code, int) else 0)
+
+
+#: Seconds from the start of a ``flowtwin`` process without automatic garbage collection.
+GC_PAUSE_S = 1.0
+
+
+def run() -> None:
+    """The ``flowtwin`` process: :func:`main`, with the garbage collector kept off the
+    start-up and the exit.
+
+    A command's first second imports numpy, numba, pydantic and flowtwin and loads its
+    kernels: ~100 k objects that live as long as the process. CPython's collector would
+    traverse all of them in each full collection it starts meanwhile (0.05-0.12 s on a
+    Benchy post-process), and again in the collections of the interpreter's exit
+    (0.15-0.2 s). So automatic collection is off for :data:`GC_PAUSE_S`, after which
+    everything then alive is frozen (:func:`gc.freeze`: left to reference counting, never
+    traversed again) and collection resumes for the rest of a long command; at exit the
+    same freeze skips the teardown's passes. Reference counting, ``__del__`` and the exit
+    handlers run as always, and a process forked meanwhile collects from its start. Only
+    the process entry points call this, never :func:`main` run inside another program (a
+    test), whose garbage must stay collectable. Measured in docs/performance.md.
+    """
+    gc.disable()
+    resume = threading.Timer(GC_PAUSE_S, _resume_collection)
+    resume.daemon = True
+    resume.start()
+    os.register_at_fork(after_in_child=gc.enable)
+    try:
+        main()
+    finally:
+        resume.cancel()
+        gc.freeze()
+
+
+def _resume_collection() -> None:
+    """End of the start-up: freeze what is alive, collect what comes after."""
+    gc.freeze()
+    gc.enable()
 
 
 def _err() -> Console:

@@ -34,7 +34,7 @@ from flowtwin.planner.totals import PlanTotals
 from flowtwin.profiles.printer import PrinterProfile
 
 __all__ = ["DEFAULT_PRINTER", "PlanResult", "PlanSummary", "load_printer", "metadata_number",
-           "plan_gcode", "plan_table"]
+           "plan_for_profile", "plan_gcode", "plan_table"]
 
 
 
@@ -206,6 +206,30 @@ def plan_gcode(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                           ksettings)
     profile = load_printer(printer)
     table = read_gcode(source, options=read_options(profile, strict=strict))
+    return plan_for_profile(table, profile, use_slicer_limits=use_slicer_limits)
+
+
+def plan_for_profile(table: MoveTable, profile: PrinterProfile, *,
+                     use_slicer_limits: bool = False) -> PlanResult:
+    """Plan a move table read with ``read_options(profile)`` as ``profile``'s firmware would.
+
+    The planning half of :func:`plan_gcode`: a caller that plans one print for several
+    printer profiles (another advance factor, say) reads it once and calls this.
+
+    Parameters
+    ----------
+    table
+        The moves, read with :func:`~flowtwin.planner.from_profile.read_options` of
+        ``profile`` (not yet segmented for a delta).
+    profile
+        The printer.
+    use_slicer_limits
+        As in :func:`plan_gcode`.
+
+    Returns
+    -------
+    PlanResult
+    """
     if profile.firmware.planner is PlannerFamily.KLIPPER:
         ks = klipper_settings(profile)
         return PlanResult(table, plan_klipper(table, ks), profile.name, ks)

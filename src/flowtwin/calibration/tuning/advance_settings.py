@@ -38,9 +38,11 @@ from flowtwin.firmware import (
 )
 from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, WordFormats, format_number
 from flowtwin.gcode.generator import PrintSpec, generate_print
-from flowtwin.gcode.moves import MoveKind
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.gcode.reader import read_gcode
 from flowtwin.physics.deposition import bead_area_mm2
-from flowtwin.planner.plan_file import PlanResult, plan_gcode
+from flowtwin.planner.from_profile import read_options
+from flowtwin.planner.plan_file import PlanResult, plan_for_profile, plan_gcode
 from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.scalar_search import bounded_minimum
@@ -116,6 +118,7 @@ class _Scorer:
         self.smooth = (printer.pa_smooth_time_s or printer.pressure_advance.smooth_time_s
                        or DEFAULT_SMOOTH_TIME_S)
         self._plans: dict[float, tuple[PlanResult, object]] = {}
+        self._table: MoveTable | None = None
         base = self._plan(0.0)[0]
         mv = base.table.moves
         if not np.any((mv["kind"] & MoveKind.EXTRUDE) != 0):
@@ -131,7 +134,9 @@ class _Scorer:
                 pr = self.machine.printer
                 printer = pr.model_copy(update={"pressure_advance": pr.pressure_advance
                                                 .model_copy(update={"k_s": key})})
-                plan = plan_gcode(self.source, printer=printer)
+                if self._table is None:  # K changes the planning, not the reading
+                    self._table = read_gcode(self.source, options=read_options(printer))
+                plan = plan_for_profile(self._table, printer)
             params = move_parameters(self.machine, plan.table, plan.timeline)
             if len(self._plans) > 64:
                 self._plans.clear()
