@@ -47,23 +47,10 @@ def _slicer_env(text: str, output: Path) -> dict[str, str]:
     return env
 
 
-#: A fresh interpreter that loads only the ``postprocess`` command, as a lazy command table
-#: does (``flowtwin`` itself imports every command module on this branch).
-LEAN = ("import sys, typer\n"
-        "from flowtwin.cli import postprocess as p\n"
-        "app = typer.Typer(add_completion=False)\n"
-        "p.register(app)\n"
-        "app.callback()(lambda: None)\n"
-        "app(args=sys.argv[1:])\n")
-
-
 def _run(args: list[str], gcode: Path, env: dict[str, str]) -> tuple[float, float, float]:
-    """(wall s, CPU s, peak RSS MB) of one fresh process: ``flowtwin ARGS FILE``, or the
-    lean entry when ``args`` starts with ``"lean"``."""
-    exe = [sys.executable, "-c", LEAN] if args[:1] == ["lean"] else [FLOWTWIN]
-    args = args[1:] if args[:1] == ["lean"] else args
+    """(wall s, CPU s, peak RSS MB) of one fresh process: ``flowtwin ARGS FILE``."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen([*exe, *args, str(gcode)], env=env,
+    proc = subprocess.Popen([FLOWTWIN, *args, str(gcode)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
@@ -127,9 +114,6 @@ def run(quick: bool = False) -> dict[str, object]:
         results["times_and_verdict"] = _series(
             "postprocess (slicer settings), 180 k lines", ["postprocess"], text, folder, env,
             runs)
-        results["lean_entry"] = _series(
-            "same, lean entry (only the command loaded)", ["lean", "postprocess"], text,
-            folder, env, runs)
         results["in_process"] = _in_process(text, folder, env, runs)
         results["klipper"] = _series(
             "postprocess --klipper-config, 180 k lines",
