@@ -507,6 +507,31 @@ class _Reader:
 
 # -------------------------------------------------------------------------- public API ---
 
+def _check_extrusion_axis(metadata: dict[str, object], name: str) -> None:
+    """Refuse a file whose slicer moved the extruder on another axis than ``E``.
+
+    Slic3r's ``extrusion_axis`` setting, and PrusaSlicer's ``mach3`` and ``machinekit``
+    flavors (which write the extruder on ``A`` whatever ``extrusion_axis`` says: PrusaSlicer
+    2.5 embeds ``extrusion_axis = E`` in such a file), put the extruder's moves in words
+    such as ``G1 … A1.234``; read for ``E`` they would be a print that extrudes nothing.
+    """
+    config = metadata.get("slicer_config")
+    if not isinstance(config, dict):
+        return
+    axis = str(config.get("extrusion_axis", "E")).strip()
+    flavor = str(config.get("gcode_flavor", "")).strip()
+    if axis in ("", "E") and flavor in ("mach3", "machinekit"):
+        axis, field = "A", "gcode_flavor"
+    else:
+        field = "extrusion_axis"
+    if axis not in ("", "E"):
+        raise GcodeError(f"the slicer wrote the extruder's moves on axis {axis}, not E: "
+                         "flowtwin reads extrusion from E words only", source=name,
+                         field=field, value=flavor if field == "gcode_flavor" else axis,
+                         allowed="an extruder on E (extrusion_axis = E; a flavor other than "
+                         "mach3 or machinekit)")
+
+
 def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                      options: ReadOptions | None = None,
                      chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Iterator[MoveTable]:
@@ -569,6 +594,7 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
                                    "(truncated?)")
         last.metadata = reader.comments.finish()
         last.metadata.pop("_layer_mode", None)
+        _check_extrusion_axis(last.metadata, name)
         last.features = list(reader.comments.features)
         last.layer_z = list(reader.layer_z)
         last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))

@@ -1,5 +1,7 @@
-"""CuraEngine's volumetric flavors: E in mm³ from the header on (``;FLAVOR:UltiGCode``,
-``;FLAVOR:Marlin(Volumetric)``), and the placeholders of its header are not estimates.
+"""Slicer flavors that change what E means: CuraEngine's volumetric flavors read in mm³
+from the header on (``;FLAVOR:UltiGCode``, ``;FLAVOR:Marlin(Volumetric)``), the placeholders
+of its header are not estimates, and an extruder on another axis (PrusaSlicer's ``mach3``)
+is refused, not read as a print that extrudes nothing.
 
 The real files (``tests/data/cura_flavors``, PROVENANCE.md there) are one model sliced by
 Debian's CuraEngine 4.13 twice, with identical settings but for the flavor: UltiGCode
@@ -18,7 +20,7 @@ from flowtwin.errors import GcodeError
 from flowtwin.gcode.moves import MoveKind
 from flowtwin.gcode.reader import ReadOptions, iter_move_chunks, read_gcode
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "cura_flavors"
+DATA = Path(__file__).resolve().parents[1] / "data" / "slicer_flavors"
 ULTI = DATA / "curaengine_4.13_ultigcode.gcode.gz"
 GRIFFIN = DATA / "curaengine_4.13_griffin.gcode.gz"
 
@@ -94,3 +96,27 @@ def test_compensation_refuses_volumetric_e_naming_the_header(tmp_path: Path) -> 
     text = str(err.value)
     assert ":1:" in text and ";FLAVOR:UltiGCode" in text and "linear E" in text
     assert not (tmp_path / "out.gcode").exists()
+
+
+MACH3 = DATA / "prusaslicer_2.5_mach3.gcode.gz"
+
+
+def test_an_extruder_on_axis_a_is_refused_naming_the_flavor() -> None:
+    with pytest.raises(GcodeError) as err:
+        read_gcode(MACH3)
+    text = str(err.value)
+    assert "prusaslicer_2.5_mach3.gcode.gz" in text and "gcode_flavor" in text
+    assert "'mach3'" in text and "axis A" in text
+
+
+@pytest.mark.parametrize(("config", "value"), [("; extrusion_axis = B\n", "'B'"),
+                                               ("; gcode_flavor = machinekit\n",
+                                                "'machinekit'")])
+def test_other_extrusion_axes_are_refused(config: str, value: str) -> None:
+    with pytest.raises(GcodeError, match=value):
+        read_gcode(("G1 X10 B1.0\n" + config).encode())
+
+
+def test_extrusion_axis_e_reads() -> None:
+    table = read_gcode(b"G1 X10 E1.0\n; extrusion_axis = E\n; gcode_flavor = marlin2\n")
+    assert float(table.moves["de"][-1]) == 1.0
