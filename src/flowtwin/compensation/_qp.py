@@ -8,9 +8,12 @@ Solves ::
 with ``H`` symmetric positive (semi)definite, ``w > 0`` and ``H + Cᵀ·D·C`` positive
 definite for positive diagonals ``D``. Mehrotra's predictor–corrector on the slacks
 ``s = Cx + d − lo ≥ 0``, ``t = hi − Cx − d ≥ 0`` and their multipliers ``z, w ≥ 0``
-(centring ``σ = min(1, (μ_aff/μ)³)``, one step length for primal and dual);
-every Newton step solves ``(H + Rᵀ·W·R + Cᵀ(z/s + w/t)C)·Δx = r``. Nocedal & Wright,
-*Numerical Optimization* (2nd ed.), §16.6.
+(centring ``σ = min(1, (μ_aff/μ)³)``, one step length for primal and dual; a corrected
+step that would not lower the gap is replaced by the centred step without the
+second-order term); the starting point is the predictor's full step from the given ``x``
+with slacks and multipliers moved away from zero (§16.6's heuristic). Every Newton step
+solves ``(H + Rᵀ·W·R + Cᵀ(z/s + w/t)C)·Δx = r``. Nocedal & Wright, *Numerical
+Optimization* (2nd ed.), §16.6.
 
 The squared rows ``R_k`` are kept as rows: a row reading ``ℓ`` variables (a move of the
 lag model cut into ``ℓ`` pieces) would put a dense ``ℓ × ℓ`` block into ``Rᵀ·W·R``. The
@@ -43,6 +46,10 @@ IntArray = npt.NDArray[np.int64]
 
 #: Blocks a thread takes at a time in :func:`_solve_blocks`.
 _CHUNK_BLOCKS = 4
+#: Least decrease of the gap per unit step the corrected step must give.
+_MIN_GAP_DECREASE = 0.01
+#: Largest product slack × multiplier the starting point's floor gives a pair.
+_START_GAP = 10.0
 
 
 @njit(cache=True)
@@ -341,13 +348,14 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
         if not ok:
             break
         sigma_mu = 0.0
-        for corr in range(2):
-            # Newton direction (predictor, then corrector with σμ and Δs·Δz)
+        start = it == 1
+        corr = 0  # 0: predictor, 1: corrector (σμ and Δs·Δz), 2: centring only (σμ)
+        while True:
             for i in range(n):
                 rhs[pos[i]] = -r_d[i]
             for q in range(m):
-                rc_l[q] = s[q] * z[q] - sigma_mu + (ds[q] * dz[q] if corr else 0.0)
-                rc_u[q] = (t[q] * w[q] - sigma_mu + (dt[q] * dw[q] if corr else 0.0)
+                rc_l[q] = s[q] * z[q] - sigma_mu + (ds[q] * dz[q] if corr == 1 else 0.0)
+                rc_u[q] = (t[q] * w[q] - sigma_mu + (dt[q] * dw[q] if corr == 1 else 0.0)
                            if fin[q] else 0.0)
                 i = r0 + q
                 v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
@@ -388,6 +396,42 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 # Mehrotra's centring, never above the current gap
                 sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0.0 else 0.0
                 sigma_mu = sigma * mu
+                if start:
+                    break
+                corr = 1
+                continue
+            if corr == 1:
+                # the corrector's second-order term can make the gap grow (two ratio
+                # steps side by side took turns at their bound for 150 steps): then the
+                # step is taken with the centring alone
+                al = min(0.995 * min(a_p, a_d), 1.0)
+                mu_new = 0.0
+                for q in range(m):
+                    mu_new += (s[q] + al * ds[q]) * (z[q] + al * dz[q])
+                    if fin[q]:
+                        mu_new += (t[q] + al * dt[q]) * (w[q] + al * dw[q])
+                if mu_new > (1.0 - _MIN_GAP_DECREASE * al) * mu * max(n_c, 1):
+                    corr = 2
+                    continue
+            break
+        if start:
+            # the starting point (Nocedal & Wright §16.6): the predictor's full step from
+            # the given x, with slacks at least 1 and multipliers at least 1 or
+            # _START_GAP/slack where that is less (a bound far away starts with a small
+            # multiplier). The given x alone, often far outside a ratio step's bounds,
+            # left slacks of 1e-3 that the steps crept away from (20 steps of < 1e-4)
+            for i in range(n):
+                xl[i] += dx[i]
+            mu0 = 0.0
+            for q in range(m):
+                s[q] = max(abs(s[q] + ds[q]), 1.0)
+                z[q] = max(abs(z[q] + dz[q]), min(1.0, _START_GAP / s[q]))
+                if fin[q]:
+                    t[q] = max(abs(t[q] + dt[q]), 1.0)
+                    w[q] = max(abs(w[q] + dw[q]), min(1.0, _START_GAP / t[q]))
+                mu0 += s[q] * z[q] + t[q] * w[q]
+            mu0 = max(mu0 / max(n_c, 1), 1e-300)
+            continue
         # one step for primal and dual: with H in the dual residual, separate steps would
         # break the Newton direction (a two-variable run start oscillated between the
         # bounds of its ratio box with them)
