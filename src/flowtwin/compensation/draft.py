@@ -12,12 +12,18 @@ stays byte for byte as it was.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.emit import Layout, draft_table, lay_out_draft, write_draft
+from flowtwin.compensation.emit import (
+    Layout,
+    check_layout,
+    draft_table,
+    lay_out_draft,
+    write_draft,
+)
 from flowtwin.compensation.original import OriginalFile
 from flowtwin.gcode.moves import MoveTable
 
@@ -50,6 +56,10 @@ class Draft:
         shape ``(n_rows,)``.
     piece_feed_mm_min
         Feed of each piece (``nan``: its line's), shape ``(n,)``.
+
+    The layout (:meth:`layout`) is computed once per draft: the twin simulates a draft
+    from it and the file is written from it (a new draft, made with ``replace``, starts
+    without one). The arrays are never changed in place.
     """
 
     original: OriginalFile
@@ -60,6 +70,8 @@ class Draft:
     e_grid: IntArray
     feed_mm_min: FloatArray
     piece_feed_mm_min: FloatArray
+    _layout: list[Layout] = field(default_factory=list, init=False, repr=False,
+                                  compare=False)
 
     @classmethod
     def identity(cls, original: OriginalFile, table: MoveTable) -> Draft:
@@ -110,14 +122,30 @@ class Draft:
                                minlength=n) > 0
         return np.asarray(changed & (np.arange(n) >= 0))
 
-    def layout(self) -> Layout:
-        """The words of every piece as they will be written (:mod:`.emit`)."""
-        return lay_out_draft(self)
+    def layout(self, *, check: bool = True) -> Layout:
+        """The words of every piece as they will be written (:mod:`.emit`).
+
+        ``check``: refuse lines that cannot be rewritten (for the file to write; a table
+        to simulate needs no check).
+
+        Raises
+        ------
+        GcodeError
+            With ``check``: a line to rewrite carries a line number or checksum, or a
+            relative step that is not on the 10⁻⁵ mm grid.
+        """
+        if not self._layout:
+            self._layout.append(lay_out_draft(self, check=False))
+        lay = self._layout[0]
+        if check:
+            check_layout(self, lay)
+        return lay
 
     def to_table(self, layout: Layout | None = None, *, source: str | None = None
                  ) -> MoveTable:
         """The move table the written draft reads back as (computed, not read)."""
-        return draft_table(self, layout, source=source)
+        return draft_table(self, self.layout(check=False) if layout is None else layout,
+                           source=source)
 
     def render(self, destination: str | os.PathLike[str],
                layout: Layout | None = None) -> Layout:
@@ -129,7 +157,7 @@ class Draft:
         GcodeError
             A line to rewrite cannot be (a checksum, a relative step off the grid).
         """
-        return write_draft(self, destination, layout)
+        return write_draft(self, destination, self.layout() if layout is None else layout)
 
     def split(self, piece: IntArray, xyz_mm: FloatArray, e_grid: IntArray,
               piece_feed_mm_min: FloatArray | None = None) -> Draft:
