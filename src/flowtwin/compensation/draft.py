@@ -12,7 +12,7 @@ stays byte for byte as it was.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -56,10 +56,6 @@ class Draft:
         shape ``(n_rows,)``.
     piece_feed_mm_min
         Feed of each piece (``nan``: its line's), shape ``(n,)``.
-
-    The layout (:meth:`layout`) is computed once per draft: the twin simulates a draft
-    from it and the file is written from it (a new draft, made with ``replace``, starts
-    without one). The arrays are never changed in place.
     """
 
     original: OriginalFile
@@ -70,8 +66,6 @@ class Draft:
     e_grid: IntArray
     feed_mm_min: FloatArray
     piece_feed_mm_min: FloatArray
-    _layout: list[Layout] = field(default_factory=list, init=False, repr=False,
-                                  compare=False)
 
     @classmethod
     def identity(cls, original: OriginalFile, table: MoveTable) -> Draft:
@@ -134,18 +128,24 @@ class Draft:
             With ``check``: a line to rewrite carries a line number or checksum, or a
             relative step that is not on the 10⁻⁵ mm grid.
         """
-        if not self._layout:
-            self._layout.append(lay_out_draft(self, check=False))
-        lay = self._layout[0]
-        if check:
-            check_layout(self, lay)
-        return lay
+        return lay_out_draft(self, check=check)
+
+    def check(self, layout: Layout) -> Layout:
+        """``layout`` (this draft's, made without the check) once checked as
+        :meth:`layout` checks it.
+
+        Raises
+        ------
+        GcodeError
+            As :meth:`layout`.
+        """
+        check_layout(self, layout)
+        return layout
 
     def to_table(self, layout: Layout | None = None, *, source: str | None = None
                  ) -> MoveTable:
         """The move table the written draft reads back as (computed, not read)."""
-        return draft_table(self, self.layout(check=False) if layout is None else layout,
-                           source=source)
+        return draft_table(self, layout, source=source)
 
     def render(self, destination: str | os.PathLike[str],
                layout: Layout | None = None) -> Layout:
@@ -157,7 +157,7 @@ class Draft:
         GcodeError
             A line to rewrite cannot be (a checksum, a relative step off the grid).
         """
-        return write_draft(self, destination, self.layout() if layout is None else layout)
+        return write_draft(self, destination, layout)
 
     def split(self, piece: IntArray, xyz_mm: FloatArray, e_grid: IntArray,
               piece_feed_mm_min: FloatArray | None = None) -> Draft:
