@@ -128,12 +128,49 @@ def test_layer_top_z_matches_numpy_maximum_at():
     layer = rng.integers(-1, n_layers - 5, n).astype(np.int32)  # some layers stay empty
     z = rng.uniform(0.0, 10.0, n)
     z[rng.random(n) < 0.002] = np.nan
-    kind = rng.integers(0, 4, n).astype(np.uint8)
-    ext = (kind & int(MoveKind.EXTRUDE)) != 0
+    kind = rng.integers(0, 16, n).astype(np.uint8)
+    bits = int(MoveKind.EXTRUDE | MoveKind.XY)
+    ext = (kind & bits) == bits
     ref = np.full(n_layers, -np.inf)
     sel = ext & (layer >= 0)
     with np.errstate(invalid="ignore"):  # (NaN is meant)
         np.maximum.at(ref, layer[sel], z[sel])
-    got = _layer_top_z(layer, z, kind, int(MoveKind.EXTRUDE), n_layers)
+    got = _layer_top_z(layer, z, kind, bits, n_layers)
     assert np.isnan(ref).any() and np.isneginf(ref).any()  # both special cases occur
     assert got.tobytes() == ref.tobytes()
+
+
+GRIFFIN = (Path(__file__).resolve().parents[1] / "data" / "slicer_flavors"
+           / "curaengine_4.13_griffin.gcode.gz")
+
+
+def test_an_unretraction_at_the_next_layers_z_does_not_make_a_layer_top() -> None:
+    # CuraEngine (Griffin flavor) travels to the next layer's Z and un-retracts (E only)
+    # before that layer's ";LAYER:n": the printing moves give each layer's top
+    table = read_gcode(GRIFFIN)
+    h = layer_heights_mm(table, default_mm=0.15, max_mm=0.4)
+    mv = table.moves
+    printing = ((mv["kind"] & MoveKind.EXTRUDE) != 0) & ((mv["kind"] & MoveKind.XY) != 0)
+    assert thin_layer_moves(table, default_mm=0.15, max_mm=0.4) == 0
+    first = printing & (mv["layer"] == 0)
+    rest = printing & (mv["layer"] > 0)
+    assert np.allclose(h[first], 0.3) and np.allclose(h[rest], 0.2)  # its 0.3 / 0.2 mm layers
+
+
+def _square(z: float) -> list[str]:
+    return [f"G1 Z{z:.2f} F600"] + [f"G1 X{x} Y{y} E0.5 F1800"
+                                    for x, y in ((110, 100), (110, 110), (100, 110), (100, 100))]
+
+
+def test_the_next_object_of_a_sequential_print_lies_on_the_bed() -> None:
+    out = ["G90", "M83", "G1 X100 Y100 F6000"]
+    for _object in range(2):  # two objects of three 0.2 mm layers, printed one after the other
+        for k in range(3):
+            out += [";LAYER_CHANGE", *_square(0.2 * (k + 1))]
+        out.append("G1 Z5 F600")
+    table = read_gcode(("\n".join(out) + "\n").encode())
+    h = layer_heights_mm(table, default_mm=0.15, max_mm=0.4)
+    mv = table.moves
+    printing = (mv["kind"] & MoveKind.EXTRUDE) != 0
+    assert np.allclose(h[printing], 0.2)
+    assert thin_layer_moves(table, default_mm=0.15, max_mm=0.4) == 0

@@ -198,6 +198,11 @@ def _modes(table: MoveTable, name: str, home_xyz: tuple[float, float, float]
     pos_key = -1
     pos = start.copy()
     off = np.zeros(3)
+    flavor = table.metadata.get("volumetric_e")
+    if flavor:
+        raise GcodeError("volumetric E (a CuraEngine volumetric flavor): compensation rewrites "
+                         "E in mm of filament only", source=name, line=1,
+                         value=f";FLAVOR:{flavor}", allowed="a flavor with linear E")
     for ev in table.events:
         code = ev.code
         at = ev.move_index

@@ -50,6 +50,9 @@ _S3D_FEATURES = frozenset({"outer perimeter", "inner perimeter", "infill", "soli
                            "gap fill", "skirt", "support", "dense support", "bridge",
                            "raft", "prime pillar", "ooze shield"})
 
+#: The time CuraEngine writes in its header when it does not know the print time, s.
+_CURA_UNKNOWN_TIME_S = 6666.0
+
 #: Keys of embedded configurations that give scalar properties of the print.
 _CONFIG_FLOATS = {
     "layer_height": "layer_height_mm",
@@ -182,7 +185,7 @@ class CommentInterpreter:
         if "total estimated time:" in low:
             self._set_time(low.split("total estimated time:", 1)[1])
         elif low.startswith(("estimated printing time (normal mode)", "print time:",
-                             "build time:", "estimated build time:")) or (
+                             "build time:", "estimated build time:", "print.time:")) or (
                 low.startswith("time:") and "slicer_time_s" not in self.metadata):
             self._set_time(_value_after(c))
         elif low.startswith("filament used [mm]"):
@@ -216,5 +219,13 @@ class CommentInterpreter:
                 value = _first_float(raw.replace("%", ""))
                 if value is not None and not raw.strip().endswith("%"):
                     self.metadata[name] = value
+        if self.metadata.get("slicer") == "Cura":
+            # CuraEngine's header before its front end fills it in: ";TIME:6666" (and
+            # ";PRINT.TIME:6666") for an unknown time, ";Filament used: 0m" for an unknown
+            # length (CuraEngine GCodeExport::getFileHeader); not the slicer's estimate
+            if self.metadata.get("slicer_time_s") == _CURA_UNKNOWN_TIME_S:
+                del self.metadata["slicer_time_s"]
+            if self.metadata.get("slicer_filament_mm") == 0.0:
+                del self.metadata["slicer_filament_mm"]
         self.metadata["layer_markers"] = self.n_layer_markers
         return self.metadata

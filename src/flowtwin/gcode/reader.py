@@ -12,7 +12,9 @@ puts the named axes (all when none is named) at :attr:`ReadOptions.home_xyz`; ``
 scales feed rates, ``M221`` extrusion; ``T<n>`` selects tool ``n`` (pseudo-tools such as
 ``T255`` or ``T1000`` are kept as numbers); ``G10``/``G11`` are firmware retractions
 (``M207``/``M208`` settings) unless they carry RepRapFirmware tool parameters
-(``G10 P0 S195 R160`` sets temperatures); ``M200 D<d>`` switches E to mm³.
+(``G10 P0 S195 R160`` sets temperatures); ``M200 D<d>`` switches E to mm³, and so does
+a CuraEngine volumetric flavor named in the header (``;FLAVOR:UltiGCode``,
+``;FLAVOR:Marlin(Volumetric)``), from the first line.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import gzip
 import math
 import os
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from typing import BinaryIO
@@ -107,6 +110,10 @@ class ReadOptions:
             raise GcodeError("arc tolerance must be positive", field="arc_tolerance_mm",
                              value=self.arc_tolerance_mm, allowed="> 0 mm")
 
+
+#: A volumetric-E header of CuraEngine (its first line): the flavor's name.
+_VOLUMETRIC_FLAVOR = re.compile(rb"^;FLAVOR:(UltiGCode|Marlin\(Volumetric\))[ \t]*\r?$",
+                                re.MULTILINE)
 
 # ------------------------------------------------------------------------ the reader ---
 
@@ -385,6 +392,22 @@ class _Reader:
         rows.n_other = 0
         rows.n_vals = 0
 
+    def _volumetric_flavor(self, buf: bytes) -> None:
+        """E in mm³ from the first line when the file's header names a volumetric flavor.
+
+        CuraEngine writes ``;FLAVOR:UltiGCode`` (the Ultimaker 2's firmware) and
+        ``;FLAVOR:Marlin(Volumetric)`` (its "RepRap (Volumetric)") with every E in mm³ and
+        no ``M200``: the printer is set to volumetric mode beforehand (CuraEngine
+        ``GCodeExport::setFlavor``: ``is_volumatric`` for exactly these two). The filament
+        diameter is :attr:`ReadOptions.filament_diameter_mm`, as for ``M200`` without ``D``.
+        """
+        m = _VOLUMETRIC_FLAVOR.search(buf, 0, 4096)
+        if m is None:
+            return
+        d = self.options.filament_diameter_mm
+        self.state[kernel.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0)
+        self.comments.metadata["volumetric_e"] = m.group(1).decode()
+
     # -- one chunk -------------------------------------------------------------------------
     def chunk(self, buf: bytes, *, capacity_hint: int = 0) -> MoveTable:
         """Read one piece of the file (ending on a line break) and return its moves.
@@ -411,6 +434,8 @@ class _Reader:
         rows.n_other = rows.n_vals = 0
         start_n = rows.n
         self._offset = self.n_moves - start_n
+        if self.bytes_done == 0:
+            self._volumetric_flavor(buf)
         pos = 0
         while True:
             status, pos, rows.n, rows.n_other, rows.n_vals = kernel.scan(
@@ -482,6 +507,31 @@ class _Reader:
 
 # -------------------------------------------------------------------------- public API ---
 
+def _check_extrusion_axis(metadata: dict[str, object], name: str) -> None:
+    """Refuse a file whose slicer moved the extruder on another axis than ``E``.
+
+    Slic3r's ``extrusion_axis`` setting, and PrusaSlicer's ``mach3`` and ``machinekit``
+    flavors (which write the extruder on ``A`` whatever ``extrusion_axis`` says: PrusaSlicer
+    2.5 embeds ``extrusion_axis = E`` in such a file), put the extruder's moves in words
+    such as ``G1 … A1.234``; read for ``E`` they would be a print that extrudes nothing.
+    """
+    config = metadata.get("slicer_config")
+    if not isinstance(config, dict):
+        return
+    axis = str(config.get("extrusion_axis", "E")).strip()
+    flavor = str(config.get("gcode_flavor", "")).strip()
+    if axis in ("", "E") and flavor in ("mach3", "machinekit"):
+        axis, field = "A", "gcode_flavor"
+    else:
+        field = "extrusion_axis"
+    if axis not in ("", "E"):
+        raise GcodeError(f"the slicer wrote the extruder's moves on axis {axis}, not E: "
+                         "flowtwin reads extrusion from E words only", source=name,
+                         field=field, value=flavor if field == "gcode_flavor" else axis,
+                         allowed="an extruder on E (extrusion_axis = E; a flavor other than "
+                         "mach3 or machinekit)")
+
+
 def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                      options: ReadOptions | None = None,
                      chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Iterator[MoveTable]:
@@ -544,6 +594,7 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
                                    "(truncated?)")
         last.metadata = reader.comments.finish()
         last.metadata.pop("_layer_mode", None)
+        _check_extrusion_axis(last.metadata, name)
         last.features = list(reader.comments.features)
         last.layer_z = list(reader.layer_z)
         last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))

@@ -125,11 +125,13 @@ def layer_heights_mm(table: MoveTable, *, default_mm: float, max_mm: float
                      ) -> npt.NDArray[np.float64]:
     """Layer height of every move, mm: the rise of its layer over the layer below.
 
-    Layers whose Z is unknown take the highest Z of their extrusions (the layer's top, as
-    slicers mark it: in a spiral layer the first extrusion lies only a step above the
-    layer below); moves before the first layer, and heights outside ``(0, max_mm]``, take
-    ``default_mm``; so do layers thinner than :data:`THIN_LAYER_FRACTION` of it (see
-    :func:`thin_layer_moves`).
+    Layers whose Z is unknown take the highest Z of their printing moves (extruding, with XY
+    motion: the layer's top, as slicers mark it; in a spiral layer the first extrusion lies
+    only a step above the layer below); moves before the first layer, and heights outside
+    ``(0, max_mm]``, take ``default_mm``; so do layers thinner than
+    :data:`THIN_LAYER_FRACTION` of it (see :func:`thin_layer_moves`). A layer lower than the
+    one before and at most ``max_mm`` above the bed lies on the bed (the next object of a
+    sequential print): its height is its Z.
     """
     return _layer_heights(table, default_mm=default_mm, max_mm=max_mm)[0]
 
@@ -158,10 +160,17 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
     z[: min(n_layers, len(table.layer_z))] = table.layer_z[:n_layers]
     missing = np.flatnonzero(np.isnan(z))
     if missing.size:
-        z_top = _layer_top_z(layer, m["z"], kind, extrude, n_layers)
+        # printing moves only: a slicer may un-retract (E only) at the next layer's Z
+        # before that layer's marker (CuraEngine's Griffin and UltiGCode flavors)
+        z_top = _layer_top_z(layer, m["z"], kind, extrude | int(MoveKind.XY), n_layers)
         z_top[np.isneginf(z_top)] = np.nan
         z[missing] = z_top[missing]
     h_layer = np.diff(np.concatenate(([0.0], z)))
+    # a layer below the one before, within a layer of the bed: the first layer of the next
+    # object of a sequential print (or of a second print in the file), on the bed
+    with np.errstate(invalid="ignore"):
+        on_bed = (h_layer <= 0.0) & (z > 0.0) & (z <= max_mm)
+    h_layer = np.where(on_bed, z, h_layer)
     # NaN (no Z at all) is not thin: it takes the default below anyway, unreported
     thin = h_layer < THIN_LAYER_FRACTION * default_mm
     ok = np.isfinite(h_layer) & (h_layer > 0.0) & (h_layer <= max_mm) & ~thin
@@ -173,14 +182,14 @@ def _layer_heights(table: MoveTable, *, default_mm: float, max_mm: float
 
 @njit(cache=True, nogil=True)
 def _layer_top_z(layer: npt.NDArray[np.int32], z: npt.NDArray[np.float64],
-                 kind: npt.NDArray[np.uint8], extrude: int, n_layers: int
+                 kind: npt.NDArray[np.uint8], bits: int, n_layers: int
                  ) -> npt.NDArray[np.float64]:
-    """Highest Z of the extruding moves of each layer (``-inf``: none; NaN if any is NaN,
-    as ``np.maximum``), one pass over the record fields in place."""
+    """Highest Z of each layer's moves whose kind has all of ``bits`` (``-inf``: none; NaN
+    if any is NaN, as ``np.maximum``), one pass over the record fields in place."""
     top = np.full(n_layers, -np.inf)
     for k in range(layer.shape[0]):
         lay = layer[k]
-        if lay >= 0 and (kind[k] & extrude) != 0:
+        if lay >= 0 and (kind[k] & bits) == bits:
             v = float(z[k])
             if v != v or v > top[lay]:  # (a NaN top stays NaN: v > NaN is False)
                 top[lay] = v
