@@ -1,18 +1,22 @@
 """Compensate the validation prints and report the spread of the improvement.
 
     python -m benchmarks.validation.run --split dev|check [--pace [--everywhere]
-                                        [--pull-ratio R] [--spots ERROR]] [--slip]
+                                        [--pull-ratio R] [--spots ERROR]
+                                        [--budget PCT | --no-budget]] [--slip]
                                         [--only SUBSTR]
 
 For every print of the split (made by :mod:`benchmarks.validation.generate` first when
 missing), ``compensate(advance=True)`` (``--pace``: also the flow pacing, near the spots the advance
 leaves; ``--everywhere``: at every junction, without the pull-back, as before the spots;
-``--pull-ratio``, ``--spots``: ``PaceOptions.pull_ratio``, ``spot_error``; ``--slip``: also
+``--pull-ratio``, ``--spots``: ``PaceOptions.pull_ratio``, ``spot_error``; ``--budget``:
+``PaceOptions.time_budget`` in percent, ``--no-budget``: none; ``--slip``: also
 the slip feed-forward) on the
 print's machine; per print the RMS flow error and the peak
 over-extrusion over one nozzle diameter of path before and after, their improvement
 factors, the print time before and after and the wall time; then the median and the worst
-of both factors and the prints below 5x. Results go to ``out/results-SPLIT[-pace].json``.
+of both factors and the prints below 5x; with ``--pace`` also the print time the pacing
+added (planned, ``pace_time_cost_s`` over the print time before) and its spots (found,
+paced, left by the budget). Results go to ``out/results-SPLIT[-pace].json``.
 """
 
 from __future__ import annotations
@@ -42,14 +46,18 @@ def _ratio(a: float, b: float) -> float:
 
 
 def pace_options(*, everywhere: bool, pull_ratio: float | None,
-                 spot_error: float | None) -> PaceOptions:
+                 spot_error: float | None, budget: float | str | None = "default"
+                 ) -> PaceOptions:
     """``PaceOptions()`` (near the spots), or everywhere without the pull-back (as before
-    the spots), with the ratio and the spot error given."""
+    the spots), with the ratio, the spot error and the time budget (a share; ``None``: no
+    cap; ``"default"``: the default) given."""
     from flowtwin.compensation.pace import PaceOptions
 
     o = PaceOptions(spots=False, pull_ratio=0.0) if everywhere else PaceOptions()
     if pull_ratio is not None:
         o = replace(o, pull_ratio=pull_ratio)
+    if budget != "default":
+        o = replace(o, time_budget=budget)
     return o if spot_error is None else replace(o, spot_error=spot_error)
 
 
@@ -67,7 +75,7 @@ def run_print(p: Print, out: Path, *, pace: PaceOptions | None, slip: bool
         wall = time.perf_counter() - t0
     b, a = report.before, report.after
     return {
-        "name": p.name, "split": p.split, "pace": pace is not None, "slip": slip,
+        "name": p.name, "split": p.split, "paced": pace is not None, "slip": slip,
         "pace_options": None if pace is None else asdict(pace),
         "rms_before": b.rms_flow_error, "rms_after": a.rms_flow_error,
         "rms_x": _ratio(b.rms_flow_error, a.rms_flow_error),
@@ -76,9 +84,20 @@ def run_print(p: Print, out: Path, *, pace: PaceOptions | None, slip: bool
         "window_x": _ratio(b.peak_overextrusion_window, a.peak_overextrusion_window),
         "time_before_s": report.time_before_s, "time_after_s": report.time_after_s,
         "time_cost": report.time_after_s / report.time_before_s - 1.0,
+        "pace_cost": report.pace_time_cost_s / report.time_before_s,
+        "pace": None if report.pace is None else report.pace.as_dict(),
         "transformations": list(report.transformations), "wall_s": wall,
         "warnings": list(report.warnings),
     }
+
+
+def _spots(r: dict[str, object]) -> str:
+    """``paced/found (left by the budget)`` of a row's pacing."""
+    p = r.get("pace")
+    if not isinstance(p, dict):
+        return "-"
+    return f"{p['spots_paced']}/{p['spots']}" + (f" -{p['spots_over_budget']}"
+                                                 if p["spots_over_budget"] else "")
 
 
 def summarise(rows: list[dict[str, object]]) -> dict[str, float]:
@@ -86,10 +105,12 @@ def summarise(rows: list[dict[str, object]]) -> dict[str, float]:
     rms = [float(r["rms_x"]) for r in rows]  # type: ignore[arg-type]
     win = [float(r["window_x"]) for r in rows]  # type: ignore[arg-type]
     cost = [float(r["time_cost"]) for r in rows]  # type: ignore[arg-type]
+    pace = [float(r["pace_cost"]) for r in rows]  # type: ignore[arg-type]
     ok = [r_ >= TARGET and w >= TARGET for r_, w in zip(rms, win, strict=True)]
     return {"prints": len(rows), "rms_median": statistics.median(rms), "rms_worst": min(rms),
             "window_median": statistics.median(win), "window_worst": min(win),
             "time_cost_median": statistics.median(cost), "time_cost_worst": max(cost),
+            "pace_cost_median": statistics.median(pace), "pace_cost_worst": max(pace),
             "at_target": sum(ok)}
 
 
@@ -105,6 +126,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="PaceOptions.pull_ratio with --pace")
     parser.add_argument("--spots", type=float, default=None, metavar="ERROR",
                         help="PaceOptions.spot_error with --pace")
+    parser.add_argument("--budget", type=float, default=None, metavar="PCT",
+                        help="PaceOptions.time_budget with --pace, percent of the print time")
+    parser.add_argument("--no-budget", action="store_true",
+                        help="with --pace: no time budget (PaceOptions.time_budget None)")
     parser.add_argument("--only", help="run the prints whose name contains this")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
@@ -114,28 +139,35 @@ def main(argv: list[str] | None = None) -> int:
         generate(args.split, args.out)
     rows = []
     print(f"{'print':<72} {'RMS before→after':>20} {'×':>6} {'peak/0.4mm':>20} {'×':>6} "
-          f"{'time':>7} {'wall':>6}")
+          f"{'time':>7} {'pace':>7} {'spots':>11} {'wall':>6}")
     for p in prints:
+        budget: float | str | None = (None if args.no_budget else "default"
+                                      if args.budget is None else args.budget / 100.0)
         pace = pace_options(everywhere=args.everywhere, pull_ratio=args.pull_ratio,
-                            spot_error=args.spots) if args.pace else None
+                            spot_error=args.spots, budget=budget) if args.pace else None
         r = run_print(p, args.out, pace=pace, slip=args.slip)
         rows.append(r)
         print(f"{p.name:<72} {100 * float(r['rms_before']):8.2f} → "  # type: ignore[arg-type]
               f"{100 * float(r['rms_after']):6.2f} % {float(r['rms_x']):6.1f} "  # type: ignore[arg-type]
               f"{100 * float(r['window_before']):8.1f} → "  # type: ignore[arg-type]
               f"{100 * float(r['window_after']):6.1f} % {float(r['window_x']):6.1f} "  # type: ignore[arg-type]
-              f"{100 * float(r['time_cost']):+6.1f}% {float(r['wall_s']):5.1f}s",  # type: ignore[arg-type]
-              flush=True)
+              f"{100 * float(r['time_cost']):+6.1f}% "  # type: ignore[arg-type]
+              f"{100 * float(r['pace_cost']):+6.1f}% {_spots(r):>11} "  # type: ignore[arg-type]
+              f"{float(r['wall_s']):5.1f}s", flush=True)  # type: ignore[arg-type]
     s = summarise(rows)
     print(f"\n{args.split}{' + pace' if args.pace else ''}: {s['prints']} prints, RMS x median "
           f"{s['rms_median']:.1f} worst {s['rms_worst']:.1f}; windowed peak x median "
           f"{s['window_median']:.1f} worst {s['window_worst']:.1f}; print time "
           f"{100 * s['time_cost_median']:+.1f} % median, {100 * s['time_cost_worst']:+.1f} % "
-          f"worst; {s['at_target']} of {s['prints']} at {TARGET:g}x on both")
+          f"worst; pacing's time {100 * s['pace_cost_median']:+.1f} % median, "
+          f"{100 * s['pace_cost_worst']:+.1f} % worst; {s['at_target']} of {s['prints']} at "
+          f"{TARGET:g}x on both")
     tag = (args.split + ("-pace" if args.pace else "")
            + ("-everywhere" if args.pace and args.everywhere else "")
            + (f"-pull{args.pull_ratio:g}" if args.pace and args.pull_ratio is not None else "")
            + (f"-spots{args.spots:g}" if args.pace and args.spots is not None else "")
+           + ("-nobudget" if args.pace and args.no_budget else "")
+           + (f"-budget{args.budget:g}" if args.pace and args.budget is not None else "")
            + ("-slip" if args.slip else ""))
     if args.only is None:
         (args.out / f"results-{tag}.json").write_text(

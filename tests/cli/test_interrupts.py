@@ -87,3 +87,53 @@ def test_a_killed_compensate_leaves_input_intact_and_no_partial_output(
         i += 1
     # the delays spread over the run: some runs were cut short, and nothing was half-written
     assert outcomes & {"absent", "old"}, outcomes
+
+
+CALLBACK_PROBE = """
+import os, signal, sys, time
+from llvmlite.binding import executionengine as ee
+
+ORIG = ee.ExecutionEngine._raw_object_cache_notify
+SOURCE = '''
+def _raw_object_cache_notify(self, data):
+    if not SENT:
+        SENT.append(1)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.2)  # the signal's Python handler runs in here, inside the C callback
+    return ORIG(self, data)
+'''
+ns = {"os": os, "signal": signal, "time": time, "ORIG": ORIG, "SENT": []}
+# llvmlite's own callback (its name and file), called by C code when numba compiles
+exec(compile(SOURCE, ee.__file__, "exec"), ns)
+# (llvmlite wraps the function for C once, at import: the wrapper is replaced)
+ee._notify_c_hook = ee._ObjectCacheNotifyFunc(ns["_raw_object_cache_notify"])
+
+import numba
+import flowtwin.planner.plan_file as plan_file
+from flowtwin.cli.main import main
+
+PLAN = plan_file.plan_gcode
+
+
+def plan_after_a_compile(*args, **kwargs):
+    numba.njit(lambda x: x + 1)(1)  # compiled now, not cached: the callback runs
+    return PLAN(*args, **kwargs)
+
+
+plan_file.plan_gcode = plan_after_a_compile
+main(["plan", sys.argv[1]])
+"""
+
+
+def test_sigterm_inside_a_native_callback_is_taken_after_it(tmp_path: Path) -> None:
+    # an exception raised in a ctypes callback is printed ("Exception ignored ...") and
+    # dropped, and the command would run to its end: flowtwin takes the signal again
+    # once the callback has returned, and exits 143 without a traceback
+    src = tmp_path / "print.gcode"
+    write_print(src, PrintSpec(layers=2))
+    proc = subprocess.run([sys.executable, "-c", CALLBACK_PROBE, str(src)],
+                          capture_output=True, timeout=300, check=False)
+    assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
+        proc.stderr.decode()[-2000:]
+    assert proc.returncode == 128 + signal.SIGTERM, proc.stderr.decode()[-2000:]
+    assert b"terminated" in proc.stderr

@@ -66,9 +66,11 @@ def example_abs(tmp_path_factory: pytest.TempPathFactory, example: Path) -> Path
     return path
 
 
-def thin_transition_gcode(path: Path, *, loops: int = 6, feed: float = 3000.0) -> None:
+def thin_transition_gcode(path: Path, *, loops: int = 6, feed: float = 3000.0,
+                          shares: tuple[float, ...] | None = None) -> None:
     """Straight full-speed walls joined by 0.9 mm thin transition moves at 6 % of their
-    cross-section (Cura 2.3.1 line 22638 in small), back and forth on one layer."""
+    cross-section (Cura 2.3.1 line 22638 in small), back and forth on one layer
+    (``shares``: the cross-section of every transition instead, one per loop)."""
     fil = math.pi * 1.75 ** 2 / 4.0
     bead = 0.45 * 0.2 - 0.2 ** 2 * (1.0 - math.pi / 4.0)  # slicer bead [001 Eq. 7], mm²
 
@@ -78,13 +80,14 @@ def thin_transition_gcode(path: Path, *, loops: int = 6, feed: float = 3000.0) -
     lines = ["G21", "G90", "M83", "M104 S215", "M109 S215", "G28", "G92 E0",
              ";LAYER_CHANGE", ";Z:0.2", ";HEIGHT:0.2", "G1 Z0.2 F600", "G1 X60 Y60 F9000"]
     x, y = 60.0, 60.0
-    for k in range(loops):
+    shares = (0.06,) * loops if shares is None else shares
+    for k, share in enumerate(shares):
         d = 1.0 if k % 2 == 0 else -1.0
         x += d * 20.0
         lines.append(line(x, y, 20.0, 1.0))
         y += 0.9
-        lines.append(line(x, y, 0.9, 0.06))
-    x += 20.0 if loops % 2 == 0 else -20.0
+        lines.append(line(x, y, 0.9, share))
+    x += 20.0 if len(shares) % 2 == 0 else -20.0
     lines.append(line(x, y, 20.0, 1.0))
     lines += ["G1 E-0.8 F2100", "G1 X10 Y10 F9000", "M104 S0"]
     path.write_text("\n".join(lines) + "\n")

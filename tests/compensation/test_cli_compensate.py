@@ -48,7 +48,9 @@ def test_json_keys_and_figures(example: Path, tmp_path: Path) -> None:
 def test_pace_flag_reports_its_moves_and_time(thin_gcode: Path, tmp_path: Path) -> None:
     src = thin_gcode
     out = tmp_path / "out.gcode"
-    res = runner.invoke(app(), ["compensate", str(src), "-o", str(out), "--pace", "--json"])
+    # no time budget: pacing every spot here costs ~+25 % (the default 10 % paces none)
+    res = runner.invoke(app(), ["compensate", str(src), "-o", str(out), "--pace",
+                                "--pace-budget", "inf", "--json"])
     assert res.exit_code == 0, res.output
     s = json.loads(res.stdout)
     assert s["transformations"] == ["pace"]

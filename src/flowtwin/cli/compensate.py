@@ -19,7 +19,8 @@ if TYPE_CHECKING:
     from flowtwin.calibration.tuning.nonlinear_extrusion import NonlinearExtrusionFit
     from flowtwin.compensation import CompensationReport, PaceOptions
 
-__all__ = ["nonlinear_settings", "register", "render_nonlinear", "render_report"]
+__all__ = ["nonlinear_settings", "pace_budget_share", "register", "render_nonlinear",
+           "render_report"]
 
 
 def _pct(v: float) -> str:
@@ -34,6 +35,8 @@ def _times(a: float, b: float) -> str:
 
 def render_report(report: CompensationReport) -> None:
     """Print the before/after figures of one compensated file with rich."""
+    from flowtwin.compensation.outcome import pace_note
+
     b, a = report.before, report.after
     rows = [
         ("RMS flow error", _pct(b.rms_flow_error), _pct(a.rms_flow_error),
@@ -67,6 +70,10 @@ def render_report(report: CompensationReport) -> None:
     if "pace" in report.transformations:
         notes.append(f"pacing slowed {len(report.paced_moves)} moves "
                      f"(+{report.pace_time_cost_s:.1f} s)")
+    spots = pace_note(None if report.pace is None else report.pace.as_dict(),
+                      report.time_before_s)
+    if spots is not None:
+        notes.append(spots)
     if "guard" in report.transformations:
         notes.append(f"guard slowed {len(report.slowed_moves)} moves "
                      f"(+{report.guard_time_cost_s:.1f} s)")
@@ -115,6 +122,10 @@ def register(app: typer.Typer) -> None:
         pace_spot_error: Annotated[float, typer.Option(
             "--pace-spot-error", help="Pacing: flow error the advance may leave before a "
                                       "spot is paced (fraction).")] = 0.1,
+        pace_budget: Annotated[float, typer.Option(
+            "--pace-budget", metavar="PCT",
+            help="Pacing: largest share of the print time it may add, percent (over it "
+                 "only the worst spots are paced; inf: no cap).")] = 10.0,
         pace_everywhere: Annotated[bool, typer.Option(
             "--pace-everywhere", help="Pacing: every junction the envelopes name, as if the "
                                       "advance could not pull back (slower prints).")
@@ -164,7 +175,8 @@ def register(app: typer.Typer) -> None:
             guard=GuardOptions(safety=safety, max_flow_mm3_s=max_flow) if guard else None,
             trajectory=TrajectoryOptions(max_shift_mm=max_shift) if trajectory else None,
             pace=_pace_options(pace_min_speed, pace_max_slowdown, pace_spot_error,
-                               pace_everywhere) if pace or pace_everywhere else None)
+                               pace_everywhere, pace_budget) if pace or pace_everywhere
+            else None)
         written = None
         if report_out is not None:
             from flowtwin.report import write_comparison
@@ -271,8 +283,26 @@ def render_nonlinear(fit: NonlinearExtrusionFit) -> None:
     console.print(fit.note)
 
 
+def pace_budget_share(percent: float) -> float | None:
+    """``--pace-budget PCT`` as :attr:`PaceOptions.time_budget` (a share; ``None``: no cap).
+
+    Raises
+    ------
+    FlowtwinError
+        Not a number, or negative.
+    """
+    import math
+
+    from flowtwin.errors import FlowtwinError
+
+    if math.isnan(percent) or percent < 0.0:
+        raise FlowtwinError("invalid pacing time budget", field="--pace-budget",
+                            value=percent, allowed="a percentage >= 0 (inf: no cap)")
+    return None if math.isinf(percent) else percent / 100.0
+
+
 def _pace_options(min_speed: float, max_slowdown: float, spot_error: float,
-                  everywhere: bool) -> PaceOptions:
+                  everywhere: bool, budget_pct: float) -> PaceOptions:
     """The pacing the options ask for: near the spots (default), or everywhere as if the
     advance could not pull back (the pacing before spots existed)."""
     from dataclasses import replace
@@ -280,5 +310,5 @@ def _pace_options(min_speed: float, max_slowdown: float, spot_error: float,
     from flowtwin.compensation import PaceOptions
 
     opts = PaceOptions(min_speed_mm_s=min_speed, max_slowdown=max_slowdown,
-                       spot_error=spot_error)
+                       spot_error=spot_error, time_budget=pace_budget_share(budget_pct))
     return replace(opts, spots=False, pull_ratio=0.0) if everywhere else opts

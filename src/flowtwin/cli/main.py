@@ -15,6 +15,7 @@ import os
 import signal
 import sys
 import threading
+from types import FrameType
 from typing import TYPE_CHECKING, Annotated, NoReturn, Protocol, cast
 
 import typer
@@ -131,7 +132,12 @@ def main(argv: list[str] | None = None) -> None:
     130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
     terminated: list[int] = []
 
-    def terminate(signum: int, frame: object) -> None:
+    def terminate(signum: int, frame: FrameType | None) -> None:
+        if _in_native_callback(frame):
+            # an exception raised in a ctypes callback is printed and dropped by ctypes,
+            # and the run would go on: take the signal again once the callback is left
+            _resend_soon(signum)
+            return
         # unwind like Ctrl-C, so outputs being written are dropped whole
         terminated.append(signum)
         raise KeyboardInterrupt
@@ -205,6 +211,30 @@ def _resume_collection() -> None:
     """End of the start-up: freeze what is alive, collect what comes after."""
     gc.freeze()
     gc.enable()
+
+
+#: Python functions that C code calls back through ctypes while numba compiles or loads a
+#: kernel (llvmlite's object cache): (file name ending, function name).
+_NATIVE_CALLBACKS = (("executionengine.py", "_raw_object_cache_notify"),
+                     ("executionengine.py", "_raw_object_cache_getbuffer"))
+
+
+def _in_native_callback(frame: FrameType | None) -> bool:
+    """Whether ``frame`` runs inside one of :data:`_NATIVE_CALLBACKS`."""
+    while frame is not None:
+        code = frame.f_code
+        if any(code.co_name == name and code.co_filename.endswith(file)
+               for file, name in _NATIVE_CALLBACKS):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _resend_soon(signum: int) -> None:
+    """Send ``signum`` to this process again in 10 ms (from a daemon thread)."""
+    timer = threading.Timer(0.01, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
 
 
 def _err() -> Console:

@@ -51,6 +51,10 @@ def register(app: typer.Typer) -> None:
         pace: Annotated[bool, typer.Option(
             "--pace", help="Slow the path where the flow changes faster than the melt "
                            "follows.")] = False,
+        pace_budget: Annotated[float, typer.Option(
+            "--pace-budget", metavar="PCT",
+            help="Pacing: largest share of the print time it may add, percent (inf: no "
+                 "cap).")] = 10.0,
         guard: Annotated[bool, typer.Option(
             "--guard", help="Slow moves that would grind the filament.")] = False,
         report: Annotated[bool, typer.Option(
@@ -73,12 +77,14 @@ def register(app: typer.Typer) -> None:
         Studio): the G-code is edited in place, the verdict goes to stderr and
         <output>.flowtwin.json; see docs/postprocess.md.
         """
+        from flowtwin.cli.compensate import pace_budget_share
         from flowtwin.postprocess import PostprocessOptions, postprocess
         from flowtwin.postprocess.run import json_clean
 
         opts = PostprocessOptions(
             setup=profile, klipper_config=klipper_config, moonraker=moonraker,
-            advance=advance, slip=slip, pace=pace, guard=guard, report=report,
+            advance=advance, slip=slip, pace=pace, pace_budget=pace_budget_share(pace_budget),
+            guard=guard, report=report,
             fail_on=_fail_on(fail_on or []), stream=stream)
         result = postprocess(gcode, opts)
         for line in result.stderr_lines():

@@ -23,7 +23,33 @@ from flowtwin.compensation.trajectory import TrajectoryReport
 if TYPE_CHECKING:
     from flowtwin.simulation import SimulationResult
 
-__all__ = ["AdvancePassSummary", "CompensationReport"]
+__all__ = ["AdvancePassSummary", "CompensationReport", "pace_note"]
+
+
+def pace_note(pace: Mapping[str, object] | None, time_s: float) -> str | None:
+    """One line on the pacing's spots and its time budget, from
+    :meth:`~flowtwin.compensation.pace.PaceReport.as_dict` (``None`` when no spot was
+    looked for: no pacing, or pacing everywhere).
+
+    Parameters
+    ----------
+    pace
+        The pacing's report as a dict, or ``None``.
+    time_s
+        The print time before compensation, s (the budget's reference).
+    """
+    if not pace or not pace.get("spots"):
+        return None
+    b = pace.get("time_budget")
+    budget = ("no time budget" if b is None else
+              f"budget {100 * float(b):g} % of the print time")  # type: ignore[arg-type]
+    added = float(pace.get("time_added_s") or 0.0)  # type: ignore[arg-type]
+    share = 100 * added / time_s if time_s > 0 else 0.0
+    line = (f"pacing: {pace['spots_paced']} of {pace['spots']} spots paced "
+            f"(+{share:.1f} % print time; {budget})")
+    if pace.get("spots_over_budget"):
+        line += f"; {pace['spots_over_budget']} spots left: budget"
+    return line
 
 
 @dataclass(frozen=True, slots=True)

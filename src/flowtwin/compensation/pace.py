@@ -56,12 +56,16 @@ from flowtwin.compensation.envelopes import SAME as _SAME
 from flowtwin.compensation.envelopes import drop_envelope, rise_envelope, staircase, step_speed_mm_s
 from flowtwin.errors import ProfileError
 
-__all__ = ["PaceOptions", "PaceReport", "drop_envelope", "pace_feeds", "rise_envelope",
-           "staircase", "step_speed_mm_s"]
+__all__ = ["DEFAULT_TIME_BUDGET", "PaceOptions", "PaceReport", "drop_envelope", "pace_feeds",
+           "rise_envelope", "staircase", "step_speed_mm_s"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
+
+#: Share of the print time the pacing may add unless told otherwise (issue #17: ≤ 10 %).
+DEFAULT_TIME_BUDGET = 0.10
+
 
 @dataclass(frozen=True, slots=True)
 class PaceOptions:
@@ -110,6 +114,11 @@ class PaceOptions:
         Printed path within which a spot lets a junction or a start be paced, mm.
     spot_rounds
         Most times the spots are looked for again on the paced, advanced draft.
+    time_budget
+        Largest share of the print time (planned, of the draft before pacing) the pacing
+        near the spots may add (≥ 0); over it only the worst spots are paced
+        (:mod:`flowtwin.compensation.budget`). ``None`` or ``inf``: no cap. The pacing
+        everywhere (``spots`` off) has no cap.
     """
 
     margin: float = 0.8
@@ -128,6 +137,7 @@ class PaceOptions:
     spot_error: float = 0.1
     spot_reach_mm: float = 5.0
     spot_rounds: int = 2
+    time_budget: float | None = DEFAULT_TIME_BUDGET
 
     def __post_init__(self) -> None:
         checks = {
@@ -152,6 +162,17 @@ class PaceOptions:
             if not (ok and math.isfinite(float(value))):
                 raise ProfileError("invalid flow-pacing option", field=name, value=value,
                                    allowed=allowed)
+        b = self.time_budget
+        if b is not None and (isinstance(b, bool) or not isinstance(b, (int, float))
+                              or math.isnan(b) or b < 0.0):
+            raise ProfileError("invalid flow-pacing option", field="time_budget", value=b,
+                               allowed="a share of the print time >= 0 (0.1 = 10 %), "
+                                       "inf or None: no cap")
+
+    @property
+    def budget_cap(self) -> float:
+        """The time budget as a share of the print time (``inf``: no cap)."""
+        return math.inf if self.time_budget is None else float(self.time_budget)
 
 
 @dataclass(slots=True)
@@ -172,6 +193,17 @@ class PaceReport:
     floored_pieces
         Paced pieces held at the floor (``min_speed_mm_s`` / ``max_slowdown``) above the
         envelope.
+    time_budget
+        The share of the print time the pacing might add (``None``: no cap).
+    time_added_s
+        Print time the kept pacing adds (planned), s.
+    spots
+        Spots (places an advance alone leaves beyond ``spot_error``) found in the rounds
+        that made the kept draft; 0 when pacing everywhere.
+    spots_paced
+        Of those, the spots the kept draft is paced near.
+    spots_over_budget
+        Spots left unpaced because pacing them too would have exceeded the time budget.
     """
 
     paced_rows: IntArray
@@ -181,13 +213,23 @@ class PaceReport:
     rise_starts: int = 0
     gap_junctions: int = 0
     floored_pieces: int = 0
+    time_budget: float | None = None
+    time_added_s: float = 0.0
+    spots: int = 0
+    spots_paced: int = 0
+    spots_over_budget: int = 0
 
     def as_dict(self) -> dict[str, object]:
         """Plain dict for reports."""
         return {"paced_moves": int(self.paced_rows.size), "pieces_added": self.pieces_added,
                 "drop_junctions": self.drop_junctions, "step_junctions": self.step_junctions,
                 "rise_starts": self.rise_starts, "gap_junctions": self.gap_junctions,
-                "floored_pieces": self.floored_pieces}
+                "floored_pieces": self.floored_pieces,
+                "time_budget": (None if self.time_budget is None
+                                or not math.isfinite(self.time_budget)
+                                else self.time_budget),
+                "time_added_s": self.time_added_s, "spots": self.spots,
+                "spots_paced": self.spots_paced, "spots_over_budget": self.spots_over_budget}
 
 
 def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: float

@@ -9,6 +9,7 @@ trajectory, guard, pace, advance, slip.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -18,23 +19,24 @@ import numpy.typing as npt
 
 from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import advance_pass
+from flowtwin.compensation.budget import largest_fitting
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions, guard_feeds
 from flowtwin.compensation.limits import ExtruderLimits
-from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.metrics import extruding_moves, flow_figures
 from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
 from flowtwin.compensation.slip import SlipOptions, slip_feedforward
-from flowtwin.compensation.spots import spot_pieces
+from flowtwin.compensation.spots import SpotRanking, count_spots, rank_spots, spot_pieces
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
 from flowtwin.errors import DataError
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import ReadOptions
 from flowtwin.planner.klipper_config import KlipperSettings
 from flowtwin.planner.marlin import MarlinSettings
-from flowtwin.planner.plan_file import plan_table
+from flowtwin.planner.plan_file import PlanResult, plan_table
 from flowtwin.profiles.machine import Machine
 from flowtwin.simulation import SimulationResult, simulate, simulate_plan
 
@@ -97,6 +99,19 @@ class Twin:
         """Simulate the draft as its written file would read (its move table, in memory;
         from ``layout``, the draft's, when given)."""
         return self.simulate_table(draft.to_table(layout), pressure_advance=pressure_advance)
+
+    def plan_draft(self, draft: Draft) -> PlanResult:
+        """Plan the draft as its written file would read, with the original's firmware
+        settings (what :meth:`simulate_draft` plans)."""
+        if self.settings is None:
+            raise DataError("the twin has no firmware settings yet", field="settings",
+                            allowed="a twin made from the original's plan")
+        return plan_table(draft.to_table(), self.settings, printer=self.printer)
+
+    def simulate_planned(self, plan: PlanResult) -> SimulationResult:
+        """Simulate a plan of :meth:`plan_draft` (with the twin's default advance)."""
+        return simulate_plan(plan, machine=self.machine, klipper_config=self.klipper_config,
+                             pressure_advance=self.pressure_advance)
 
 
 @dataclass(frozen=True, slots=True)
@@ -251,13 +266,17 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
     leaves beyond ``options.spot_error`` (:mod:`flowtwin.compensation.spots`); then again
     with the spots the paced and advanced draft still has added, up to
     ``options.spot_rounds`` times (pacing one junction can move the error to the next).
-    Of these drafts, and the one not paced, the one whose advanced trial scores best is
-    kept: the score is the larger of two ratios, after over before, of the RMS flow error
-    and of the windowed peak over-extrusion over one nozzle diameter (smaller is better).
+    Where a round's paced draft would add more than ``options.time_budget`` of the print
+    time (planned), only its worst spots are paced: the most that fit, found by bisection
+    (:mod:`flowtwin.compensation.budget`). Of these drafts, and the one not paced, the one
+    whose advanced trial scores best is kept: the score is the larger of two ratios, after
+    over before, of the RMS flow error and of the windowed peak over-extrusion over one
+    nozzle diameter (smaller is better).
     """
     pull = 0.0 if advance is None or advance.is_identity else advance.retract_ratio
     if options.pull_ratio > pull:  # the envelope may count only on the pull-back there is
         options = replace(options, pull_ratio=pull)
+    twin = setting.twin
     draft, sim = current.draft, current.sim
     time0 = sim.plan.timeline.total_time_s
     ph = sim.plan.timeline.phases
@@ -268,12 +287,12 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
         area = np.where(length > 0, cmd / length, 0.0)
     speed_factor = setting.original_file.speed_factor[draft.row]
     limits = setting.limits
-    push = (float(setting.twin.machine.filament.area_mm2)
+    push = (float(twin.machine.filament.area_mm2)
             * min(limits.jump_mm_s, limits.max_e_speed_mm_s))
     printing = printing_pieces(sim, draft)
 
-    def paced_with(only: BoolArray | None, no_pull: BoolArray | None = None) -> PaceOutcome:
-        paced, report = pace_feeds(
+    def pace(only: BoolArray | None, no_pull: BoolArray | None) -> tuple[Draft, PaceReport]:
+        return pace_feeds(
             draft, printing=printing, cross_section_mm2=area,
             lag_k_s=np.asarray(sim.parameters.params.lag_k_s, dtype=np.float64),
             volume_mm3=cmd, start_v_mm_s=np.asarray(ph["start_v"], dtype=np.float64),
@@ -283,14 +302,18 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
             t_end_s=np.asarray(sim.plan.timeline.end_time_s, dtype=np.float64),
             speed_factor=speed_factor, push_mm3_s=push, options=options, only=only,
             no_pull=no_pull)
+
+    def outcome(paced: Draft, report: PaceReport, plan: PlanResult | None = None
+                ) -> PaceOutcome:
         if not report.paced_rows.size:
             return PaceOutcome(Current(paced, sim), report, 0.0)
-        after = setting.twin.simulate_draft(paced)
-        return PaceOutcome(Current(paced, after), report,
-                           after.plan.timeline.total_time_s - time0)
+        after = twin.simulate_draft(paced) if plan is None else twin.simulate_planned(plan)
+        cost = after.plan.timeline.total_time_s - time0
+        report.time_added_s = cost
+        return PaceOutcome(Current(paced, after), report, cost)
 
-    if not options.spots:
-        return paced_with(None)
+    if not options.spots:  # everywhere: no spots to rank, no budget
+        return outcome(*pace(None, None))
 
     def advanced(cur: Current) -> AdvanceOutcome:
         if advance is None or advance.is_identity:
@@ -298,7 +321,7 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
         return advance_stage(setting, cur, advance, passes=1)
 
     original = setting.original
-    window = float(setting.twin.machine.hotend.nozzle_diameter_mm)
+    window = float(twin.machine.hotend.nozzle_diameter_mm)
     before = flow_figures(original, original, np.arange(len(original.plan.table)),
                           window_mm=window)
 
@@ -312,27 +335,87 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
         win = max(f.peak_overextrusion_window, 0.0) / peak if peak > 0 else 0.0
         return max(rms, win), f.flow_error
 
+    def near(err: FloatArray) -> BoolArray:
+        return spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
+                           reach_mm=options.spot_reach_mm)
+
+    def worst_that_fit(ranking: SpotRanking, err: FloatArray, only: BoolArray,
+                       stubborn: BoolArray | None, left: BoolArray
+                       ) -> tuple[int, tuple[BoolArray, BoolArray, Draft, PaceReport,
+                                             PlanResult] | None]:
+        """The most of the worst spots whose paced draft adds at most ``cap_s``
+        (``stubborn``: after a paced round, the spots are paced without the pull-back
+        except where the budget left them before), with its pieces allowed, its pieces
+        paced without the pull-back, the paced draft, its report and its plan."""
+        kept: list[tuple[BoolArray, BoolArray, Draft, PaceReport, PlanResult]] = []
+
+        def fits(count: int) -> bool:
+            f = near(np.where(ranking.worst(count), err, 0.0))
+            o = only | f
+            s = np.zeros_like(f) if stubborn is None else stubborn | (f & ~left)
+            d, r = pace(o, s)
+            p = twin.plan_draft(d)
+            if p.timeline.total_time_s - time0 > cap_s:
+                return False
+            kept[:] = [(o, s, d, r, p)]
+            return True
+
+        count, _ = largest_fitting(ranking.count, fits)
+        return count, (kept[0] if count else None)
+
+    cap_s = options.budget_cap * time0  # the time the pacing may add, s (inf: no cap)
+    scored = extruding_moves(original)
+    volume = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
     only = np.zeros(len(draft), dtype=bool)
     stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
+    left = np.zeros(len(draft), dtype=bool)  # near spots the budget left unpaced
+    seen = np.zeros(scored.size, dtype=bool)  # moves of the spots found so far
+    chosen = np.zeros(scored.size, dtype=bool)  # and of those paced near
     trial = advanced(current)
     best_score, err = judged(trial)
+    spots0 = count_spots(scored & (np.abs(err) > options.spot_error), scored, chosen)[0]
+    over0 = 0  # spots of the first round the budget left
     # nothing paced: the draft as it is (what pace_feeds gives with no piece allowed)
     best = PaceOutcome(current, PaceReport(paced_rows=np.zeros(0, dtype=np.int64)), 0.0,
                        advanced=trial)
     for k in range(options.spot_rounds):
-        found = spot_pieces(err, draft.row, length, printing, tolerance=options.spot_error,
-                            reach_mm=options.spot_reach_mm)
+        found = near(err)
         fresh = found & ~stubborn if k else found
         if not np.any(fresh):
             break
-        if k:  # still wrong after a paced round: pace there without the pull-back
-            stubborn |= found
-        only |= found
-        out = paced_with(only, stubborn)
+        bad = scored & (np.abs(err) > options.spot_error)
+        # still wrong after a paced round: pace there without the pull-back (not where
+        # the budget left a spot unpaced: it was never paced)
+        new_only, new_stubborn = only | found, stubborn | (found & ~left) if k else stubborn
+        paced, report = pace(new_only, new_stubborn)
+        plan = None
+        picked = bad
+        if math.isfinite(cap_s) and report.paced_rows.size:
+            plan = twin.plan_draft(paced)
+            if plan.timeline.total_time_s - time0 > cap_s:
+                ranking = rank_spots(err, volume, scored, tolerance=options.spot_error)
+                count, kept = worst_that_fit(ranking, err, only, stubborn if k else None, left)
+                if k == 0:
+                    over0 = ranking.count - count
+                if kept is None:  # not one more spot fits the budget
+                    break
+                new_only, new_stubborn, paced, report, plan = kept
+                picked = ranking.worst(count)
+        left = (left | found) & ~new_only
+        only, stubborn = new_only, new_stubborn
+        seen |= bad
+        chosen |= picked
+        out = outcome(paced, report, plan)
         trial = advanced(out.current)
         score, err = judged(trial)
         if score < best_score:
+            n_spots, n_paced = count_spots(seen, scored, chosen)
+            report.spots, report.spots_paced = n_spots, n_paced
+            report.spots_over_budget = n_spots - n_paced
             best_score, best = score, replace(out, advanced=trial)
+    if not best.applied:
+        best.report.spots, best.report.spots_over_budget = spots0, over0
+    best.report.time_budget = options.time_budget
     return best
 
 

@@ -22,9 +22,8 @@ from __future__ import annotations
 import gzip
 import math
 import os
-import re
 from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import BinaryIO
 
 import numpy as np
@@ -50,70 +49,14 @@ from flowtwin.gcode._commands import (
 )
 from flowtwin.gcode._rows import _Rows
 from flowtwin.gcode.bgcode.read import BgcodeText
+from flowtwin.gcode.flavors import check_extrusion_axis, volumetric_flavor
 from flowtwin.gcode.inputs import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.metadata import CommentInterpreter
 from flowtwin.gcode.moves import Event, MoveKind, MoveTable
+from flowtwin.gcode.options import FirmwareRetraction, ReadOptions
 from flowtwin.gcode.words import parse_line
 
 __all__ = ["FirmwareRetraction", "ReadOptions", "iter_move_chunks", "read_gcode"]
-
-@dataclass(frozen=True, slots=True)
-class FirmwareRetraction:
-    """Settings of ``G10``/``G11`` firmware retraction (``M207``/``M208``).
-
-    Defaults are Marlin's (``RETRACT_LENGTH`` 3 mm at 45 mm/s, recover at 8 mm/s).
-    """
-
-    length_mm: float = 3.0
-    speed_mm_s: float = 45.0
-    z_hop_mm: float = 0.0
-    extra_unretract_mm: float = 0.0
-    unretract_speed_mm_s: float = 8.0
-
-
-@dataclass(frozen=True, slots=True)
-class ReadOptions:
-    """How to read a G-code file.
-
-    Attributes
-    ----------
-    arc_segment_mm
-        Split arcs into ``max(1, floor(L / arc_segment_mm))`` equal-angle segments
-        (Klipper's ``[gcode_arcs] resolution``); ``None`` uses ``arc_tolerance_mm``.
-    arc_tolerance_mm
-        Maximum chord deviation from the true arc, mm.
-    home_xyz
-        Where ``G28`` leaves each axis (Klipper's ``position_endstop``), mm.
-    start_xyz
-        Toolhead position before the first line, mm.
-    firmware_retraction
-        ``G10``/``G11`` settings, or ``None`` when the firmware ignores them.
-    strict
-        Unknown commands are errors instead of counted.
-    filament_diameter_mm
-        Used by ``M200`` volumetric E when the command gives no diameter.
-    """
-
-    arc_segment_mm: float | None = None
-    arc_tolerance_mm: float = 0.002
-    home_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    start_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    firmware_retraction: FirmwareRetraction | None = field(default_factory=FirmwareRetraction)
-    strict: bool = False
-    filament_diameter_mm: float = 1.75
-
-    def __post_init__(self) -> None:
-        if self.arc_segment_mm is not None and not self.arc_segment_mm > 0:
-            raise GcodeError("arc segment length must be positive", field="arc_segment_mm",
-                             value=self.arc_segment_mm, allowed="> 0 mm")
-        if not self.arc_tolerance_mm > 0:
-            raise GcodeError("arc tolerance must be positive", field="arc_tolerance_mm",
-                             value=self.arc_tolerance_mm, allowed="> 0 mm")
-
-
-#: A volumetric-E header of CuraEngine (its first line): the flavor's name.
-_VOLUMETRIC_FLAVOR = re.compile(rb"^;FLAVOR:(UltiGCode|Marlin\(Volumetric\))[ \t]*\r?$",
-                                re.MULTILINE)
 
 # ------------------------------------------------------------------------ the reader ---
 
@@ -393,20 +336,13 @@ class _Reader:
         rows.n_vals = 0
 
     def _volumetric_flavor(self, buf: bytes) -> None:
-        """E in mm³ from the first line when the file's header names a volumetric flavor.
-
-        CuraEngine writes ``;FLAVOR:UltiGCode`` (the Ultimaker 2's firmware) and
-        ``;FLAVOR:Marlin(Volumetric)`` (its "RepRap (Volumetric)") with every E in mm³ and
-        no ``M200``: the printer is set to volumetric mode beforehand (CuraEngine
-        ``GCodeExport::setFlavor``: ``is_volumatric`` for exactly these two). The filament
-        diameter is :attr:`ReadOptions.filament_diameter_mm`, as for ``M200`` without ``D``.
-        """
-        m = _VOLUMETRIC_FLAVOR.search(buf, 0, 4096)
-        if m is None:
-            return
-        d = self.options.filament_diameter_mm
-        self.state[kernel.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0)
-        self.comments.metadata["volumetric_e"] = m.group(1).decode()
+        """E in mm³ from the first line when the header names a volumetric flavor
+        (:mod:`flowtwin.gcode.flavors`), with :attr:`ReadOptions.filament_diameter_mm`."""
+        flavor = volumetric_flavor(buf)
+        if flavor is not None:
+            d = self.options.filament_diameter_mm
+            self.state[kernel.S_E_FACTOR] = 1.0 / (math.pi * d * d / 4.0)
+            self.comments.metadata["volumetric_e"] = flavor
 
     # -- one chunk -------------------------------------------------------------------------
     def chunk(self, buf: bytes, *, capacity_hint: int = 0) -> MoveTable:
@@ -507,31 +443,6 @@ class _Reader:
 
 # -------------------------------------------------------------------------- public API ---
 
-def _check_extrusion_axis(metadata: dict[str, object], name: str) -> None:
-    """Refuse a file whose slicer moved the extruder on another axis than ``E``.
-
-    Slic3r's ``extrusion_axis`` setting, and PrusaSlicer's ``mach3`` and ``machinekit``
-    flavors (which write the extruder on ``A`` whatever ``extrusion_axis`` says: PrusaSlicer
-    2.5 embeds ``extrusion_axis = E`` in such a file), put the extruder's moves in words
-    such as ``G1 … A1.234``; read for ``E`` they would be a print that extrudes nothing.
-    """
-    config = metadata.get("slicer_config")
-    if not isinstance(config, dict):
-        return
-    axis = str(config.get("extrusion_axis", "E")).strip()
-    flavor = str(config.get("gcode_flavor", "")).strip()
-    if axis in ("", "E") and flavor in ("mach3", "machinekit"):
-        axis, field = "A", "gcode_flavor"
-    else:
-        field = "extrusion_axis"
-    if axis not in ("", "E"):
-        raise GcodeError(f"the slicer wrote the extruder's moves on axis {axis}, not E: "
-                         "flowtwin reads extrusion from E words only", source=name,
-                         field=field, value=flavor if field == "gcode_flavor" else axis,
-                         allowed="an extruder on E (extrusion_axis = E; a flavor other than "
-                         "mach3 or machinekit)")
-
-
 def iter_move_chunks(source: str | os.PathLike[str] | bytes | BinaryIO, *,
                      options: ReadOptions | None = None,
                      chunk_bytes: int = DEFAULT_CHUNK_BYTES) -> Iterator[MoveTable]:
@@ -594,7 +505,7 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
                                    "(truncated?)")
         last.metadata = reader.comments.finish()
         last.metadata.pop("_layer_mode", None)
-        _check_extrusion_axis(last.metadata, name)
+        check_extrusion_axis(last.metadata, name)
         last.features = list(reader.comments.features)
         last.layer_z = list(reader.layer_z)
         last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))

@@ -66,6 +66,9 @@ class PostprocessOptions:
         URL of a Klipper printer's Moonraker whose live configuration to plan with.
     advance, slip, pace, guard
         Compensations to apply (:func:`flowtwin.compensation.compensate`).
+    pace_budget
+        Share of the print time the pacing may add (``PaceOptions.time_budget``; ``None``:
+        no cap).
     report
         Also write the HTML report.
     fail_on
@@ -81,6 +84,7 @@ class PostprocessOptions:
     advance: bool = False
     slip: bool = False
     pace: bool = False
+    pace_budget: float | None = 0.10  # PaceOptions().time_budget (not imported: lean start)
     guard: bool = False
     report: bool = False
     fail_on: frozenset[str] = frozenset()
@@ -214,6 +218,11 @@ class PostprocessResult:
                        f"{_pct(c['peak_overextrusion_window_before'])} → "
                        f"{_pct(c['peak_overextrusion_window_after'])}.")
             out += [f"  {s}" for s in self.sentences[1:2]]
+            from flowtwin.compensation.outcome import pace_note
+
+            note = pace_note(c.get("pace"), float(c["time_before_s"]))  # type: ignore[attr-defined, arg-type]
+            if note is not None:
+                out.append(f"  {note[0].upper()}{note[1:]}.")
         n = int(self.melt.get("moves", 0))  # type: ignore[call-overload]
         if n:
             out.append(f"  {self.melt['text']}")
@@ -478,11 +487,12 @@ def _compensate(src: Path, dst: Path, choice: PrinterChoice, opts: PostprocessOp
                 ) -> tuple[CompensationReport, SimulationResult | None]:
     """The compensations asked for, through the public API (defaults for every option):
     the report and its simulation of the written file (``None``: simulate it)."""
-    from flowtwin.compensation import compensate
+    from flowtwin.compensation import PaceOptions, compensate
 
     rep = compensate(src, dst, machine=choice.machine, klipper_config=choice.klipper_config,
                      advance=opts.advance or None, slip=opts.slip or None,
-                     pace=opts.pace or None, guard=opts.guard or None)
+                     pace=PaceOptions(time_budget=opts.pace_budget) if opts.pace else None,
+                     guard=opts.guard or None)
     after = getattr(rep, "compensated_result", None)
     if after is not None and Path(after.plan.table.source) != dst:
         after = None
