@@ -10,8 +10,14 @@ import pytest
 from flowtwin.compensation import compensate
 from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.original import read_original
-from flowtwin.compensation.relief import relief_amounts, retraction_interims, start_gap
+from flowtwin.compensation.relief import (
+    relief_amounts,
+    relieved_gaps,
+    retraction_interims,
+    start_gap,
+)
 from flowtwin.errors import ProfileError
+from flowtwin.planner.timeline import PHASE_DTYPE, Timeline
 from flowtwin.simulation import simulate
 
 
@@ -126,3 +132,29 @@ def test_no_relief_below_the_threshold_or_without_a_model() -> None:
     assert relief_amounts([(1, 2)], start, e_unit_mm=1e-5) == []
     assert relief_amounts([(1, 2)], start, e_unit_mm=1e-5, keep_zero=True) == [(1, 2, 0, 0)]
     assert relief_amounts([(1, 2)], None, e_unit_mm=1e-5, keep_zero=True) == [(1, 2, 0, 0)]
+
+
+def test_relieved_gaps_name_the_holds_an_earlier_pass_shortened() -> None:
+    """A later pass finds the gaps whose E adds up to less than their original rows:
+    hold row, push-back row (−1: none after the retraction), next run's first row and the
+    shortfall; a gap that shares an original row with a run, or lost nothing, is not
+    one. Rows: runs 0–1, 5–6, 9–10, 13–14, 17; gaps 2–4, 7–8, 11–12, 15–16."""
+    elig = np.zeros(18, dtype=bool)
+    elig[[0, 1, 5, 6, 9, 10, 13, 14, 17]] = True
+    row_e = np.array([5, 5, 0, -4, 3, 5, 5, -2, 0, 5, 5, -3, 3, 5, 5, -1, 1, 5],
+                     dtype=np.int64)
+    # original row of every row: original 3 was cut in two (rows 3, 4); original 5 is
+    # the run's last row 6 and the gap's rows 7, 8
+    group = np.array([0, 1, 2, 3, 3, 4, 5, 5, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14],
+                     dtype=np.int64)
+    orig_e = np.array([5, 5, 0, 1, 5, 5, 5, 5, -3, 3, 5, 5, -1, 1, 5], dtype=np.int64)
+    phases = np.zeros(18, dtype=PHASE_DTYPE)
+    phases["t_start"] = np.arange(18.0)
+    phases["cruise_t"] = 1.0
+    timeline = Timeline(phases=phases)
+    # gap 2–4: originals 2 and 3 meant 0 + 1, the rows now give 0 − 4 + 3: short by 2,
+    # pushed back at row 4 after the retraction at row 3; gap 7–8 shares original 5
+    # with run row 6; gaps 11–12 and 15–16 give what their originals meant
+    assert relieved_gaps(elig, row_e, group, orig_e, timeline) == [(3, 4, 5, 2)]
+    row_e[4] = 0  # no push-back after the retraction: short by 1 + 4
+    assert relieved_gaps(elig, row_e, group, orig_e, timeline) == [(3, -1, 5, 5)]

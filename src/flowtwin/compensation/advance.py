@@ -39,6 +39,12 @@ from enum import StrEnum
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.compensation._law_kernel import (
+    accumulate_runs,
+    f2_values,
+    last_at_or_before,
+    segment_at,
+)
 from flowtwin.compensation._track_kernel import FLAG_NAMES, track_runs
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.pieces import Pieces
@@ -224,42 +230,26 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
     first[1:] = seg_run[1:] != seg_run[:-1]
     ends = starts + durs
     # sequential accumulation (gaps between rows add F1·gap to F2)
-    _accumulate(starts, ends, f1_len, f2_len, first, f1, f2)
+    accumulate_runs(starts, ends, f1_len, f2_len, first, f1, f2)
     h = 0.5 * smooth_time_s
     run_first = np.flatnonzero(first)
     run_last = np.append(run_first[1:], n) - 1
+    lo = np.ascontiguousarray(run_first[query_run], dtype=np.int64)
+    hi = np.ascontiguousarray(run_last[query_run], dtype=np.int64)
+
+    in_order = bool(np.all(starts[1:] >= starts[:-1]))
 
     def f2_at(t: FloatArray) -> FloatArray:
-        k = np.searchsorted(starts, t, side="right") - 1
-        k = np.clip(k, run_first[query_run], run_last[query_run])
-        u = t - starts[k]
-        inside = np.clip(u, 0.0, durs[k])
-        after = np.maximum(u - durs[k], 0.0)
-        val = (f2[k] + f1[k] * inside + 0.5 * a0[k] * inside ** 2
-               + slope[k] * inside ** 3 / 6.0 + (f1[k] + f1_len[k]) * after)
-        return np.where(u < 0.0, 0.0, val)
+        """``F₂`` at ``t`` within each query's run (0 before the run)."""
+        if in_order and np.all(t[1:] >= t[:-1]):  # (a rounding can put a start an ulp late)
+            k = last_at_or_before(starts, t)
+        else:
+            k = (np.searchsorted(starts, t, side="right") - 1).astype(np.int64)
+        k, u, inside, after = segment_at(starts, durs, lo, hi, t, k)
+        return f2_values(k, u, inside, inside ** 3, after, f1, f2, a0, slope, f1_len)
 
-    return (f2_at(times + h) - 2.0 * f2_at(times) + f2_at(times - h)) / (h * h)
-
-
-def _accumulate(starts: FloatArray, ends: FloatArray, f1_len: FloatArray, f2_len: FloatArray,
-                first: npt.NDArray[np.bool_], f1: FloatArray, f2: FloatArray) -> None:
-    """Running ``F₁``, ``F₂`` at segment starts (restart where ``first``)."""
-    # F1 is a segmented cumulative sum; F2 adds F1·duration + its own part, and F1·gap.
-    run_id = np.cumsum(first) - 1
-    c1 = np.cumsum(f1_len)
-    base1 = (c1 - f1_len)[first]
-    f1[:] = c1 - f1_len - base1[run_id]
-    prev_end = np.concatenate(([0.0], ends[:-1]))
-    gap = np.where(first, 0.0, starts - prev_end)
-    # F2 increments: before segment k: F1_(k-1)·dur_(k-1) + f2_len_(k-1) + F1_k·gap_k
-    inc = np.zeros_like(f1)
-    inc[1:] = f1[:-1] * (ends[:-1] - starts[:-1]) + f2_len[:-1]
-    inc += f1 * gap
-    inc[first] = 0.0
-    c2 = np.cumsum(inc)
-    base2 = c2[first]
-    f2[:] = c2 - base2[run_id]
+    t = np.ascontiguousarray(times, dtype=np.float64)
+    return (f2_at(t + h) - 2.0 * f2_at(t) + f2_at(t - h)) / (h * h)
 
 
 def advance_targets(pieces: Pieces, timeline: Timeline, rate: FloatArray, k_la: FloatArray,

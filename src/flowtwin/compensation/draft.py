@@ -17,7 +17,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.emit import Layout, draft_table, lay_out_draft, write_draft
+from flowtwin.compensation.emit import (
+    Layout,
+    check_layout,
+    draft_table,
+    lay_out_draft,
+    write_draft,
+)
 from flowtwin.compensation.original import OriginalFile
 from flowtwin.gcode.moves import MoveTable
 
@@ -110,9 +116,31 @@ class Draft:
                                minlength=n) > 0
         return np.asarray(changed & (np.arange(n) >= 0))
 
-    def layout(self) -> Layout:
-        """The words of every piece as they will be written (:mod:`.emit`)."""
-        return lay_out_draft(self)
+    def layout(self, *, check: bool = True) -> Layout:
+        """The words of every piece as they will be written (:mod:`.emit`).
+
+        ``check``: refuse lines that cannot be rewritten (for the file to write; a table
+        to simulate needs no check).
+
+        Raises
+        ------
+        GcodeError
+            With ``check``: a line to rewrite carries a line number or checksum, or a
+            relative step that is not on the 10⁻⁵ mm grid.
+        """
+        return lay_out_draft(self, check=check)
+
+    def check(self, layout: Layout) -> Layout:
+        """``layout`` (this draft's, made without the check) once checked as
+        :meth:`layout` checks it.
+
+        Raises
+        ------
+        GcodeError
+            As :meth:`layout`.
+        """
+        check_layout(self, layout)
+        return layout
 
     def to_table(self, layout: Layout | None = None, *, source: str | None = None
                  ) -> MoveTable:

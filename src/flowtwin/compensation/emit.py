@@ -41,7 +41,7 @@ from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
 if TYPE_CHECKING:
     from flowtwin.compensation.draft import Draft
 
-__all__ = ["Layout", "draft_table", "lay_out_draft", "write_draft"]
+__all__ = ["Layout", "check_layout", "draft_table", "lay_out_draft", "write_draft"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -70,6 +70,8 @@ class Layout:
         Words of every piece (see :func:`flowtwin.compensation._write_kernel.lay_out`).
     layer_z
         Z of every layer the reader will find (mm).
+    row_changed
+        Original rows whose line is rewritten, shape ``(n_rows,)``.
     """
 
     rows: npt.NDArray[np.void]
@@ -86,6 +88,7 @@ class Layout:
     q_e: IntArray
     q_f: IntArray
     layer_z: list[float]
+    row_changed: BoolArray
 
     @property
     def lines_rewritten(self) -> int:
@@ -112,7 +115,7 @@ def lay_out_draft(draft: Draft, *, check: bool = True) -> Layout:
     n = len(draft)
     row_line = np.asarray(mv["line"], dtype=np.int64)
     changed_rows = draft.changed_rows()
-    changed_lines = np.unique(row_line[changed_rows])
+    changed_lines = _distinct_sorted(row_line[changed_rows])
     row_changed = np.isin(row_line, changed_lines) if changed_lines.size else \
         np.zeros(n_rows, dtype=bool)
     if check:
@@ -167,7 +170,28 @@ def lay_out_draft(draft: Draft, *, check: bool = True) -> Layout:
                  first_piece & changed_piece, changed_piece)
     return Layout(rows, changed_lines.astype(np.int64), starts.astype(np.int64),
                   ends.astype(np.int64), line_code, f_restore, g92_val[ends - 1],
-                  g92_has[ends - 1], flags, q_xyz, q_dec, q_e, q_f, layer_z)
+                  g92_has[ends - 1], flags, q_xyz, q_dec, q_e, q_f, layer_z, row_changed)
+
+
+def check_layout(draft: Draft, layout: Layout) -> None:
+    """Refuse a layout whose rewritten lines cannot be written: a line number or checksum
+    on one of them, a relative step off the 10⁻⁵ mm grid.
+
+    Raises
+    ------
+    GcodeError
+        Naming the first such line.
+    """
+    check_rewritable(draft.original, layout.changed_lines)
+    _check_relative_steps(draft, layout.row_changed)
+
+
+def _distinct_sorted(values: IntArray) -> IntArray:
+    """``np.unique(values)``; in one pass when the values are already in order (the
+    lines of a file's rows)."""
+    if values.size < 2 or not np.all(values[1:] >= values[:-1]):
+        return np.unique(values)
+    return values[np.concatenate(([True], values[1:] != values[:-1]))]
 
 
 def _check_relative_steps(draft: Draft, row_changed: BoolArray) -> None:
@@ -228,11 +252,14 @@ def _rows(draft: Draft, xyz: FloatArray, de: FloatArray, feed: FloatArray,
         out[name] = mv[name][r]
     # running E per tool, summed in file order like the reader
     tool = np.asarray(out["tool"], dtype=np.int64)
-    e = np.empty(n)
-    for t in np.unique(tool).tolist():
-        sel = tool == t
-        e[sel] = np.cumsum(de[sel])
-    out["e"] = e
+    if n == 0 or tool.min() == tool.max():
+        out["e"] = np.cumsum(de)
+    else:
+        e = np.empty(n)
+        for t in np.unique(tool).tolist():
+            sel = tool == t
+            e[sel] = np.cumsum(de[sel])
+        out["e"] = e
     # line numbers: every rewritten line grows by its pieces, an F restore and a G92
     line = np.asarray(mv["line"], dtype=np.int64)[r]
     grow = (ends - starts) + (f_restore >= 0) + g92 - 1

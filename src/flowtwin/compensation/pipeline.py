@@ -174,7 +174,8 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     current = _run_stages(setting, Current(draft, setting.original), stages, advance_passes,
                           record, step)
     step("write")
-    layout = current.draft.layout()
+    layout = (current.draft.layout() if current.layout is None
+              else current.draft.check(current.layout))
     current.draft.render(dst, layout)
     step("simulate result")
     after = _written(setting, current, layout, dst)

@@ -127,17 +127,34 @@ def retraction_interims(elig: npt.NDArray[np.bool_], kind: npt.NDArray[np.uint8]
     list of tuple
         ``(first retracting row, push-back row)``.
     """
-    out: list[tuple[int, int]] = []
-    for i, j in [*start_gap(elig), *gaps(elig, timeline, min_time_s)]:
-        if np.all(tool[max(i - 1, 0):j + 1] == tool[max(i - 1, 0)]):
-            e = row_e[i:j]
-            neg = np.flatnonzero(e < 0)
-            pos = np.flatnonzero(e > 0)
-            if neg.size and pos.size and pos[-1] > neg[0] and int(np.sum(e)) >= 0:
-                r = i + int(pos[-1])
-                if (kind[r] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0:
-                    out.append((i + int(neg[0]), r))
-    return out
+    i, j = _stretches([*start_gap(elig), *gaps(elig, timeline, min_time_s)])
+    if not i.size:
+        return []
+    first_neg, last_pos, total = _signs(np.asarray(row_e, dtype=np.int64), i, j)
+    # one tool from the row before the interim to the run after it
+    change = np.concatenate(([0], np.cumsum(tool[1:] != tool[:-1])))
+    one_tool = change[j] == change[np.maximum(i - 1, 0)]
+    push = np.maximum(last_pos, 0)
+    ok = (one_tool & (first_neg < j) & (last_pos >= i) & (last_pos > first_neg) & (total >= 0)
+          & ((kind[push] & (MoveKind.XY | MoveKind.FW_RETRACT)) == 0))
+    return list(zip(first_neg[ok].tolist(), last_pos[ok].tolist(), strict=True))
+
+
+def _stretches(spans: list[tuple[int, int]]) -> tuple[IntArray, IntArray]:
+    """Starts and ends of ``(i, j)`` stretches as two arrays."""
+    a = np.array(spans, dtype=np.int64).reshape(-1, 2)
+    return a[:, 0], a[:, 1]
+
+
+def _signs(e: IntArray, i: IntArray, j: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+    """For every stretch ``e[i:j]`` (``i < j``): the index of its first negative entry
+    (``>= j``: none), of its last positive entry (``< i``: none) and its sum."""
+    n = e.shape[0]
+    idx = np.arange(n, dtype=np.int64)
+    next_neg = np.minimum.accumulate(np.where(e < 0, idx, n)[::-1])[::-1]
+    last_pos = np.maximum.accumulate(np.where(e > 0, idx, -1))
+    csum = np.concatenate(([0], np.cumsum(e)))
+    return next_neg[i], last_pos[j - 1], csum[j] - csum[i]
 
 
 def relieved_gaps(elig: npt.NDArray[np.bool_], row_e: IntArray, group: IntArray,
@@ -176,22 +193,24 @@ def relieved_gaps(elig: npt.NDArray[np.bool_], row_e: IntArray, group: IntArray,
         retracting row, its last pushing-back row (``-1``: none), the printing row after
         the gap, and the grid units the earlier pass took off.
     """
-    out: list[tuple[int, int, int, int]] = []
-    for i, j in [*start_gap(elig), *gaps(elig, timeline, np.zeros(elig.shape[0]))]:
-        e = row_e[i:j]
-        neg = np.flatnonzero(e < 0)
-        if not neg.size:
-            continue
-        originals = np.unique(group[i:j])
-        # an original row split between a run and the gap would mix its printing E in
-        if (i > 0 and np.any(originals == group[i - 1])) or np.any(originals == group[j]):
-            continue
-        short = int(np.sum(np.asarray(orig_e)[originals])) - int(np.sum(e))
-        if short > 0:
-            pos = np.flatnonzero(e > 0)
-            back = i + int(pos[-1]) if pos.size and pos[-1] > neg[0] else -1
-            out.append((i + int(neg[0]), back, j, short))
-    return out
+    i, j = _stretches([*start_gap(elig), *gaps(elig, timeline, np.zeros(elig.shape[0]))])
+    if not i.size:
+        return []
+    first_neg, last_pos, total = _signs(np.asarray(row_e, dtype=np.int64), i, j)
+    group = np.asarray(group, dtype=np.int64)
+    orig = np.asarray(orig_e, dtype=np.int64)
+    # an original row split between a run and the gap would mix its printing E in
+    # (``group`` is non-decreasing: such a row is the gap's first or last row's)
+    split = (((i > 0) & (group[np.maximum(i - 1, 0)] == group[i]))
+             | (group[j - 1] == group[j]))
+    # E of the gap's original rows: each counted at its first row in the gap
+    new = np.concatenate(([True], group[1:] != group[:-1]))
+    counted = np.concatenate(([0], np.cumsum(np.where(new, orig[group], 0))))
+    short = orig[group[i]] + counted[j] - counted[i + 1] - total
+    ok = (first_neg < j) & ~split & (short > 0)
+    back = np.where((last_pos >= i) & (last_pos > first_neg), last_pos, -1)
+    return list(zip(first_neg[ok].tolist(), back[ok].tolist(), j[ok].tolist(),
+                    short[ok].tolist(), strict=True))
 
 
 def row_start_states(model: LagModel, states: FloatArray, n_rows: int) -> FloatArray:

@@ -21,6 +21,7 @@ from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import advance_pass
 from flowtwin.compensation.budget import largest_fitting
 from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions, guard_feeds
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.metrics import extruding_moves, flow_figures
@@ -93,10 +94,11 @@ class Twin:
         return simulate_plan(plan, machine=self.machine, klipper_config=self.klipper_config,
                              pressure_advance=pa)
 
-    def simulate_draft(self, draft: Draft, *, pressure_advance: bool | None = None
-                       ) -> SimulationResult:
-        """Simulate the draft as its written file would read (its move table, in memory)."""
-        return self.simulate_table(draft.to_table(), pressure_advance=pressure_advance)
+    def simulate_draft(self, draft: Draft, *, pressure_advance: bool | None = None,
+                       layout: Layout | None = None) -> SimulationResult:
+        """Simulate the draft as its written file would read (its move table, in memory;
+        from ``layout``, the draft's, when given)."""
+        return self.simulate_table(draft.to_table(layout), pressure_advance=pressure_advance)
 
     def plan_draft(self, draft: Draft) -> PlanResult:
         """Plan the draft as its written file would read, with the original's firmware
@@ -140,10 +142,12 @@ class Setting:
 @dataclass(frozen=True, slots=True)
 class Current:
     """A draft and its simulation (the draft's rendered file, with the twin's default
-    pressure advance)."""
+    pressure advance); with the draft's layout (made without the check,
+    :meth:`Draft.layout`) when the stage kept it: the file is then written from it."""
 
     draft: Draft
     sim: SimulationResult
+    layout: Layout | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -428,10 +432,12 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     """
     twin = setting.twin
     start = (current.sim if not twin.pressure_advance
-             else twin.simulate_draft(current.draft, pressure_advance=False))
+             else twin.simulate_draft(current.draft, pressure_advance=False,
+                                      layout=current.layout))
     cur: SimulationResult | None = start
     kept_draft = current.draft
     kept_sim: SimulationResult | None = start
+    kept_layout, lay = current.layout, current.layout  # (of the kept draft, of draft)
     kept_rms = flow_figures(setting.original, start, current.draft.row).rms_flow_error
     del start
     draft = current.draft
@@ -444,6 +450,7 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         done.add(0)
         if resume.applied:
             kept_draft, kept_sim = resume.current.draft, resume.current.sim
+            kept_layout = lay = resume.current.layout
             kept_rms = summaries[-1].rms_flow_error
             draft, cur = kept_draft, kept_sim
         else:  # the first pass raised the RMS: the stage ends there
@@ -452,27 +459,31 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         if k in done:
             continue
         if cur is None:  # (the kept draft's simulation was let go: simulate it again)
-            cur = kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False)
+            cur = kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False,
+                                                 layout=kept_layout)
         plan, lag_k_s = cur.plan, cur.parameters.params.lag_k_s
         state_max = _grinding_state(cur, setting)
         delivered = _delivered_grid(setting.original, cur, draft) if ilc else None
         if cur is not setting.original:
             # the pass needs the plan, the lag factors, the cap and what was delivered:
-            # the rest of the simulation (dynamics, deposition) is let go while it runs
+            # the rest of the simulation (dynamics, deposition) and the layout are let go
+            # while it runs
             cur = kept_sim = None
+            kept_layout = lay = None
         draft, rep = advance_pass(
             draft, plan.table, plan.timeline, lag_k_s, setting.limits, options,
             e_unit_mm=setting.original_file.e_unit, split=k == 0,
             relief=(k == 0 and options.relief), state_max=state_max, delivered=delivered)
         del plan, lag_k_s, state_max, delivered
-        cur = twin.simulate_draft(draft, pressure_advance=False)
+        lay = draft.layout(check=False)
+        cur = twin.simulate_draft(draft, pressure_advance=False, layout=lay)
         rms = flow_figures(setting.original, cur, draft.row).rms_flow_error
         retry = ilc and rms > kept_rms
         fail = not retry and not rms <= kept_rms
         summaries.append(AdvancePassSummary.of(rep, rms_flow_error=rms, twin_correction=ilc,
                                                kept=not (retry or fail)))
         if retry:  # the same pass again, without the correction
-            draft, cur = kept_draft, kept_sim
+            draft, cur, lay = kept_draft, kept_sim, kept_layout
             continue
         done.add(k)
         if fail:
@@ -480,12 +491,15 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
                             f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
                             "its result is not used")
             break
-        kept_draft, kept_sim, kept_rms = draft, cur, rms
+        kept_draft, kept_sim, kept_rms, kept_layout = draft, cur, rms, lay
     applied = kept_draft is not current.draft
     if kept_sim is None:
-        kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False)
-    sim = kept_sim if not twin.pressure_advance else twin.simulate_draft(kept_draft)
-    return AdvanceOutcome(Current(kept_draft, sim), tuple(summaries), applied,
+        if kept_layout is None:
+            kept_layout = kept_draft.layout(check=False)
+        kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False, layout=kept_layout)
+    sim = (kept_sim if not twin.pressure_advance
+           else twin.simulate_draft(kept_draft, layout=kept_layout))
+    return AdvanceOutcome(Current(kept_draft, sim, kept_layout), tuple(summaries), applied,
                           tuple(warnings))
 
 
@@ -518,10 +532,12 @@ def slip_stage(setting: Setting, current: Current, options: SlipOptions) -> Slip
     base = draft.e_grid.copy()
     printing = printing_pieces(sim, draft)
     rms0 = flow_figures(setting.original, sim, draft.row).rms_flow_error
+    layout = None
     for _ in range(options.iterations):
         draft = slip_feedforward(draft, base, printing, sim.dynamics.moves["slip"], options)
         sim = current.sim  # the last round's simulation is not held through the next one
-        sim = setting.twin.simulate_draft(draft)
+        layout = draft.layout(check=False)
+        sim = setting.twin.simulate_draft(draft, layout=layout)
     rms1 = flow_figures(setting.original, sim, draft.row).rms_flow_error
     if rms1 > rms0:
         return SlipOutcome(current, 0, False, (
@@ -529,4 +545,4 @@ def slip_stage(setting: Setting, current: Current, options: SlipOptions) -> Slip
             f"from {100 * rms0:.2f} %; the drive is near grinding, try --guard): it is not "
             "used",))
     added = int(np.sum(draft.e_grid[printing]) - np.sum(base[printing]))
-    return SlipOutcome(Current(draft, sim), added, True, ())
+    return SlipOutcome(Current(draft, sim, layout), added, True, ())

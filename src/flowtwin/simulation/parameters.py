@@ -393,8 +393,9 @@ def fresh_filament_mm(de_mm: npt.NDArray[np.float64], tool: npt.NDArray[np.integ
     """
     out = np.zeros(de_mm.shape[0])
     below = dict(retracted_mm)
-    for t in np.unique(tool):
-        rows = np.flatnonzero(tool == t)
+    one = tool.size > 0 and tool.min() == tool.max()  # one tool: every row, no gather
+    for t in (tool[:1] if one else np.unique(tool)):
+        rows = slice(None) if one else np.flatnonzero(tool == t)
         c = np.cumsum(de_mm[rows]) - below.get(int(t), 0.0)
         high = np.maximum(np.maximum.accumulate(c), 0.0)
         before = np.concatenate(([0.0], high[:-1]))
