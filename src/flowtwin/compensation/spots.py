@@ -21,6 +21,7 @@ volume, ``e`` its flow error): the spot's part of the volume-weighted RMS flow e
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -71,15 +72,11 @@ def spot_pieces(flow_error: FloatArray, piece_row: IntArray, length_mm: FloatArr
     row = np.asarray(piece_row, dtype=np.int64)
     length = np.asarray(length_mm, dtype=np.float64)
     pr = np.asarray(printing, dtype=bool)
-    if not (row.shape == length.shape == pr.shape):
-        raise DataError("piece arrays differ in length", field="piece_row",
-                        value=(row.shape, length.shape, pr.shape), allowed="one per piece")
+    _same_length("piece", "piece_row", "one per piece", row, length, pr)
     if row.size and (row.min() < 0 or row.max() >= err.size):
         raise DataError("piece maps to no original move", field="piece_row",
                         value=int(row.max()), allowed=f"0 .. {err.size - 1}")
-    if not (np.isfinite(tolerance) and tolerance > 0.0):
-        raise DataError("spot tolerance must be positive", field="tolerance",
-                        value=tolerance, allowed="> 0")
+    _check_tolerance(tolerance)
     if not (np.isfinite(reach_mm) and reach_mm >= 0.0):
         raise DataError("spot reach must not be negative", field="reach_mm",
                         value=reach_mm, allowed=">= 0 mm")
@@ -166,12 +163,8 @@ def rank_spots(flow_error: FloatArray, volume_mm3: FloatArray, scored: BoolArray
     err = np.asarray(flow_error, dtype=np.float64)
     vol = np.asarray(volume_mm3, dtype=np.float64)
     sc = np.asarray(scored, dtype=bool)
-    if not (err.shape == vol.shape == sc.shape):
-        raise DataError("move arrays differ in length", field="volume_mm3",
-                        value=(err.shape, vol.shape, sc.shape), allowed="one per move")
-    if not (np.isfinite(tolerance) and tolerance > 0.0):
-        raise DataError("spot tolerance must be positive", field="tolerance",
-                        value=tolerance, allowed="> 0")
+    _same_length("move", "volume_mm3", "one per move", err, vol, sc)
+    _check_tolerance(tolerance)
     label, n = _spot_labels(sc & (np.abs(err) > tolerance), sc)
     inside = label >= 0
     weight = np.bincount(label[inside], weights=np.abs(vol[inside]) * err[inside] ** 2,
@@ -201,3 +194,17 @@ def count_spots(bad: BoolArray, scored: BoolArray, chosen: BoolArray) -> tuple[i
     label, n = _spot_labels(b, np.asarray(scored, dtype=bool) | b)
     hit = label[np.asarray(chosen, dtype=bool) & (label >= 0)]
     return n, int(np.unique(hit).size)
+
+
+def _check_tolerance(tolerance: float) -> None:
+    """Refuse a spot tolerance that is not a positive number."""
+    if not (np.isfinite(tolerance) and tolerance > 0.0):
+        raise DataError("spot tolerance must be positive", field="tolerance",
+                        value=tolerance, allowed="> 0")
+
+
+def _same_length(kind: str, field: str, allowed: str, *arrays: npt.NDArray[Any]) -> None:
+    """Refuse arrays of different shapes (``kind``: what they hold, for the message)."""
+    if len({a.shape for a in arrays}) > 1:
+        raise DataError(f"{kind} arrays differ in length", field=field,
+                        value=tuple(a.shape for a in arrays), allowed=allowed)
