@@ -98,11 +98,11 @@ SOURCE = '''
 def _raw_object_cache_notify(self, data):
     if not SENT:
         SENT.append(1)
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), int(sys.argv[2]))
         time.sleep(0.2)  # the signal's Python handler runs in here, inside the C callback
     return ORIG(self, data)
 '''
-ns = {"os": os, "signal": signal, "time": time, "ORIG": ORIG, "SENT": []}
+ns = {"os": os, "signal": signal, "sys": sys, "time": time, "ORIG": ORIG, "SENT": []}
 # llvmlite's own callback (its name and file), called by C code when numba compiles
 exec(compile(SOURCE, ee.__file__, "exec"), ns)
 # (llvmlite wraps the function for C once, at import: the wrapper is replaced)
@@ -125,15 +125,19 @@ main(["plan", sys.argv[1]])
 """
 
 
-def test_sigterm_inside_a_native_callback_is_taken_after_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("sig", "status", "word"),
+                         [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
+                          (signal.SIGINT, 130, b"interrupted")], ids=["term", "ctrl-c"])
+def test_a_signal_inside_a_native_callback_is_taken_after_it(
+        tmp_path: Path, sig: signal.Signals, status: int, word: bytes) -> None:
     # an exception raised in a ctypes callback is printed ("Exception ignored ...") and
     # dropped, and the command would run to its end: flowtwin takes the signal again
-    # once the callback has returned, and exits 143 without a traceback
+    # once the callback has returned, and exits 143 (130 for Ctrl-C) without a traceback
     src = tmp_path / "print.gcode"
     write_print(src, PrintSpec(layers=2))
-    proc = subprocess.run([sys.executable, "-c", CALLBACK_PROBE, str(src)],
+    proc = subprocess.run([sys.executable, "-c", CALLBACK_PROBE, str(src), str(int(sig))],
                           capture_output=True, timeout=300, check=False)
     assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
         proc.stderr.decode()[-2000:]
-    assert proc.returncode == 128 + signal.SIGTERM, proc.stderr.decode()[-2000:]
-    assert b"terminated" in proc.stderr
+    assert proc.returncode == status, proc.stderr.decode()[-2000:]
+    assert word in proc.stderr

@@ -132,18 +132,20 @@ def main(argv: list[str] | None = None) -> None:
     130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
     terminated: list[int] = []
 
-    def terminate(signum: int, frame: FrameType | None) -> None:
+    def interrupt(signum: int, frame: FrameType | None) -> None:
         if _in_native_callback(frame):
             # an exception raised in a ctypes callback is printed and dropped by ctypes,
             # and the run would go on: take the signal again once the callback is left
             _resend_soon(signum)
             return
-        # unwind like Ctrl-C, so outputs being written are dropped whole
-        terminated.append(signum)
+        if signum == signal.SIGTERM:  # unwind like Ctrl-C: outputs are dropped whole
+            terminated.append(signum)
         raise KeyboardInterrupt
 
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, terminate)
+        signal.signal(signal.SIGTERM, interrupt)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, interrupt)  # Python's Ctrl-C, callback-safe
     try:
         # standalone_mode=False returns typer.Exit codes instead of exiting with them
         code = app(args=argv, standalone_mode=False)
