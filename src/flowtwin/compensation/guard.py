@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.draft import Draft
 from flowtwin.errors import ProfileError
+
+if TYPE_CHECKING:
+    from flowtwin.compensation.draft import Draft
 
 __all__ = ["GuardOptions", "guard_feeds"]
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import gzip
 import math
 import os
+import sys
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import BinaryIO
@@ -48,7 +49,6 @@ from flowtwin.gcode._commands import (
     number_param,
 )
 from flowtwin.gcode._rows import _Rows
-from flowtwin.gcode.bgcode.read import BgcodeText
 from flowtwin.gcode.flavors import check_extrusion_axis, volumetric_flavor
 from flowtwin.gcode.inputs import DEFAULT_CHUNK_BYTES, line_chunks, open_source
 from flowtwin.gcode.metadata import CommentInterpreter
@@ -479,10 +479,10 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
             size = os.path.getsize(source)
         except OSError:
             size = -1
-        if size >= 0 and not isinstance(stream, gzip.GzipFile | BgcodeText):
+        if size >= 0 and not (isinstance(stream, gzip.GzipFile) or _is_bgcode(stream)):
             # ask for no more than the file holds: a read allocates what it is asked for
             chunk_bytes = min(chunk_bytes, size + 1)
-        if accumulate and size >= 0 and not isinstance(stream, BgcodeText):
+        if accumulate and size >= 0 and not _is_bgcode(stream):
             # about one row per 25 bytes of G-code; growth covers the rest
             reader.total_bytes = size
             hint = size // 25
@@ -511,11 +511,18 @@ def _drive(source: str | os.PathLike[str] | bytes | BinaryIO, options: ReadOptio
         last.unknown_commands = dict(sorted(reader.unknown.items(), key=lambda kv: -kv[1]))
         last.warnings = list(reader.warnings)
         last.n_lines = n_lines
-        if isinstance(stream, BgcodeText) and stream.info is not None:
-            last.metadata["bgcode"] = stream.info.as_metadata()
+        info = getattr(stream, "info", None) if _is_bgcode(stream) else None
+        if info is not None:
+            last.metadata["bgcode"] = info.as_metadata()
         yield last
 
     return reader, tables()
+
+
+def _is_bgcode(stream: object) -> bool:
+    """Whether ``stream`` decodes a ``.bgcode`` (its module is imported only for one)."""
+    module = sys.modules.get("flowtwin.gcode.bgcode.read")
+    return module is not None and isinstance(stream, module.BgcodeText)
 
 
 def _empty(reader: _Reader) -> MoveTable:

@@ -23,10 +23,10 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
 from flowtwin.dynamics import AdvanceSettings, predict
 from flowtwin.errors import CalibrationError, DataError, GcodeError
 from flowtwin.firmware import (
@@ -37,7 +37,6 @@ from flowtwin.firmware import (
     pa_command,
 )
 from flowtwin.gcode.emitter import GcodeEmitter, NumberFormat, WordFormats, format_number
-from flowtwin.gcode.generator import PrintSpec, generate_print
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.gcode.reader import read_gcode
 from flowtwin.physics.deposition import bead_area_mm2
@@ -47,6 +46,9 @@ from flowtwin.profiles.machine import Machine, load_machine
 from flowtwin.profiles.setup import SetupProfile
 from flowtwin.scalar_search import bounded_minimum
 from flowtwin.simulation import DEFAULT_MACHINE, move_parameters
+
+if TYPE_CHECKING:
+    from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
 
 __all__ = ["AdvanceFit", "adaptive_pa_table", "best_pressure_advance", "pa_test_gcode"]
 
@@ -203,8 +205,7 @@ def best_pressure_advance(source: str | os.PathLike[str] | bytes | None = None, 
     m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
     name = "built-in example print" if source is None else (
         "<bytes>" if isinstance(source, bytes) else os.fspath(source))
-    data: str | os.PathLike[str] | bytes = source if source is not None else \
-        "".join(line + "\n" for line in generate_print(PrintSpec())).encode()
+    data: str | os.PathLike[str] | bytes = source if source is not None else _example_print()
     scorer = _Scorer(data, m, klipper_config)
     lag_mean, lag_lo, lag_hi = scorer.lag()
     hi = min(10.0, 3.0 * lag_hi) if k_max_s is None else float(k_max_s)
@@ -236,6 +237,13 @@ def best_pressure_advance(source: str | os.PathLike[str] | bytes | None = None, 
                      curve=curve, source=name)
     fit.explanation = _explain(fit, fw, scorer.smooth)
     return fit
+
+
+def _example_print() -> bytes:
+    """The built-in example print's G-code."""
+    from flowtwin.gcode.generator import PrintSpec, generate_print
+
+    return "".join(line + "\n" for line in generate_print(PrintSpec())).encode()
 
 
 def _explain(fit: AdvanceFit, fw: Firmware, smooth_s: float) -> str:
@@ -352,4 +360,6 @@ def adaptive_pa_table(*, machine: Machine | SetupProfile | str | os.PathLike[str
             ks.append(fit.k_s)
             qs.append(q)
             aa.append(round(a))
+    from flowtwin.calibration.tuning.adaptive_pa import AdaptivePaTable
+
     return AdaptivePaTable.from_points(ks, qs, aa, source="twin"), fits
