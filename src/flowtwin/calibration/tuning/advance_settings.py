@@ -121,6 +121,7 @@ class _Scorer:
                        or DEFAULT_SMOOTH_TIME_S)
         self._plans: dict[float, tuple[PlanResult, object]] = {}
         self._table: MoveTable | None = None
+        self._scores: dict[float, tuple[float, float]] = {}
         base = self._plan(0.0)[0]
         mv = base.table.moves
         if not np.any((mv["kind"] & MoveKind.EXTRUDE) != 0):
@@ -159,6 +160,12 @@ class _Scorer:
         return mean, float(np.min(k)), float(np.max(k))
 
     def score(self, k: float) -> tuple[float, float]:
+        """RMS and peak flow error at ``k`` (each ``k`` is simulated once)."""
+        if k not in self._scores:
+            self._scores[k] = self._score(k)
+        return self._scores[k]
+
+    def _score(self, k: float) -> tuple[float, float]:
         plan, params = self._plan(k)
         adv = AdvanceSettings(self.firmware, k_s=float(k), smooth_time_s=self.smooth,
                               use_gcode=False)
