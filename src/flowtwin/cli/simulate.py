@@ -40,6 +40,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
 
     from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+    from flowtwin.profiles.machine import load_machine
     from flowtwin.report.verdict import build_verdict
     from flowtwin.simulation import simulate
 
@@ -52,7 +53,8 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
             done = _STAGES.index(name) if name in _STAGES else 0
             bar.update(task, description=name, completed=done)
 
-        result = simulate(gcode, machine=machine, klipper_config=klipper_config,
+        setup = load_machine(machine)  # once, for the simulation and the fit
+        result = simulate(gcode, machine=setup, klipper_config=klipper_config,
                           pressure_advance=pressure_advance,
                           series_dt_s=series_dt_s if series else None,
                           use_slicer_limits=slicer_limits, progress=stage)
@@ -62,7 +64,7 @@ def run_simulation(gcode: str, *, machine: str, klipper_config: Path | None,
             from flowtwin.calibration.tuning.advance_settings import best_pressure_advance
 
             try:
-                advance_fit = best_pressure_advance(gcode, machine=machine,
+                advance_fit = best_pressure_advance(gcode, machine=setup,
                                                     klipper_config=klipper_config)
             except FlowtwinError as exc:
                 result.warnings.append(f"no pressure advance fit: {exc}")
