@@ -35,6 +35,7 @@ from flowtwin.physics.melt_capacity import melt_capacity_mm3_s
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
 from flowtwin.physics.viscosity import GAS_CONSTANT_J_MOL_K, KELVIN_OFFSET
+from flowtwin.profiles.hotend import HotendProfile
 from flowtwin.profiles.machine import Machine
 from flowtwin.profiles.material import (
     ArrheniusViscosity,
@@ -159,11 +160,10 @@ def _max_force(machine: Machine) -> float:
 
 
 @functools.lru_cache(maxsize=256)
-def _unit_resistance(machine: Machine, layer_height_mm: float | None) -> float:
+def _unit_resistance(hot: HotendProfile, layer_height_mm: float | None) -> float:
     """The hot end's hydraulic resistance at 1 Pa·s, MPa·s/mm³: every resistance term is
-    linear in the viscosity, ``R_hyd = μ·R(1 Pa·s)``; one value per machine and layer height
-    (``Machine`` is frozen and hashable), asked for by every steady state of a flow limit."""
-    hot = machine.hotend
+    linear in the viscosity, ``R_hyd = μ·R(1 Pa·s)``; one value per hot end and layer height
+    (the profile is frozen and hashable), asked for by every steady state of a flow limit."""
     return float(hydraulic_resistance_mpa_s_per_mm3(
         pa_s_to_mpa_s(1.0), capillary_length_mm=hot.land_length_mm,
         nozzle_radius_mm=hot.nozzle_radius_mm, bore_radius_mm=hot.bore_diameter_mm / 2.0,
@@ -204,7 +204,7 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
     lo, hi = mat.viscosity.t_min_c, mat.viscosity.t_max_c
     grad = _slip_gradient(machine, flow_mm3_s / area)
 
-    r_unit = _unit_resistance(machine, layer_height_mm)
+    r_unit = _unit_resistance(machine.hotend, layer_height_mm)
 
     # scalar forms of steady_melt_temperature_c and the viscosity law (same formulas,
     # without the array checks: this runs thousands of times per limit)
