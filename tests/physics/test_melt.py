@@ -78,6 +78,17 @@ def test_short_time_expansion_joins_the_series() -> None:
         assert float(bulk_temperature_fraction(fo)) == pytest.approx(exact, abs=1e-6)
 
 
+def test_compiled_and_python_series_are_the_same_numbers() -> None:
+    # few values run theta_scalar in Python, many run it compiled: bit for bit the same
+    fo = np.concatenate(([0.0, 1e-9, 1.999e-3, 2.0e-3, math.inf],
+                         np.geomspace(1e-6, 50.0, 400)))
+    compiled = bulk_temperature_fraction(fo)
+    assert fo.size > 16
+    one_by_one = np.array([float(bulk_temperature_fraction(x)) for x in fo])
+    np.testing.assert_array_equal(compiled, one_by_one)
+    assert compiled[0] == 1.0 and compiled[4] == 0.0
+
+
 @pytest.mark.parametrize("fo", [0.02, 0.1, 0.4])
 def test_series_against_finite_volume_solution(fo: float) -> None:
     assert float(bulk_temperature_fraction(fo)) == pytest.approx(_finite_volume_theta(fo),

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin._jit import njit
-from flowtwin.physics.melt import _theta_scalar
+from flowtwin.physics._melt_kernel import theta_scalar
 
 __all__ = ["breakpoints", "mean_temperatures"]
 
@@ -96,7 +96,7 @@ def _temperature(t: float, entry: float, wall: float, inlet_c: float, a: float,
                  r: float) -> float:
     residence = t - entry
     fo = max(residence, 0.0) * a / (r * r) if math.isfinite(residence) else math.inf
-    return wall - (wall - inlet_c) * _theta_scalar(fo)
+    return wall - (wall - inlet_c) * theta_scalar(fo)
 
 
 @njit(cache=True, nogil=True)

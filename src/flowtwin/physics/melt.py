@@ -39,7 +39,6 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin._jit import njit
 from flowtwin.physics._checks import as_float_array, require_positive
 
 __all__ = [
@@ -72,6 +71,9 @@ _LAMBDA = np.array(J0_ZEROS)
 _WEIGHT = 4.0 / (_LAMBDA * _LAMBDA)
 #: Below this Fo the short-time expansion is used (the series needs > 40 terms there).
 _FO_SHORT = 2.0e-3
+#: Up to this many values :func:`bulk_temperature_fraction` runs :func:`theta_scalar` in
+#: Python; more run it compiled (the same source, the same numbers: ``tests/physics``).
+_PYTHON_MAX = 16
 
 
 def thermal_diffusivity_mm2_s(conductivity_w_mk: npt.ArrayLike, density_g_cm3: npt.ArrayLike,
@@ -150,15 +152,20 @@ def bulk_temperature_fraction(fourier: npt.ArrayLike) -> FloatArray:
         from flowtwin.errors import ProfileError
         raise ProfileError("the Fourier number must be >= 0", field="fourier",
                            value=float(np.nanmin(fo)) if fo.size else None, allowed=">= 0")
+    if fo.size <= _PYTHON_MAX:  # a few values: no compiled code to load
+        return np.array([theta_scalar(float(x)) for x in fo.ravel()]).reshape(fo.shape)
+    from flowtwin.physics._melt_kernel import theta_kernel
+
     out = np.empty(fo.shape)
     flat_in = fo.ravel()
     flat_out = out.ravel()
-    _theta_kernel(flat_in, flat_out)
+    theta_kernel(flat_in, flat_out)
     return flat_out.reshape(fo.shape)
 
 
-@njit(cache=True, nogil=True)
-def _theta_scalar(fo: float) -> float:
+def theta_scalar(fo: float) -> float:
+    """:func:`bulk_temperature_fraction` of one ``Fo ≥ 0`` (no checks), in plain Python;
+    compiled as :data:`flowtwin.physics._melt_kernel.theta_scalar` for the kernels."""
     if fo == math.inf:
         return 0.0
     if fo < _FO_SHORT:
@@ -171,12 +178,6 @@ def _theta_scalar(fo: float) -> float:
         if term < 1e-18 * total:
             break
     return total
-
-
-@njit(cache=True, nogil=True)
-def _theta_kernel(fo: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
-    for i in range(fo.shape[0]):
-        out[i] = _theta_scalar(fo[i])
 
 
 def melt_temperature_c(wall_c: npt.ArrayLike, inlet_c: npt.ArrayLike,

@@ -78,7 +78,7 @@ CHECK_SET = (
 def predicted_capacity_mm3_s(hotend: str, temperature_c: float) -> float:
     """Melt capacity of a built-in hot end with PLA 4043D at ``temperature_c``, mm³/s."""
     from flowtwin.physics.melt_capacity import melt_capacity_mm3_s
-    from flowtwin.simulation.parameters import viscosity_pa_s
+    from flowtwin.simulation.viscosity import viscosity_pa_s
 
     hot = load_builtin(hotend, "hotend")
     mat = load_builtin("pla-4043d", "material")

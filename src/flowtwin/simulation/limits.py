@@ -30,7 +30,7 @@ import numpy.typing as npt
 from flowtwin.errors import ProfileError
 from flowtwin.physics import defaults
 from flowtwin.physics.drive import slip_gradient_velocity
-from flowtwin.physics.melt import _theta_scalar
+from flowtwin.physics.melt import theta_scalar
 from flowtwin.physics.melt_capacity import melt_capacity_mm3_s
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
@@ -215,7 +215,7 @@ def steady_extrusion(machine: Machine, flow_mm3_s: float, *, temperature_c: floa
             t_melt = t_set
         else:
             fo = math.pi * model.diffusivity_mm2_s * model.heated_length_mm / q_fed
-            t_melt = t_set - (t_set - model.inlet_c) * _theta_scalar(fo)
+            t_melt = t_set - (t_set - model.inlet_c) * theta_scalar(fo)
         mu = law(min(max(t_melt, lo), hi))
         return t_melt, mu, mu * r_unit
 
@@ -319,7 +319,7 @@ def flow_limit(machine: Machine, *, temperature_c: float | None = None,
     -------
     FlowLimit
     """
-    from flowtwin.simulation.parameters import viscosity_pa_s
+    from flowtwin.simulation.viscosity import viscosity_pa_s
 
     t_set = machine.temperature_c if temperature_c is None else float(temperature_c)
 

@@ -25,19 +25,9 @@ from flowtwin.physics.lag import lag_factor_s
 from flowtwin.physics.melt_history import MeltState
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
-from flowtwin.physics.viscosity import (
-    viscosity_arrhenius_pa_s,
-    viscosity_exponential_pa_s,
-    viscosity_wlf_pa_s,
-)
 from flowtwin.planner.timeline import Timeline
 from flowtwin.profiles.machine import Machine
-from flowtwin.profiles.material import (
-    ArrheniusViscosity,
-    ExponentialViscosity,
-    MaterialProfile,
-    WlfViscosity,
-)
+from flowtwin.simulation.viscosity import viscosity_pa_s
 
 __all__ = ["THIN_LAYER_FRACTION", "MoveParameters", "OperatingPoint", "layer_heights_mm",
            "move_parameters", "operating_point", "thin_layer_moves", "viscosity_pa_s"]
@@ -101,19 +91,6 @@ class MoveParameters:
     melt_state: MeltState | None = None
     flow_limit_mm3_s: npt.NDArray[np.float64] | None = None
     over_flow_limit: npt.NDArray[np.bool_] | None = None
-
-
-def viscosity_pa_s(material: MaterialProfile, temp_c: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Melt viscosity by the material's law (exponential [002], Arrhenius or WLF), Pa·s."""
-    law = material.viscosity
-    t = np.asarray(temp_c, dtype=np.float64)
-    if isinstance(law, ExponentialViscosity):
-        return viscosity_exponential_pa_s(t, law.mu0_pa_s, law.b_per_c)
-    if isinstance(law, ArrheniusViscosity):
-        return viscosity_arrhenius_pa_s(t, law.mu_ref_pa_s, law.t_ref_c,
-                                        law.activation_energy_j_mol)
-    assert isinstance(law, WlfViscosity)
-    return viscosity_wlf_pa_s(t, law.mu_ref_pa_s, law.t_ref_c, law.c1, law.c2_k)
 
 
 #: A layer that rises less than this fraction of the nominal layer height over the layer

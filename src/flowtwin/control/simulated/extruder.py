@@ -36,7 +36,7 @@ from flowtwin.physics.lag import lag_factor_s, lag_linear, lag_step
 from flowtwin.physics.nozzle import hydraulic_resistance_mpa_s_per_mm3
 from flowtwin.physics.units import pa_s_to_mpa_s
 from flowtwin.profiles.machine import Machine
-from flowtwin.simulation.parameters import viscosity_pa_s
+from flowtwin.simulation.viscosity import viscosity_pa_s
 
 __all__ = ["EQ8_PINCH_RANGE_N", "ExtruderState", "StepFlux", "StepParams", "step_extrusion",
            "step_params"]
