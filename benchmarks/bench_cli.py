@@ -4,8 +4,8 @@ resident memory of the whole command (median of 5; 1 with ``--quick``), warm num
 * help and version: ``flowtwin --help``, ``flowtwin plan --help``, ``flowtwin simulate
   --help``, ``flowtwin calibrate --help``, ``flowtwin --version`` (goal <= 0.25 s);
 * the built-in example print (``flowtwin demo``'s G-code, 843 lines): ``plan``,
-  ``simulate``, ``plan --json``, ``simulate --json``, ``limits``, ``profiles list``
-  (goal <= 0.5 s);
+  ``simulate``, ``plan --json``, ``simulate --json``, ``limits``, ``profiles list``,
+  ``postprocess`` and ``compensate --advance`` (goal <= 0.5 s);
 * the 2.82 M-line PrusaSlicer print of :mod:`benchmarks.bigprint` (generated once with
   Debian's prusa-slicer; skipped when it is missing and cannot be made): ``plan
   --klipper-config B.cfg --json`` (goal >= 1.5 M lines/s), ``simulate --json`` (default
@@ -75,6 +75,13 @@ def _example(folder: Path) -> Path:
     return path
 
 
+def _copy(path: Path, name: str) -> Path:
+    """A copy of ``path`` beside it (postprocess edits its file in place)."""
+    target = path.with_name(name)
+    target.write_bytes(path.read_bytes())
+    return target
+
+
 def _load() -> float:
     return os.getloadavg()[0]
 
@@ -88,6 +95,7 @@ def run(quick: bool = False) -> dict[str, object]:
         example = _example(folder)
         _command(["simulate", str(example), "--json"])  # warm the numba cache
         _command(["plan", str(example), "--json"])
+        _command(["compensate", str(example), "--advance", "-o", str(folder / "comp.gcode")])
         rows: dict[str, dict[str, float]] = {}
         cases = {
             "--help": ["--help"], "--version": ["--version"],
@@ -98,6 +106,9 @@ def run(quick: bool = False) -> dict[str, object]:
             "simulate example": ["simulate", str(example)],
             "simulate example --json": ["simulate", str(example), "--json"],
             "limits": ["limits"], "profiles list": ["profiles", "list"],
+            "postprocess example": ["postprocess", str(_copy(example, "pp.gcode"))],
+            "compensate example --advance": ["compensate", str(example), "--advance",
+                                             "-o", str(folder / "comp.gcode")],
         }
         for name, args in cases.items():
             rows[name] = _median(args, repeat)
