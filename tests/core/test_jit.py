@@ -50,3 +50,76 @@ def test_cached_kernels_load_without_scipy_and_compiling_still_works(tmp_path: P
     assert out["moves"] > 100
     # norm([3, 4, -1]) + min + sum(cumsum) = sqrt(26) - 1 + (3 + 7 + 6)
     assert abs(out["value"] - (26 ** 0.5 - 1.0 + 16.0)) < 1e-12
+
+
+
+_LINK_PROBE = r"""
+import json, sys
+import llvmlite.binding as ll
+from numba.core import codegen
+import flowtwin
+from flowtwin._jit import elf_defined_symbols, njit
+from flowtwin.gcode.generator import PrintSpec, write_print
+
+parsed = []
+parse = ll.parse_bitcode
+def counting_parse(*args, **kwargs):
+    parsed.append(1)
+    return parse(*args, **kwargs)
+ll.parse_bitcode = counting_parse
+
+loaded = []
+load = codegen.CPUCodeLibrary._unserialize.__func__
+def capturing_load(cls, code_generator, state):
+    loaded.append(state)
+    return load(cls, code_generator, state)
+codegen.CPUCodeLibrary._unserialize = classmethod(capturing_load)
+
+write_print(sys.argv[1], PrintSpec())
+plan = flowtwin.plan(sys.argv[1])             # kernels from numba's cache
+from flowtwin.physics._melt_kernel import theta_scalar
+from flowtwin.physics.melt import theta_scalar as theta_python
+first = theta_scalar(0.3)                     # one more, with a scalar signature
+parsed_loading = len(parsed)
+
+# the object's symbol table against LLVM's own view of the kernel's bitcode
+mismatched = []
+for name, kind, (obj, bitcode) in (s for s in loaded if s[1] == "object"):
+    module = parse(bitcode)
+    llvm = {g.name for group in (module.functions, module.global_variables) for g in group
+            if not g.is_declaration}
+    if elf_defined_symbols(obj) != llvm:
+        mismatched.append(name)
+
+@njit(cache=False)
+def caller(fo):                               # compiled now: links the loaded kernel in
+    return 2.0 * theta_scalar(fo)
+
+linked = caller(0.3)
+print(json.dumps({"kernels": len(loaded), "parsed_loading": parsed_loading,
+                  "mismatched": mismatched, "parsed_linking": len(parsed) - parsed_loading,
+                  "linked": linked, "python": 2.0 * theta_python(0.3), "first": first,
+                  "moves": len(plan.table.moves)}))
+"""
+
+
+def test_cached_kernels_load_without_their_bitcode_until_linked(tmp_path: Path) -> None:
+    from flowtwin._jit import LAZY_BITCODE
+
+    assert LAZY_BITCODE
+    proc = subprocess.run([sys.executable, "-c", _LINK_PROBE, str(tmp_path / "example.gcode")],
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["kernels"] >= 5 and out["moves"] > 100
+    assert out["parsed_loading"] == 0  # no kernel's bitcode was read to load it
+    assert out["mismatched"] == []     # the symbols registered are the kernel's own
+    assert out["parsed_linking"] >= 1  # linking the kernel into new code reads it
+    assert out["linked"] == out["python"] == 2.0 * out["first"]
+
+
+def test_elf_symbols_refuse_other_formats() -> None:
+    from flowtwin._jit import elf_defined_symbols
+
+    assert elf_defined_symbols(b"\xcf\xfa\xed\xfe" + bytes(60)) is None  # Mach-O
+    assert elf_defined_symbols(b"\x7fELF\x01\x01" + bytes(58)) is None    # 32-bit
