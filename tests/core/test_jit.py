@@ -123,3 +123,52 @@ def test_elf_symbols_refuse_other_formats() -> None:
 
     assert elf_defined_symbols(b"\xcf\xfa\xed\xfe" + bytes(60)) is None  # Mach-O
     assert elf_defined_symbols(b"\x7fELF\x01\x01" + bytes(58)) is None    # 32-bit
+
+
+_NRT_PROBE = r"""
+import json, sys
+from pathlib import Path
+import flowtwin._jit as jit
+jit.NRT_CACHE_DIR = Path(sys.argv[1])
+from numba.core.runtime import nrtdynmod
+made = []
+create = nrtdynmod.create_nrt_module
+def counting_create(ctx):
+    made.append(1)
+    return create(ctx)
+nrtdynmod.create_nrt_module = counting_create
+
+import numpy as np
+
+@jit.njit(cache=False)
+def work(n):                                  # allocates, counts references, frees
+    a = np.arange(n) * 2.0
+    pieces = [a, a + 1.0]
+    return pieces[1].sum()
+
+value = work(1000)
+print(json.dumps({"compiled": len(made), "value": value,
+                  "files": sorted(p.name for p in Path(sys.argv[1]).iterdir())}))
+"""
+
+
+def test_numbas_runtime_is_compiled_once_and_loaded_after(tmp_path: Path) -> None:
+    from flowtwin._jit import NRT_CACHE
+
+    assert NRT_CACHE
+
+    def run() -> dict[str, object]:
+        proc = subprocess.run([sys.executable, "-c", _NRT_PROBE, str(tmp_path)],
+                              capture_output=True, text=True, timeout=600, check=False)
+        assert proc.returncode == 0, proc.stderr
+        out: dict[str, object] = json.loads(proc.stdout.strip().splitlines()[-1])
+        assert out["value"] == 1_000_000.0  # sum(2k + 1, k < 1000)
+        return out
+
+    first = run()
+    assert first["compiled"] == 1
+    [name] = first["files"]  # type: ignore[misc]
+    assert run()["compiled"] == 0  # loaded from the file
+    (tmp_path / name).write_bytes(b"\x80\x04 not a pickle")  # a damaged file: compiled anew
+    assert run()["compiled"] == 1
+    assert run() == first | {"compiled": 0}
