@@ -52,6 +52,17 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    than :data:`RIPPLE_MAX` of the edge's contrast beside either edge (median over the
    groups' means), every width of the clip is refused: the image does not tell the
    silhouette from the stripes to half a pixel.
+5. **Too few frame groups under an inter-frame codec.** The blur and the limb's shape
+   are told apart by the profile's content at about 0.1–0.3 cycle/px, which is where
+   the codec's 8×8 DCT quantization acts; it moves the fitted blur by up to ±0.1 px and
+   the limb shapes with it (a width error of about −2 px per px of blur). An
+   inter-frame codec (MPEG-4 part 2, H.264, …) predicts each frame from earlier ones,
+   so the frames of a short clip share a few codings of the static edge and their
+   means do not average the codec's error out: on renderer 2, a 24-frame MPEG-4 clip
+   (3 groups) of a texture-free filament read +0.6 px in every frame (its groups agree
+   on the wrong blur: 1.10–1.13 px with any one left out, against 1.23 px), its
+   48-frame version +0.1 px. A clip from such a codec whose blur and limb shapes rest
+   on fewer than :data:`MIN_GROUPS_INTER` groups is refused.
 """
 
 from __future__ import annotations
@@ -69,8 +80,8 @@ from flowtwin.vision.silhouette import Silhouette, clip_model, interior_ripple
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
 
-__all__ = ["BLUR_FRAMES", "RIPPLE_MAX", "ROUGH_MAX_PX", "ROUGH_PX", "ROUGH_RATIO",
-           "TOOTH_REACH_MM", "ClipWidth", "contact_rows", "is_clean"]
+__all__ = ["BLUR_FRAMES", "MIN_GROUPS_INTER", "RIPPLE_MAX", "ROUGH_MAX_PX", "ROUGH_PX",
+           "ROUGH_RATIO", "TOOTH_REACH_MM", "ClipWidth", "contact_rows", "is_clean"]
 
 #: Frames whose blur is fitted freely before the clip's blur is fixed.
 BLUR_FRAMES = 15
@@ -96,6 +107,10 @@ ROUGH_MAX_PX = 1.5
 #: and on the real clip of [003]; 3.2–7.2 % on the two striped seeds, whose edges read
 #: 0.24–0.57 px off.
 RIPPLE_MAX = 0.025
+#: Fewest frame groups (:class:`FrameGroups`) whose means may set the clip's blur and
+#: limb shapes when the recording was coded by an inter-frame codec (module docstring,
+#: 5): 6 groups, 48 frames at 8 per group.
+MIN_GROUPS_INTER = 6
 #: Height of the row bands of the frame-wide reference scan, rows.
 REFERENCE_BAND_ROWS = 32
 #: The ROI's width may differ from the filament's width elsewhere in the frame by this
@@ -194,6 +209,10 @@ class ClipWidth:
         Edge search parameters (:func:`~flowtwin.vision.width.measure_width_px`).
     blur_frames
         Frames fitted freely before the clip's blur is fixed.
+    codec
+        FOURCC of the recording's codec when it is an inter-frame codec
+        (:data:`~flowtwin.vision.capture.INTER_FRAME_CODECS`), else ``None``
+        (module docstring, 5).
     """
 
     roi: Roi
@@ -201,6 +220,7 @@ class ClipWidth:
     sigma_px: float = 0.7
     min_edge_dn_px: float = 3.0
     blur_frames: int = BLUR_FRAMES
+    codec: str | None = None
     blur_px: float | None = None
     mix: tuple[float, float] | None = None
     _strip: npt.NDArray[np.uint8] | None = None
@@ -209,6 +229,7 @@ class ClipWidth:
     _stored: list[tuple[int, EdgeMeasurement]] = field(default_factory=list)
     _scatter: list[tuple[float, float]] = field(default_factory=list)
     _ripple: list[tuple[float, float]] = field(default_factory=list)
+    _n_groups: int = 0
 
     def measure(self, crop: npt.NDArray[np.uint8]) -> EdgeMeasurement:
         """Width of one frame's ``before`` crop. Until the clip's blur is fixed, the
@@ -292,6 +313,7 @@ class ClipWidth:
         if self.blur_px is None:
             self.blur_px = float(np.median([e.blur_px for _, e in self._stored]))
         sils = self._shape_silhouettes()
+        self._n_groups = len(sils)
         if len(sils) < 2:
             # too few frame groups: single frames, each with its own fit (limb shapes
             # free) at the running blur
@@ -364,6 +386,8 @@ class ClipWidth:
             note = self.against_reference(rows)
         if note is None and gear_center_px is not None:
             note = self._in_contact_zone(rows, gear_center_px, mm_per_px)
+        if note is None:
+            note = self.too_few_groups(rows)
         if note is not None:
             skipped = int(Quality.BLANK | Quality.DUPLICATE)
             for row in range(len(rows.width)):
@@ -403,6 +427,22 @@ class ClipWidth:
                 f"{100 * RIPPLE_MAX:.1f} % allowed) - stripes along the filament do not "
                 "move in the image and, foreshortened at the limb, cannot be told from "
                 "its edge; the width could be off by more than half a pixel")
+
+    def too_few_groups(self, rows: RowLog) -> str | None:
+        """Why the clip's blur and limb shapes are not determined under its codec (None
+        if they are, or if the codec codes every frame on its own): fewer than
+        :data:`MIN_GROUPS_INTER` frame groups (module docstring, 5)."""
+        if self.codec is None or self._n_groups >= MIN_GROUPS_INTER:
+            return None
+        if not np.isfinite(np.asarray(rows.width, dtype=np.float64)).any():
+            return None
+        return (f"only {self._n_groups} groups of {SHAPE_GROUP} frames with the filament's "
+                f"edges: under the {self.codec} codec's compression the clip's blur and "
+                f"limb shapes need at least {MIN_GROUPS_INTER} "
+                f"({MIN_GROUPS_INTER * SHAPE_GROUP} frames) - it predicts each frame from "
+                "earlier ones, so a short clip's frames share its error at the edge, and "
+                "the width could be off by more than half a pixel; record a longer clip, "
+                "or losslessly")
 
     def against_reference(self, rows: RowLog) -> str | None:
         """Why the ROI's width is not the filament's elsewhere in the frame (None if it

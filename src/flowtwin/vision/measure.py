@@ -142,7 +142,7 @@ class Pipeline:
                                            check_stale=check)
         self.expected_px = expected_width_px(config.mm_per_px, config.diameter_mm)
         self.widths = ClipWidth(config.rois.before, self.expected_px, p.width_sigma_px,
-                                p.min_edge_dn_px)
+                                p.min_edge_dn_px, codec=None if check else self.info.codec)
         self.rows = RowLog.empty()
         self.last_width: EdgeMeasurement | None = None
         self._prev: npt.NDArray[np.uint8] | None = None
