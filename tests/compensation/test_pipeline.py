@@ -284,3 +284,30 @@ def test_a_file_the_refinement_cannot_solve_is_refused_with_its_line(tmp_path: P
         assert not out.exists()
     else:
         assert math.isfinite(report.after.rms_flow_error) and out.exists()
+
+
+def test_a_refused_slip_leaves_the_advanced_file_as_it_was(
+        example: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A slip feed-forward that raises the twin's RMS flow error is refused; the stage let
+    the advanced draft's simulation go while it simulated its own drafts and simulates it
+    again: the written file and its figures are those of the advance alone, bit for bit.
+    (Here the feed-forward is made to double every printing piece's E.)"""
+    from flowtwin.compensation import stages
+    from flowtwin.compensation.slip import slip_feedforward
+
+    def doubled(draft, base_e, printing, slip, options):  # type: ignore[no-untyped-def]
+        out = slip_feedforward(draft, base_e, printing, slip, options)
+        e = out.e_grid.copy()
+        e[printing] *= 2
+        return out.with_e(e)
+
+    alone = compensate(example, tmp_path / "advance.gcode", advance=True)
+    monkeypatch.setattr(stages, "slip_feedforward", doubled)
+    refused = compensate(example, tmp_path / "refused.gcode", advance=True, slip=True)
+    assert "slip" not in refused.transformations
+    assert any("slip feed-forward raised" in w for w in refused.warnings)
+    assert (tmp_path / "refused.gcode").read_bytes() == (tmp_path / "advance.gcode").read_bytes()
+    assert refused.after.as_dict() == alone.after.as_dict()
+    assert np.array_equal(refused.after.flow_error, alone.after.flow_error)
+    assert np.array_equal(refused.compensated_result.dynamics.moves,
+                          alone.compensated_result.dynamics.moves)

@@ -226,3 +226,62 @@ def test_precharge_feeds_a_short_first_move_after_a_relieved_travel(tmp_path: Pa
     e2, _f2, y2 = refine_qp(model, pieces, start, intent, pg, lo, hi, opts,
                            precharge=(first_var, np.zeros(1)))
     assert np.array_equal(e2, e0) and y2[0] == 0.0
+
+
+def test_the_program_solved_part_by_part_is_the_whole_program(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The refinement assembles and solves its program part by part, cut between runs
+    the program does not join (``Chain.cuts``): the pieces' E, the pre-charges and the
+    figures are those of the program solved whole, to the bit, with pre-charges, ratio
+    steps and pieces that pull back in play; and with the state cap's second round (on
+    this made-up problem the capped solve ends without a finite solution for some
+    pieces, whole or in parts alike, which ``advance_pass`` refuses)."""
+    from flowtwin.compensation import program
+
+    path = tmp_path / "runs.gcode"
+    lines = ["G21", "G90", "M83", "M104 S215", "G1 X10 Y10 F9000"]
+    for k in range(6):  # runs between relieved retractions, each with a short first move
+        y = 10 + 8 * k
+        lines += [f"G1 X10 Y{y} F9000", "G1 E0.8 F2100",
+                  f"G1 X10.06 Y{y} E0.0024 F3600",
+                  f"G1 X{40 + 3 * k} Y{y} E{1.2 + 0.1 * k:.4f} F{3000 + 600 * k}",
+                  f"G1 X{60 + 3 * k} Y{y + 2} E{0.6 + 0.05 * k:.4f} F1200",
+                  "G1 E-0.8 F2100"]
+    model, pieces, sel, c0, intent, pg = _refine_problem(path, lines, relieve=True)
+    start = c0 * pieces.length_mm[sel]
+    lo = 0.05 * c0
+    lo[1::7] = -2.0 * c0[1::7]  # some pieces may pull back
+    hi = 3.0 * c0
+    jump = np.full(sel.size, 0.3 * float(np.mean(c0)))
+    firsts = np.flatnonzero(np.r_[True, pg[1:] != pg[:-1]])
+    jump[firsts[::2]] = np.inf
+    states = model.states(start / pieces.length_mm[sel])
+    first_var = firsts[1:]
+    y_max = np.array([max(float(states[np.flatnonzero(model.seg_piece == v - 1)[-1]]), 1.0)
+                      for v in first_var])
+    opts = RefineOptions()
+
+    def solve(cap: np.ndarray | None) -> tuple[np.ndarray, dict[str, float], np.ndarray]:
+        return refine_qp(model, pieces, start, intent, pg, lo, hi, opts, state_max=cap,
+                         jump=jump, precharge=(first_var, y_max))
+
+    seen: list[int] = []
+    parts = program.program_parts
+
+    def counted(cuts: np.ndarray, n: int, size: int | None = None) -> list[tuple[int, int]]:
+        out = parts(cuts, n, size)
+        seen.append(len(out))
+        return out
+
+    monkeypatch.setattr("flowtwin.compensation.refine.program_parts", counted)
+    cap = np.full(sel.size, 0.5 * float(np.max(states)))
+    whole, whole_cap = solve(None), solve(cap)
+    monkeypatch.setattr(program, "_PART_PIECES", 1)
+    split, split_cap = solve(None), solve(cap)
+    assert seen[:2] == [1, 1] and min(seen[2:]) >= 3  # (else no test)
+    assert np.all(np.isfinite(whole[0])) and np.any(whole[2] > 0.5)
+    assert np.array_equal(whole[0], split[0]) and np.array_equal(whole[2], split[2])
+    assert whole[1] == split[1]
+    assert whole_cap[1]["iterations"] > whole[1]["iterations"]  # the cap's round ran
+    assert np.array_equal(whole_cap[0], split_cap[0], equal_nan=True)
+    assert np.array_equal(whole_cap[2], split_cap[2], equal_nan=True)

@@ -49,6 +49,7 @@ from flowtwin.compensation.slip import SlipOptions
 from flowtwin.compensation.stages import (
     Current,
     Setting,
+    SlipStart,
     Twin,
     advance_stage,
     guard_stage,
@@ -245,24 +246,30 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         guarded = guard_stage(setting, current, gd)
         current, record.slowed = guarded.current, guarded.slowed
         record.guard_cost_s = guarded.time_cost_s
+    resume = None
     if pc is not None:
         step("pace")
         paced = pace_stage(setting, current, pc, adv)
-        current, record.pace = paced.current, paced.report
+        current, record.pace, resume = paced.current, paced.report, paced.advanced
         if paced.applied:
             record.names.append("pace")
             record.pace_cost_s = paced.time_cost_s
+        del paced
     if adv is not None and not adv.is_identity:
         step("advance")
-        advanced = advance_stage(setting, current, adv, passes=advance_passes,
-                                 resume=None if pc is None else paced.advanced)
+        advanced = advance_stage(setting, current, adv, passes=advance_passes, resume=resume)
         current, record.passes = advanced.current, advanced.passes
         record.warnings.extend(advanced.warnings)
         if advanced.applied:
             record.names.append("advance")
+        del advanced
+    del resume
     if sl is not None and not sl.is_identity:
         step("slip")
-        slipped = slip_stage(setting, current, sl)
+        start = SlipStart.of(setting, current)
+        del current  # (its simulation is let go while the slip's drafts are simulated)
+        slipped = slip_stage(setting, start, sl)
+        del start
         current = slipped.current
         record.warnings.extend(slipped.warnings)
         if slipped.applied:

@@ -27,7 +27,9 @@ from flowtwin.compensation._program_kernel import (
     take_rows,
 )
 
-__all__ = ["Chain", "Csr", "slot_rows"]
+__all__ = ["Chain", "Csr", "PartProgram", "program_parts", "slot_rows", "stack_rows"]
+
+BoolArray = npt.NDArray[np.bool_]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -183,18 +185,28 @@ class Chain:
         var = np.asarray(var, dtype=np.int64)
         return slot_rows(self.new_index[var][:, None], np.ones((var.size, 1)))
 
+    def hessian_diagonal(self, v: FloatArray, v_y: FloatArray) -> FloatArray:
+        """Diagonal of ``Cᵀ·diag(v)·C + diag(0, v_y)`` in the variables' own order."""
+        hd, h_yy = self._diagonals(v, v_y)
+        return np.concatenate((hd, h_yy))
+
+    def _diagonals(self, v: FloatArray, v_y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        d, s, y = self.diag, self.sub, self.pre
+        hd = (d * v) * d
+        hd[:-1] = hd[:-1] + (s[1:] * v[1:]) * s[1:]
+        a = self.pre_piece
+        return hd, (y[a] * v[a]) * y[a] + v_y
+
     def hessian(self, v: FloatArray, v_y: FloatArray) -> tuple[Csr, FloatArray]:
         """Upper triangle of ``Cᵀ·diag(v)·C + diag(0, v_y)`` in the solver's order (rows by
         position, canonical), and its diagonal in the variables' own order."""
         n = self.n
         k_y = self.pre_piece.size
         d, s, y = self.diag, self.sub, self.pre
-        hd = (d * v) * d
-        hd[:-1] = hd[:-1] + (s[1:] * v[1:]) * s[1:]
+        hd, h_yy = self._diagonals(v, v_y)
         h_next = np.zeros(n)  # H[p, p + 1]
         h_next[:-1] = (s[1:] * v[1:]) * d[1:]
         a = self.pre_piece
-        h_yy = (y[a] * v[a]) * y[a] + v_y
         h_before = np.where(a >= 1, (s[a] * v[a]) * y[a], 0.0)  # H[p − 1, y]
         h_after = (y[a] * v[a]) * d[a]  # H[y, p]
         ni = self.new_index
@@ -230,3 +242,157 @@ class Chain:
         new_ptr = np.zeros(ptr.size, dtype=np.int64)
         np.cumsum(np.bincount(row_of[keep], minlength=int(n_groups)), out=new_ptr[1:])
         return Csr(new_ptr, col[keep], val[keep])
+
+    def cuts(self, alpha: FloatArray, l_p: FloatArray, v: FloatArray, grp: IntArray,
+             stepped: npt.NDArray[np.bool_]) -> IntArray:
+        """Pieces ``p`` (≥ 1) before which the program falls apart: no entry of ``C``,
+        ``Cᵀ·V·C``, ``R`` or a ratio-step row joins ``p`` (or its pre-charge) to
+        ``p − 1`` or anything before it (their value is exactly zero, as the assembly drops
+        them). ``stepped``: pieces with a ratio-step row to the previous one. Every such
+        cut is a cut of the solver's blocks (:func:`flowtwin.compensation._qp.qp_blocks`),
+        so the program may be assembled and solved part by part, to the same bits.
+        """
+        n = self.n
+        if n < 2:
+            return np.zeros(0, dtype=np.int64)
+        p = np.arange(1, n)
+        s, d = self.sub[1:], self.diag[1:]
+        sv = s * v[1:]
+        ok = (s == 0.0) & ((sv * d) == 0.0) & ((sv * s) == 0.0)  # C, H[p − 1, p]
+        ok &= (l_p[1:] * s + alpha[1:]) == 0.0  # R: the state before the move
+        ok &= grp[1:] != grp[:-1]  # R: a move's pieces
+        ok &= ~stepped[1:]
+        has_y = self.pre_of[1:] >= 0
+        ok &= ~has_y | ((sv * self.pre[1:]) == 0.0)  # H[p − 1, y]
+        return p[ok].astype(np.int64)
+
+    def part(self, p0: int, p1: int) -> tuple[Chain, IntArray, int]:
+        """The chain of pieces ``p0 … p1 − 1`` (cut at :meth:`cuts`), its pre-charges
+        (indices into this chain's, ascending) and its first position in the solver's
+        order (its variables are the positions from there on, in the same order)."""
+        pre_of = self.pre_of[p0:p1]
+        ys = np.sort(pre_of[pre_of >= 0])
+        local = np.full(self.pre_piece.size, -1, dtype=np.int64)
+        local[ys] = np.arange(ys.size)
+        n = p1 - p0
+        pre_piece = self.pre_piece[ys] - p0
+        new_index = np.arange(n + ys.size, dtype=np.int64)
+        pre_local = np.full(n, -1, dtype=np.int64)
+        if ys.size:
+            order = np.argsort(np.concatenate((np.arange(n), pre_piece - 0.5)), kind="stable")
+            new_index[order] = np.arange(n + ys.size)
+            pre_local[pre_of >= 0] = local[pre_of[pre_of >= 0]]
+        first = int(self.new_index[p0]) - (1 if self.pre_of[p0] >= 0 else 0)
+        return (Chain(self.diag[p0:p1], self.sub[p0:p1], self.pre[p0:p1], pre_local,
+                      pre_piece, new_index), ys, first)
+
+
+def stack_rows(parts: list[Csr]) -> Csr:
+    """Rows of several matrices, one below the other."""
+    ptr = [np.zeros(1, dtype=np.int64)]
+    at = 0
+    for part in parts:
+        ptr.append(part.ptr[1:] + at)
+        at += int(part.ptr[-1])
+    return Csr(np.concatenate(ptr), np.concatenate([p.col for p in parts]),
+               np.concatenate([p.val for p in parts]))
+
+
+#: Pieces the refinement's program is assembled and solved for at a time (at least; it is
+#: cut only between runs the program does not join, see :meth:`Chain.cuts`).
+_PART_PIECES = 1 << 15
+
+
+def program_parts(cuts: IntArray, n: int, size: int | None = None) -> list[tuple[int, int]]:
+    """Ranges ``[p0, p1)`` of at least ``size`` pieces (default ``_PART_PIECES``; but the
+    last), cut at ``cuts``."""
+    size = _PART_PIECES if size is None else size
+    out = []
+    at = 0
+    while at < n:
+        k = int(np.searchsorted(cuts, at + size))
+        end = int(cuts[k]) if k < cuts.size else n
+        out.append((at, end))
+        at = end
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class PartProgram:
+    """The refinement's program, assembled and solved part by part
+    (:func:`flowtwin.compensation.refine.refine_qp`): the chain, the weights (``w``
+    already divided by the scale), the linear term and the start in the solver's order,
+    the ratio box, the pre-charges' bounds and the ratio steps."""
+
+    chain: Chain
+    alpha: FloatArray
+    l_p: FloatArray
+    grp: IntArray
+    w: FloatArray
+    v: FloatArray
+    v_y: FloatArray
+    g: FloatArray
+    x0: FloatArray
+    c0: FloatArray
+    c_min: FloatArray
+    hi: FloatArray
+    y_max: FloatArray
+    stepped: BoolArray
+    jump: FloatArray | None
+    scale: float
+
+    def solve(self, p0: int, p1: int, capped: BoolArray | None,
+              state_max: FloatArray | None, *, max_iterations: int,
+              tolerance: float) -> tuple[int, FloatArray, int]:
+        """Solve the part of pieces ``p0 … p1 − 1`` (with the state cap where ``capped``):
+        its first position in the solver's order, its variables there, the iterations."""
+        from flowtwin.compensation._qp import solve_program
+
+        ch, ys, q0 = self.chain.part(p0, p1)
+        n = p1 - p0
+        k_y = int(ys.size)
+        size = n + k_y
+        c0, c_min = self.c0[p0:p1], self.c_min[p0:p1]
+        con = [ch.box_rows(), ch.unit_rows(n + np.arange(k_y))]
+        d_con = [c0, np.zeros(k_y)]
+        lo_con = [c_min, np.zeros(k_y)]
+        hi_con = [self.hi[p0:p1], self.y_max[ys]]
+        pull = np.flatnonzero(c_min < 0)
+        if pull.size:
+            con.append(ch.unit_rows(pull))
+            d_con.append(np.zeros(pull.size))
+            lo_con.append(np.zeros(pull.size))
+            hi_con.append(np.full(pull.size, np.inf))
+        if self.jump is not None:
+            step = np.flatnonzero(self.stepped[p0:p1])
+            if step.size:
+                j = np.maximum(self.jump[p0:p1][step], 1e-9)
+                con.append(ch.step_rows(step))
+                d_con.append(c0[step] - c0[step - 1])
+                lo_con.append(-j)
+                hi_con.append(j)
+        if capped is not None and state_max is not None:
+            part = capped[p0:p1]
+            con.append(ch.unit_rows(np.flatnonzero(part)))
+            limit = np.asarray(state_max, dtype=np.float64)[p0:p1][part]
+            d_con.append(np.zeros(limit.size))
+            lo_con.append(np.full(limit.size, -np.inf))
+            hi_con.append(limit)
+        rows = stack_rows(con)
+        del con
+        h_upper, _ = ch.hessian(self.v[p0:p1], self.v_y[ys])
+        h_val = h_upper.val * (1.0 / self.scale)  # (as scipy.sparse divides)
+        keep = h_val != 0.0
+        h = (np.repeat(np.arange(size), np.diff(h_upper.ptr))[keep], h_upper.col[keep],
+             h_val[keep])
+        del h_upper, h_val, keep
+        g0, g1 = int(self.grp[p0]), int(self.grp[p1 - 1]) + 1
+        r = ch.outputs(self.grp[p0:p1] - g0, g1 - g0, self.l_p[p0:p1], self.alpha[p0:p1])
+        if k_y:
+            r = r.renumbered(ch.new_index)
+        z, its, _mu = solve_program(
+            size, h, self.g[q0:q0 + size], (rows.ptr, rows.col, rows.val),
+            np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con),
+            self.x0[q0:q0 + size], squares=(r.ptr, r.col, r.val, self.w[g0:g1]),
+            max_iterations=max_iterations, tolerance=tolerance)
+        return q0, z, its

@@ -35,7 +35,7 @@ from flowtwin.compensation._refine_kernel import (
     segment_states,
 )
 from flowtwin.compensation.pieces import Pieces
-from flowtwin.compensation.program import Chain, Csr
+from flowtwin.compensation.program import Chain, PartProgram, program_parts
 from flowtwin.errors import CalibrationError, ProfileError
 from flowtwin.planner.timeline import Timeline
 
@@ -366,7 +366,6 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
         E of every free piece (grid units, floats), figures, and the pre-charge of every
         ``precharge`` entry (grid units, ``0`` for entries without one), shape ``(k,)``.
     """
-    from flowtwin.compensation._qp import solve_program
     from flowtwin.compensation._refine_kernel import free_piece_chain
 
     n = model.free_pieces.size
@@ -379,7 +378,6 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     free_piece_chain(model.seg_piece, model.seg_a, model.seg_b, model.seg_c, model.seg_len,
                      alpha, kappa, e_p, b_p, k_p, l_p)
     b_p = np.maximum(b_p, 1e-12)
-    idx = np.arange(n)
     grp = np.asarray(piece_group, dtype=np.int64)
     if np.any(grp[1:] < grp[:-1]):
         raise ProfileError("the pieces of a move must be consecutive", field="piece_group",
@@ -407,11 +405,11 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     c_hat = np.asarray(initial_e, dtype=np.float64) / np.maximum(l_p, 1e-12)
     # the Hessian is Cᵀ·V·C + Rᵀ·diag(w)·R; the solver takes R's rows as they are (a
     # move cut into many pieces would make its block of Rᵀ·W·R dense)
-    h_upper, h_diag = chain.hessian(v, v_y)
     size = chain.size
     g = r_mat.rmatvec(w * r0, size) + c_mat.rmatvec(v * (c0 - c_hat), size)
     r_diag = r_mat.squared().rmatvec(w, size)
-    scale = float(np.mean(np.abs(h_diag + r_diag))) or 1.0
+    scale = float(np.mean(np.abs(chain.hessian_diagonal(v, v_y) + r_diag))) or 1.0
+    del r_diag
     hi = np.where(np.isfinite(c_max), np.maximum(c_max, c_min * (1 + 1e-6) + 1e-9), np.inf)
 
     def objective(x: FloatArray) -> float:  # x: [states; pre-charges]
@@ -426,51 +424,29 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     x_start = np.concatenate((_chain_states(alpha, kappa, e_p, b_p, k_p, c_start),
                               np.zeros(k_y)))
     before = objective(x_start)
-    # constraint rows, in the solver's order of the variables: the ratio box, 0 ≤ y_k ≤
-    # y_max, no backflow, the ratio steps, the state cap
-    con: list[Csr] = [chain.box_rows(), chain.unit_rows(n + np.arange(k_y))]
-    d_con = [c0, np.zeros(k_y)]
-    lo_con = [c_min, np.zeros(k_y)]
-    hi_con = [hi, y_max]
-    # no backflow [001 Fig. 8]: a piece that may pull back (c_min < 0) ends with x ≥ 0;
-    # the state falls monotonically while it pulls, so it stays ≥ 0 throughout and the
-    # linear model stays the twin's
-    pull = np.flatnonzero(np.asarray(c_min) < 0)
-    if pull.size:
-        con.append(chain.unit_rows(pull))
-        d_con.append(np.zeros(pull.size))
-        lo_con.append(np.zeros(pull.size))
-        hi_con.append(np.full(pull.size, np.inf))
+    del c_start, kappa, k_p, e_p, b_p
+    jmp = None
     if jump is not None:
         jmp = np.asarray(jump, dtype=np.float64)
         if jmp.shape != (n,):
             raise ProfileError("ratio step limits do not match the free pieces", field="jump",
                                value=jmp.shape, allowed=f"shape ({n},)")
-        step = np.flatnonzero(np.isfinite(jmp[1:])) + 1  # steps p-1 -> p that are limited
-        if step.size:
-            # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1), within ±jump_p
-            j = np.maximum(jmp[step], 1e-9)
-            con.append(chain.step_rows(step))
-            d_con.append(c0[step] - c0[step - 1])
-            lo_con.append(-j)
-            hi_con.append(j)
-    # the state cap: rows only where it binds (solved without it first; most runs stay
-    # far below the compression at which the drive would grind)
+    stepped = np.zeros(n, dtype=bool) if jmp is None else np.isfinite(jmp)
+    stepped[:1] = False
+    # the program falls apart between runs: it is assembled and solved part by part (the
+    # solver's blocks and their arithmetic are those of the whole program)
+    cuts = chain.cuts(alpha, l_p, v, grp, stepped)
+    bounds = program_parts(cuts, n)
+    order = chain.order
     cap = (None if state_max is None or not np.any(np.isfinite(state_max))
            else np.isfinite(state_max))
-    order = chain.order
-    h_arrays = (np.repeat(np.arange(size), np.diff(h_upper.ptr)), h_upper.col,
-                h_upper.val * (1.0 / scale))  # (as scipy.sparse divides)
-    keep_h = h_arrays[2] != 0.0
-    h_arrays = (h_arrays[0][keep_h], h_arrays[1][keep_h], h_arrays[2][keep_h])
-    del h_upper, keep_h
-    r_sq = r_mat.renumbered(chain.new_index) if k_y else r_mat
-    rows = _stack_rows(con)
-    bounds = (np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con))
-    del con, d_con, lo_con, hi_con
     x = np.empty(n + k_y)
     iterations = 0
+    problem = PartProgram(chain, alpha, l_p, grp, w / scale, v, v_y, g[order] / scale,
+                       x_start[order], c0, c_min, hi, y_max, stepped, jmp, scale)
+    del g
     for with_cap in (False, True):
+        capped: npt.NDArray[np.bool_] | None = None
         if with_cap:
             if cap is None:
                 break
@@ -478,17 +454,15 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
             over = x[:n][cap] > limit + 1e-6 * np.maximum(np.abs(limit), 1)
             if not np.any(over):
                 break
-            rows = _stack_rows([rows, chain.unit_rows(idx[cap])])
-            bounds = (np.concatenate((bounds[0], np.zeros(limit.size))),
-                      np.concatenate((bounds[1], np.full(limit.size, -np.inf))),
-                      np.concatenate((bounds[2], limit)))
-        z, its, _mu = solve_program(
-            size, h_arrays, g[order] / scale, (rows.ptr, rows.col, rows.val), *bounds,
-            x_start[order], squares=(r_sq.ptr, r_sq.col, r_sq.val, w / scale),
-            max_iterations=options.max_iterations, tolerance=options.tolerance)
-        iterations = max(iterations, its)
-        x[order] = z
-    del rows, bounds, h_arrays, r_sq
+            capped = cap
+        for p0, p1 in bounds:
+            q0, z, its = problem.solve(p0, p1, capped,
+                                       None if capped is None else state_max,
+                                       max_iterations=options.max_iterations,
+                                       tolerance=options.tolerance)
+            iterations = max(iterations, its)
+            x[order[q0:q0 + z.size]] = z
+    del problem
     c = np.clip(c_mat.matvec(x) + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
@@ -498,17 +472,6 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     return e_new, {"flow_before": 2.0 * before / total, "flow_after": 2.0 * after / total,
                    "iterations": float(iterations),
                    "precharges": float(np.count_nonzero(y_out > 0.5))}, y_out
-
-
-def _stack_rows(parts: list[Csr]) -> Csr:
-    """Rows of several matrices, one below the other."""
-    ptr = [np.zeros(1, dtype=np.int64)]
-    at = 0
-    for part in parts:
-        ptr.append(part.ptr[1:] + at)
-        at += int(part.ptr[-1])
-    return Csr(np.concatenate(ptr), np.concatenate([p.col for p in parts]),
-               np.concatenate([p.val for p in parts]))
 
 
 def _precharge_entries(precharge: tuple[IntArray, FloatArray] | None, alpha: FloatArray,

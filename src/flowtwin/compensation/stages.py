@@ -41,8 +41,8 @@ from flowtwin.profiles.machine import Machine
 from flowtwin.simulation import SimulationResult, simulate, simulate_plan
 
 __all__ = ["AdvanceOutcome", "Current", "GuardOutcome", "PaceOutcome", "Setting",
-           "SlipOutcome", "TrajectoryOutcome", "Twin", "advance_stage", "guard_stage",
-           "pace_stage", "printing_pieces", "slip_stage", "trajectory_stage"]
+           "SlipOutcome", "SlipStart", "TrajectoryOutcome", "Twin", "advance_stage",
+           "guard_stage", "pace_stage", "printing_pieces", "slip_stage", "trajectory_stage"]
 
 BoolArray = npt.NDArray[np.bool_]
 FloatArray = npt.NDArray[np.float64]
@@ -525,22 +525,54 @@ def _delivered_grid(original: SimulationResult, sim: SimulationResult,
         return np.where(cmd > 0, delivered / cmd * draft.row_e, draft.row_e.astype(float))
 
 
-def slip_stage(setting: Setting, current: Current, options: SlipOptions) -> SlipOutcome:
+@dataclass(frozen=True, slots=True)
+class SlipStart:
+    """What the slip stage reads of the draft it starts from (:meth:`of`), so that the
+    draft's simulation can be let go while the slip's drafts are simulated: the draft,
+    its printing pieces, its twin's RMS flow error and predicted slip per piece."""
+
+    draft: Draft
+    printing: BoolArray
+    rms: float
+    slip: FloatArray
+
+    @classmethod
+    def of(cls, setting: Setting, current: Current) -> SlipStart:
+        """The figures of ``current``."""
+        draft, sim = current.draft, current.sim
+        return cls(draft, printing_pieces(sim, draft),
+                   flow_figures(setting.original, sim, draft.row).rms_flow_error,
+                   np.array(sim.dynamics.moves["slip"], dtype=np.float64))
+
+
+def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions) -> SlipOutcome:
     """Slip feed-forward (:mod:`flowtwin.compensation.slip`), ``options.iterations``
-    fixed-point rounds; refused when it raises the twin's RMS flow error."""
-    draft, sim = current.draft, current.sim
+    fixed-point rounds from ``start``; refused when it raises the twin's RMS flow error
+    (the draft it started from is then simulated again: its simulation was let go)."""
+    draft = start.draft
     base = draft.e_grid.copy()
-    printing = printing_pieces(sim, draft)
-    rms0 = flow_figures(setting.original, sim, draft.row).rms_flow_error
+    printing = start.printing
+    rms0 = start.rms
+    slip = start.slip
     layout = None
+    sim: SimulationResult | None = None
     for _ in range(options.iterations):
-        draft = slip_feedforward(draft, base, printing, sim.dynamics.moves["slip"], options)
-        sim = current.sim  # the last round's simulation is not held through the next one
+        draft = slip_feedforward(draft, base, printing, slip, options)
+        sim = layout = None  # the last round's simulation is not held through the next one
         layout = draft.layout(check=False)
         sim = setting.twin.simulate_draft(draft, layout=layout)
+        slip = sim.dynamics.moves["slip"]
+    del slip
+    if sim is None:  # no round (iterations is at least 1)
+        raise DataError("the slip feed-forward needs at least one round",
+                        field="iterations", value=options.iterations, allowed=">= 1")
     rms1 = flow_figures(setting.original, sim, draft.row).rms_flow_error
     if rms1 > rms0:
-        return SlipOutcome(current, 0, False, (
+        del sim, layout
+        layout = start.draft.layout(check=False)
+        again = Current(start.draft, setting.twin.simulate_draft(start.draft, layout=layout),
+                        layout)
+        return SlipOutcome(again, 0, False, (
             f"the slip feed-forward raised the twin's RMS flow error (to {100 * rms1:.2f} % "
             f"from {100 * rms0:.2f} %; the drive is near grinding, try --guard): it is not "
             "used",))
