@@ -1,13 +1,16 @@
 """``from-image`` on real photos with the K their authors judged best (not a speed benchmark).
 
-``python -m benchmarks.study_real_photos [--split dev|check|all] [--dir DIR] [--json]``
+``python -m benchmarks.study_real_photos [--split dev|check|all] [--set NAME] [--dir DIR ...]
+[--json]``
 
 Reads ``tests/data/kphoto/photos.json`` (provenance, split and tolerances in
-``tests/data/kphoto/PROVENANCE.md``), finds each photo in ``tests/data/kphoto`` or in
-``--dir`` / ``$FLOWTWIN_KPHOTO_DIR`` (its SHA-256 checked), reads it with the photo's
+``tests/data/kphoto/PROVENANCE.md``), finds each photo in ``tests/data/kphoto`` or in the
+folders given by ``--dir`` (repeatable) or ``$FLOWTWIN_KPHOTO_DIR`` (folders joined by
+``os.pathsep``) (its SHA-256 checked), reads it with the photo's
 layout and parameters, and prints the best line's error against the nearest judged K, in
 steps of the pattern and in s, and the twin's lag. A refusal is listed with its reason.
-Photos not present are listed as such. Figures go to docs/calibration.md.
+Photos not present are listed as such. ``--set s9`` reads only the photos of that later
+check set (the manifest's ``set``). Figures go to docs/calibration.md.
 """
 
 from __future__ import annotations
@@ -66,19 +69,31 @@ class Outcome:
             self.tolerance_steps + 1e-6
 
 
-def entries(split: str = "all") -> list[dict[str, Any]]:
-    """The manifest's photos of one split (``dev``, ``check`` or ``all``)."""
+def entries(split: str = "all", photo_set: str | None = None) -> list[dict[str, Any]]:
+    """The manifest's photos of one split (``dev``, ``check`` or ``all``), optionally only
+    those of one later check set (``"set"`` in the manifest, e.g. ``s9``)."""
     photos: list[dict[str, Any]] = json.loads(MANIFEST.read_text())["photos"]
-    return [p for p in photos if split == "all" or p["split"] == split]
+    return [p for p in photos if (split == "all" or p["split"] == split)
+            and (photo_set is None or p.get("set") == photo_set)]
 
 
-def locate(entry: dict[str, Any], folder: str | os.PathLike[str] | None = None) -> Path | None:
+def folders(folder: str | os.PathLike[str] | list[str] | None = None) -> list[Path]:
+    """Where photos are looked for: ``tests/data/kphoto``, then ``folder`` (one path, a
+    list, or paths joined by ``os.pathsep``), else ``$FLOWTWIN_KPHOTO_DIR`` (likewise)."""
+    given: list[str]
+    if folder is None:
+        given = [os.environ.get("FLOWTWIN_KPHOTO_DIR", "")]
+    elif isinstance(folder, list):
+        given = folder
+    else:
+        given = [os.fspath(folder)]
+    return [DATA] + [Path(part) for g in given for part in g.split(os.pathsep) if part]
+
+
+def locate(entry: dict[str, Any],
+           folder: str | os.PathLike[str] | list[str] | None = None) -> Path | None:
     """The photo's file (SHA-256 checked when the manifest gives one), or ``None``."""
-    dirs = [DATA]
-    extra = folder or os.environ.get("FLOWTWIN_KPHOTO_DIR")
-    if extra:
-        dirs.append(Path(extra))
-    for d in dirs:
+    for d in folders(folder):
         path = d / entry["file"]
         if path.is_file():
             want = entry.get("sha256")
@@ -149,11 +164,14 @@ def summary(outcomes: list[Outcome]) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--split", default="all", choices=("dev", "check", "all"))
-    ap.add_argument("--dir", default=None, help="folder holding the photos not in the repo")
+    ap.add_argument("--set", default=None, dest="photo_set",
+                    help="only the photos of this later check set (manifest 'set', e.g. s9)")
+    ap.add_argument("--dir", action="append", default=None,
+                    help="folder holding photos not in the repo (repeatable)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     outcomes = []
-    for e in entries(a.split):
+    for e in entries(a.split, a.photo_set):
         print(f"reading {e['file']}", file=sys.stderr, flush=True)
         path = locate(e, a.dir)
         if path is None:

@@ -12,7 +12,12 @@ fixed before any photo was read). ``expect`` in the manifest says what the reade
 * ``read`` — the best line lies within the tolerance of the nearest judged K;
 * ``refuse`` — the reader refuses with the reason given (``refusal`` matches the message);
 * ``miss`` — a documented miss (docs/calibration.md): read outside the tolerance; kept
-  as a strict expected failure, so a reader that starts getting it right is noticed.
+  as a strict expected failure, so a reader that starts getting it right is noticed;
+* ``pending`` — the judged K is recorded but the photo has not been read yet (a new check
+  set between its declaration and its one reading): fails, there is no outcome to hold.
+
+``FLOWTWIN_KPHOTO_DIR`` may name several folders joined by ``os.pathsep``
+(``make photos KPHOTO_DIR="dir1 dir2"``).
 """
 
 from __future__ import annotations
@@ -54,6 +59,10 @@ def test_public_photo(entry: dict[str, Any], request: pytest.FixtureRequest) -> 
         pytest.fail(f"{entry['file']} not found: it is fetched public data, not in the "
                     "repository (tests/data/kphoto/PROVENANCE.md, 'Where the files are'); "
                     "put the files in a folder and run make photos KPHOTO_DIR=that-folder")
+    if entry["expect"] == "pending":
+        pytest.fail(f"{entry['file']}: declared but not read yet (expect 'pending'): read it "
+                    "once (python -m benchmarks.study_real_photos --set ...) and record the "
+                    "outcome in photos.json")
     if entry["expect"] == "miss":
         request.applymarker(pytest.mark.xfail(
             strict=True, reason=entry.get("why", "documented miss, docs/calibration.md")))

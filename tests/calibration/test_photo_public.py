@@ -7,7 +7,9 @@ PROVENANCE.md). ``expect`` in the manifest says what the reader does with it:
 * ``read`` — the best line lies within the tolerance of the nearest judged K;
 * ``refuse`` — the reader refuses with the reason given (``refusal`` matches the message);
 * ``miss`` — a documented miss (docs/calibration.md): read outside the tolerance; kept
-  as a strict expected failure, so a reader that starts getting it right is noticed.
+  as a strict expected failure, so a reader that starts getting it right is noticed;
+* ``pending`` — declared (judged K, layout, tolerance committed) but not read yet; only
+  between a new check set's declaration and its one reading.
 
 The photos themselves are not committed (PROVENANCE.md, "Where the files are"); the
 readings are checked by ``make photos`` (benchmarks/photos/test_public_photos.py). This
@@ -34,7 +36,11 @@ def test_manifest_declares_split_tolerance_and_source_of_every_photo() -> None:
             e["params"]["k_start"] - 1e-9 <= k <= e["params"]["k_end"] + 1e-9
             for k in e["judged_k_s"])
         assert 1 <= e["tolerance_steps"] <= 3
-        assert e["expect"] in ("read", "refuse", "miss")
+        assert e["expect"] in ("read", "refuse", "miss", "pending")
+        if e["expect"] == "refuse":
+            assert e["refusal"]
+        if "set" in e:      # a later check set is never a development set
+            assert e["split"] == "check"
         if not e["in_repo"]:
             assert re.fullmatch(r"[0-9a-f]{64}", e["sha256"])
     # the check set holds more independent prints than the development set
