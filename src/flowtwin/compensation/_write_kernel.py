@@ -253,7 +253,7 @@ def _put_decimal(buf, n, q, dec):  # type: ignore[no-untyped-def]
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def write_text(text, line_start, changed_line, line_p0, line_p1, line_code, line_f_restore,  # type: ignore[no-untyped-def]
                line_g92, line_has_g92, flags, q_xyz, q_dec, q_e, q_f, e_decimals, buf):
     """The rewritten file: untouched lines copied, rewritten lines as their pieces.

@@ -148,16 +148,17 @@ class Draft:
         return draft_table(self, layout, source=source)
 
     def render(self, destination: str | os.PathLike[str],
-               layout: Layout | None = None) -> Layout:
+               layout: Layout | None = None, *, encoded: bytes | None = None) -> Layout:
         """Write the draft as G-code (atomically) from the original file; with no change
-        at all the original bytes are copied unchanged.
+        at all the original bytes are copied unchanged. ``encoded``: the bytes
+        :func:`~flowtwin.compensation.emit.encode_draft` made of this draft and layout.
 
         Raises
         ------
         GcodeError
             A line to rewrite cannot be (a checksum, a relative step off the grid).
         """
-        return write_draft(self, destination, layout)
+        return write_draft(self, destination, layout, encoded)
 
     def split(self, piece: IntArray, xyz_mm: FloatArray, e_grid: IntArray,
               piece_feed_mm_min: FloatArray | None = None) -> Draft:

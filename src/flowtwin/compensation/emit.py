@@ -41,7 +41,8 @@ from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
 if TYPE_CHECKING:
     from flowtwin.compensation.draft import Draft
 
-__all__ = ["Layout", "check_layout", "draft_table", "lay_out_draft", "write_draft"]
+__all__ = ["Layout", "check_layout", "draft_table", "draft_text", "encode_draft", "lay_out_draft",
+           "write_draft"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -316,12 +317,12 @@ def draft_table(draft: Draft, layout: Layout | None = None, *,
 
 
 def write_draft(draft: Draft, destination: str | os.PathLike[str],
-                layout: Layout | None = None) -> Layout:
+                layout: Layout | None = None, encoded: bytes | None = None) -> Layout:
     """Write the draft as G-code, atomically; a draft without changes is the original's
-    bytes. Returns the layout written."""
+    bytes. ``encoded``: :func:`encode_draft`'s bytes of this draft and layout, when made
+    already. Returns the layout written."""
     lay = lay_out_draft(draft) if layout is None else layout
     original = draft.original
-    text = original.text
     if lay.changed_lines.size == 0:  # the original file's own bytes (gzip too)
         try:
             atomic_write_bytes(destination, Path(original.source).read_bytes())
@@ -329,6 +330,24 @@ def write_draft(draft: Draft, destination: str | os.PathLike[str],
             raise GcodeError(f"cannot read the G-code file: {exc.strerror}",
                              source=original.source) from exc
         return lay
+    if original.bgcode:  # stored as the original was (compression, checksum, encoding)
+        from flowtwin.gcode.bgcode.read import read_bgcode_info
+        from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+
+        with open(original.source, "rb") as fh:
+            info = read_bgcode_info(fh, original.source)
+        text_to_bgcode(draft_text(draft, lay), destination, file_metadata=info.file_metadata,
+                       options=BgcodeOptions.like(info.compression, info.checksum,
+                                                  info.gcode_encoding))
+        return lay
+    atomic_write_bytes(destination, encode_draft(draft, lay) if encoded is None else encoded)
+    return lay
+
+
+def draft_text(draft: Draft, lay: Layout) -> bytes:
+    """The G-code text of the draft laid out as ``lay`` (with at least one changed line)."""
+    original = draft.original
+    text = original.text
     pieces = int(np.sum(lay.line_p1 - lay.line_p0))
     size = text.size + 160 * (pieces + 2 * lay.lines_rewritten) + 64
     buf = np.empty(size, dtype=np.uint8)
@@ -336,19 +355,14 @@ def write_draft(draft: Draft, destination: str | os.PathLike[str],
                       lay.line_p1, lay.line_code, lay.line_f_restore, lay.line_g92,
                       lay.line_has_g92, lay.flags, lay.q_xyz, lay.q_dec, lay.q_e, lay.q_f,
                       original.e_decimals, buf)
-    data = buf[:used].tobytes()
-    if original.bgcode:  # stored as the original was (compression, checksum, encoding)
-        from flowtwin.gcode.bgcode.read import read_bgcode_info
-        from flowtwin.gcode.bgcode.write import BgcodeOptions, text_to_bgcode
+    return buf[:used].tobytes()
 
-        with open(original.source, "rb") as fh:
-            info = read_bgcode_info(fh, original.source)
-        text_to_bgcode(data, destination, file_metadata=info.file_metadata,
-                       options=BgcodeOptions.like(info.compression, info.checksum,
-                                                  info.gcode_encoding))
-        return lay
-    if original.gzip:
+
+def encode_draft(draft: Draft, lay: Layout) -> bytes:
+    """The bytes :func:`write_draft` stores for a plain or gzip original with at least
+    one changed line: the text, gzip-compressed (level 6, no time stamp) when the
+    original was. zlib and the text kernel let other threads run meanwhile."""
+    data = draft_text(draft, lay)
+    if draft.original.gzip:
         data = gzip.compress(data, compresslevel=6, mtime=0)
-    atomic_write_bytes(destination, data)
-    return lay
-
+    return data

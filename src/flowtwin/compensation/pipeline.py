@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation.advance import AdvanceOptions
+from flowtwin.compensation.ahead import WriteAhead
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions
@@ -172,12 +173,18 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     step("simulate original")
     setting, draft = _read(src, Twin(m, klipper_config, pa))
     record = _Record([], [])
-    current = _run_stages(setting, Current(draft, setting.original), stages, advance_passes,
-                          record, step)
-    step("write")
-    layout = (current.draft.layout() if current.layout is None
-              else current.draft.check(current.layout))
-    current.draft.render(dst, layout)
+    with WriteAhead() as ahead:
+        current = _run_stages(setting, Current(draft, setting.original), stages,
+                              advance_passes, record, step, ahead)
+        step("write")
+        made, encoded = ahead.take(current.draft, current.layout)
+    if made:
+        assert current.layout is not None  # (take matched it)
+        layout = current.layout
+    else:
+        layout = (current.draft.layout() if current.layout is None
+                  else current.draft.check(current.layout))
+    current.draft.render(dst, layout, encoded=encoded)
     step("simulate result")
     after = _written(setting, current, layout, dst)
     return _report(setting, current.draft, after, record, src, dst,
@@ -231,8 +238,9 @@ def _written(setting: Setting, current: Current, layout: Layout, dst: Path
 
 
 def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_passes: int,
-                record: _Record, step: Progress) -> Current:
-    """Trajectory, guard, pace, advance, slip: each that is asked for, in this order."""
+                record: _Record, step: Progress, ahead: WriteAhead) -> Current:
+    """Trajectory, guard, pace, advance, slip: each that is asked for, in this order
+    (the slip's last draft is encoded by ``ahead`` while it is simulated)."""
     tr, gd, pc, adv, sl = (stages.trajectory, stages.guard, stages.pace, stages.advance,
                            stages.slip)
     if tr is not None and not tr.is_identity:
@@ -268,7 +276,7 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         step("slip")
         start = SlipStart.of(setting, current)
         del current  # (its simulation is let go while the slip's drafts are simulated)
-        slipped = slip_stage(setting, start, sl)
+        slipped = slip_stage(setting, start, sl, ahead=ahead.start)
         del start
         current = slipped.current
         record.warnings.extend(slipped.warnings)

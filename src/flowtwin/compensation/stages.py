@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -545,10 +546,13 @@ class SlipStart:
                    np.array(sim.dynamics.moves["slip"], dtype=np.float64))
 
 
-def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions) -> SlipOutcome:
+def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
+               ahead: Callable[[Draft, Layout], None] | None = None) -> SlipOutcome:
     """Slip feed-forward (:mod:`flowtwin.compensation.slip`), ``options.iterations``
     fixed-point rounds from ``start``; refused when it raises the twin's RMS flow error
-    (the draft it started from is then simulated again: its simulation was let go)."""
+    (the draft it started from is then simulated again: its simulation was let go).
+    ``ahead`` is told the last round's draft and layout before they are simulated (the
+    outcome hands them on unless the round is refused)."""
     draft = start.draft
     base = draft.e_grid.copy()
     printing = start.printing
@@ -556,10 +560,12 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions) -> Slip
     slip = start.slip
     layout = None
     sim: SimulationResult | None = None
-    for _ in range(options.iterations):
+    for k in range(options.iterations):
         draft = slip_feedforward(draft, base, printing, slip, options)
         sim = layout = None  # the last round's simulation is not held through the next one
         layout = draft.layout(check=False)
+        if ahead is not None and k + 1 == options.iterations:
+            ahead(draft, layout)
         sim = setting.twin.simulate_draft(draft, layout=layout)
         slip = sim.dynamics.moves["slip"]
     del slip
