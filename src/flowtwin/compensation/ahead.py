@@ -1,13 +1,15 @@
 """The written file's bytes made in a second thread while the main thread simulates its
-draft.
+draft and reads it back.
 
 The last stage of a run knows the draft it will hand on before it simulates it (the slip's
-last round: its simulation only decides whether the round is kept). The bytes that draft is
-written as (:func:`flowtwin.compensation.emit.encode_draft`: the text kernel, then zlib for a
-gzip original; both let other threads run) are then made by a worker thread meanwhile, on
-the second core. They are used only when the stage hands on that very draft and layout,
-so the file is the same bytes as when made afterwards; a check that refuses the layout
-raises where the serial write would (:meth:`WriteAhead.take`).
+last round: its simulation only decides whether the round is kept). The text that draft is
+written as (:func:`flowtwin.compensation.emit.draft_text`, a kernel that lets other
+threads run) and the bytes stored (:func:`~flowtwin.compensation.emit.store_text`: zlib
+for a gzip original, which lets other threads run too) are then made by a worker thread
+meanwhile, on the second core; the main thread reads the text back while it is compressed.
+They are used only when the stage hands on that very draft and layout, so the file is the
+same bytes as when made afterwards; a check that refuses the layout raises where the
+serial write would (:meth:`Pending.text`).
 """
 
 from __future__ import annotations
@@ -15,18 +17,52 @@ from __future__ import annotations
 from concurrent.futures import Future, ThreadPoolExecutor
 
 from flowtwin.compensation.draft import Draft
-from flowtwin.compensation.emit import Layout, encode_draft
+from flowtwin.compensation.emit import Layout, draft_text, store_text
 
-__all__ = ["WriteAhead"]
+__all__ = ["Pending", "WriteAhead"]
 
 
-def _checked_bytes(draft: Draft, layout: Layout) -> bytes | None:
-    """The layout checked for writing, then the bytes to store (``None`` where the writer
-    stores something else: the original's own bytes, a binary G-code)."""
-    draft.check(layout)
-    if layout.changed_lines.size == 0 or draft.original.bgcode:
-        return None
-    return encode_draft(draft, layout)
+class Pending:
+    """The text and stored bytes of one draft and layout, being made by a worker.
+
+    :meth:`text` and :meth:`stored` are ``None`` where the writer stores something else
+    (the original's own bytes when nothing changed, a binary G-code).
+    """
+
+    def __init__(self, draft: Draft, layout: Layout) -> None:
+        self.draft = draft
+        self.layout = layout
+        self._text: Future[bytes | None] = Future()
+        self.stored_future: Future[bytes | None] | None = None
+
+    def make(self) -> bytes | None:
+        """The worker's job: check, text (handed over at once), stored bytes."""
+        try:
+            self.draft.check(self.layout)
+            if self.layout.changed_lines.size == 0 or self.draft.original.bgcode:
+                text = None
+            else:
+                text = draft_text(self.draft, self.layout)
+        except BaseException as exc:
+            self._text.set_exception(exc)
+            raise
+        self._text.set_result(text)
+        return None if text is None else store_text(self.draft, text)
+
+    def text(self) -> bytes | None:
+        """The G-code text, once made.
+
+        Raises
+        ------
+        GcodeError
+            The layout cannot be written (the check of :meth:`Draft.check`).
+        """
+        return self._text.result()
+
+    def stored(self) -> bytes | None:
+        """The bytes to store, once made (after :meth:`text`)."""
+        assert self.stored_future is not None
+        return self.stored_future.result()
 
 
 class WriteAhead:
@@ -37,9 +73,7 @@ class WriteAhead:
 
     def __init__(self) -> None:
         self._pool: ThreadPoolExecutor | None = None
-        self._draft: Draft | None = None
-        self._layout: Layout | None = None
-        self._future: Future[bytes | None] | None = None
+        self._pending: Pending | None = None
 
     def __enter__(self) -> WriteAhead:
         return self
@@ -53,31 +87,25 @@ class WriteAhead:
         self.drop()
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flowtwin-write")
-        self._draft, self._layout = draft, layout
-        self._future = self._pool.submit(_checked_bytes, draft, layout)
+        pending = Pending(draft, layout)
+        pending.stored_future = self._pool.submit(pending.make)
+        self._pending = pending
 
-    def take(self, draft: Draft, layout: Layout | None) -> tuple[bool, bytes | None]:
-        """``(True, bytes)`` when the bytes of exactly this draft and layout were begun
-        (``bytes`` ``None``: the writer stores something else), after they are made;
-        ``(False, None)`` otherwise.
-
-        Raises
-        ------
-        GcodeError
-            The layout cannot be written (the check :meth:`Draft.check` makes).
-        """
-        future = self._future
-        if future is None or draft is not self._draft or layout is not self._layout:
+    def take(self, draft: Draft, layout: Layout | None) -> Pending | None:
+        """The bytes begun for exactly this draft and layout, or ``None`` (any other
+        begun are let go)."""
+        pending = self._pending
+        if pending is None or draft is not pending.draft or layout is not pending.layout:
             self.drop()
-            return False, None
-        self._future = self._draft = self._layout = None
-        return True, future.result()
+            return None
+        self._pending = None
+        return pending
 
     def drop(self) -> None:
         """Let a pending encoding go."""
-        if self._future is not None:
-            self._future.cancel()
-        self._future = self._draft = self._layout = None
+        pending, self._pending = self._pending, None
+        if pending is not None and pending.stored_future is not None:
+            pending.stored_future.cancel()
 
     def close(self) -> None:
         """Let a pending encoding go and the worker thread end (without waiting for it)."""

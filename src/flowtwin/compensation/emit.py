@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from flowtwin.compensation.draft import Draft
 
 __all__ = ["Layout", "check_layout", "draft_table", "draft_text", "encode_draft", "lay_out_draft",
-           "write_draft"]
+           "store_text", "write_draft"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -360,9 +360,11 @@ def draft_text(draft: Draft, lay: Layout) -> bytes:
 
 def encode_draft(draft: Draft, lay: Layout) -> bytes:
     """The bytes :func:`write_draft` stores for a plain or gzip original with at least
-    one changed line: the text, gzip-compressed (level 6, no time stamp) when the
-    original was. zlib and the text kernel let other threads run meanwhile."""
-    data = draft_text(draft, lay)
-    if draft.original.gzip:
-        data = gzip.compress(data, compresslevel=6, mtime=0)
-    return data
+    one changed line (:func:`store_text` of :func:`draft_text`)."""
+    return store_text(draft, draft_text(draft, lay))
+
+
+def store_text(draft: Draft, text: bytes) -> bytes:
+    """The draft's text as stored: gzip-compressed (level 6, no time stamp) when the
+    original was (zlib lets other threads run meanwhile), else as it is."""
+    return gzip.compress(text, compresslevel=6, mtime=0) if draft.original.gzip else text

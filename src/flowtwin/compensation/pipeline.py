@@ -177,20 +177,38 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         current = _run_stages(setting, Current(draft, setting.original), stages,
                               advance_passes, record, step, ahead)
         step("write")
-        made, encoded = ahead.take(current.draft, current.layout)
-    if made:
-        assert current.layout is not None  # (take matched it)
-        layout = current.layout
-    else:
-        layout = (current.draft.layout() if current.layout is None
-                  else current.draft.check(current.layout))
-    current.draft.render(dst, layout, encoded=encoded)
-    step("simulate result")
-    after = _written(setting, current, layout, dst)
-    return _report(setting, current.draft, after, record, src, dst,
-                   lines_rewritten=layout.lines_rewritten,
-                   baked_advance=stages.advance is not None,
-                   seconds=time.perf_counter() - t_start)
+        pending = ahead.take(current.draft, current.layout)
+        text = None if pending is None else pending.text()
+        if pending is None or text is None:
+            layout = (current.draft.layout() if current.layout is None
+                      else current.draft.check(current.layout))
+            current.draft.render(dst, layout)
+            step("simulate result")
+            after = _written(setting, current, layout, dst)
+            return _report(setting, current.draft, after, record, src, dst,
+                           lines_rewritten=layout.lines_rewritten,
+                           baked_advance=stages.advance is not None,
+                           seconds=time.perf_counter() - t_start)
+        # read back the text and report while the worker compresses it; then store it
+        layout = pending.layout
+        written = False
+
+        def flush() -> None:
+            nonlocal written
+            if not written:
+                current.draft.render(dst, layout, encoded=pending.stored())
+                written = True
+
+        step("simulate result")
+        try:
+            after = _written(setting, current, layout, dst, text=text, flush=flush)
+            del text
+            report = _report(setting, current.draft, after, record, src, dst,
+                             lines_rewritten=layout.lines_rewritten,
+                             baked_advance=stages.advance is not None, seconds=0.0)
+        finally:
+            flush()
+    return replace(report, seconds=time.perf_counter() - t_start)
 
 
 def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
@@ -209,20 +227,23 @@ def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
                    options), draft
 
 
-def _written(setting: Setting, current: Current, layout: Layout, dst: Path
+def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
+             text: bytes | None = None, flush: Callable[[], None] | None = None
              ) -> SimulationResult:
     """The twin's simulation of the written file.
 
-    The file is read back; where its moves are the draft's table bit for bit (always, but
-    for relative coordinates after a rewritten line), the draft's simulation is the
-    file's, else the file is simulated as read.
+    The file is read back (or ``text``, its G-code text, being stored by ``flush``);
+    where its moves are the draft's table bit for bit (always, but for relative
+    coordinates after a rewritten line), the draft's simulation is the file's, else the
+    file is simulated as read.
 
     Raises
     ------
     GcodeError
         The written file does not read back as the pieces written.
     """
-    read = read_gcode(dst, options=setting.read_options)
+    read = read_gcode(dst if text is None else text, options=setting.read_options)
+    del text
     if len(read) != len(current.draft):
         raise GcodeError("the rewritten file does not read back as the pieces written "
                          f"({len(read)} moves, {len(current.draft)} pieces)", source=dst,
@@ -234,6 +255,9 @@ def _written(setting: Setting, current: Current, layout: Layout, dst: Path
     if same and np.array_equal(np.asarray(read.layer_z, dtype=np.float64),
                                np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
         return current.sim
+    if flush is not None:  # (simulate the file as stored and named)
+        flush()
+        read = read_gcode(dst, options=setting.read_options)
     return setting.twin.simulate_table(read)
 
 
