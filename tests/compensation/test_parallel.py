@@ -1,0 +1,112 @@
+"""Work done on two threads gives the bytes of the work done on one.
+
+The refinement's independent blocks are solved by numba's threads, and the written file's
+bytes are made by a worker thread while the slip's last draft is simulated
+(:mod:`flowtwin.compensation.ahead`): neither may change a byte of what is written.
+"""
+
+from __future__ import annotations
+
+import gzip
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flowtwin.compensation import compensate, pipeline
+from flowtwin.compensation.ahead import WriteAhead
+from flowtwin.errors import GcodeError
+
+from .test_emit import draft_of
+
+_RUN = """
+import sys
+from flowtwin.compensation import compensate
+from flowtwin.compensation import _qp
+sizes = []
+solve = _qp._solve_blocks
+def counted(x, starts, *rest):
+    sizes.append(starts.size)
+    return solve(x, starts, *rest)
+_qp._solve_blocks = counted
+compensate(sys.argv[1], sys.argv[2], advance=True, slip=True)
+print(max(sizes))
+"""
+
+
+@pytest.fixture(scope="module")
+def example_gz(example: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The example print, gzip-compressed (the written file is then compressed too)."""
+    path = tmp_path_factory.mktemp("gz") / "example.gcode.gz"
+    path.write_bytes(gzip.compress(example.read_bytes(), mtime=0))
+    return path
+
+
+def test_the_thread_count_does_not_change_the_written_file(example_gz: Path,
+                                                           tmp_path: Path) -> None:
+    """The same file with numba on one thread and on two (fresh processes: the count is
+    fixed when numba starts), the refinement's blocks solved on both."""
+    outs = []
+    for threads in (1, 2):
+        out = tmp_path / f"t{threads}.gcode.gz"
+        env = {**os.environ, "NUMBA_NUM_THREADS": str(threads)}
+        done = subprocess.run([sys.executable, "-c", _RUN, str(example_gz), str(out)],
+                              env=env, capture_output=True, text=True, timeout=600,
+                              check=False)
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert int(done.stdout.split()[-1]) > 1  # blocks to share between the threads
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    assert gzip.decompress(outs[0]) != gzip.decompress(example_gz.read_bytes())
+
+
+def test_bytes_made_ahead_are_the_serial_bytes(example: Path, example_gz: Path, tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """The file written from the worker's bytes (read back from its text, stored after)
+    is the file written after the stages, gzip or plain; the figures are the same."""
+    ahead = compensate(example_gz, tmp_path / "ahead.gcode.gz", advance=True, slip=True)
+    plain = compensate(example, tmp_path / "plain.gcode", advance=True, slip=True)
+    monkeypatch.setattr(WriteAhead, "start", lambda self, draft, layout: None)
+    serial = compensate(example_gz, tmp_path / "serial.gcode.gz", advance=True, slip=True)
+    gz = (tmp_path / "ahead.gcode.gz").read_bytes()
+    assert gz == (tmp_path / "serial.gcode.gz").read_bytes()
+    assert gzip.decompress(gz) == (tmp_path / "plain.gcode").read_bytes()
+    assert "slip" in ahead.transformations
+    assert ahead.after.as_dict() == serial.after.as_dict() == plain.after.as_dict()
+
+
+def test_a_layout_refused_ahead_raises_and_writes_nothing(tmp_path: Path) -> None:
+    """A check that fails in the worker raises in the caller, as the serial write does."""
+    src = tmp_path / "n.gcode"
+    body = "N5 G1 X10 E0.5 F1200"
+    check = 0
+    for ch in body.encode():
+        check ^= ch
+    src.write_text(f"G21\nM83\n{body}*{check}\n")
+    d = draft_of(src)
+    new = d.with_e(d.e_grid * 2)
+    layout = new.layout(check=False)
+    with WriteAhead() as ahead:
+        ahead.start(new, layout)
+        assert ahead.take(new, new.layout(check=False)) is None  # another layout
+        ahead.start(new, layout)
+        pending = ahead.take(new, layout)
+        assert pending is not None
+        with pytest.raises(GcodeError, match="checksum"):
+            pending.text()
+    assert not (tmp_path / "out.gcode").exists()
+
+
+def test_the_pipeline_stores_the_file_before_it_returns(example: Path, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch
+                                                        ) -> None:
+    """A read-back that fails still leaves the file stored, as the serial write did."""
+    def broken(*_args: object, **_kw: object) -> None:
+        raise GcodeError("read-back refused", source=str(tmp_path / "out.gcode"))
+
+    monkeypatch.setattr(pipeline, "read_gcode", broken)
+    with pytest.raises(GcodeError, match="read-back refused"):
+        compensate(example, tmp_path / "out.gcode", advance=True, slip=True)
+    assert (tmp_path / "out.gcode").stat().st_size > 0
