@@ -61,7 +61,7 @@ from flowtwin.compensation.stages import (
 )
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 from flowtwin.errors import DataError, GcodeError
-from flowtwin.gcode.reader import read_gcode
+from flowtwin.gcode.reader import iter_move_chunks, read_gcode
 from flowtwin.planner.from_profile import read_options
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.profiles.machine import Machine, load_machine
@@ -232,8 +232,8 @@ def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
              ) -> SimulationResult:
     """The twin's simulation of the written file.
 
-    The file is read back (or ``text``, its G-code text, being stored by ``flush``);
-    where its moves are the draft's table bit for bit (always, but for relative
+    The file is read back (or ``text``, its G-code text, being stored by ``flush``), a
+    chunk at a time; where its moves are the draft's table bit for bit (always, but for relative
     coordinates after a rewritten line), the draft's simulation is the file's, else the
     file is simulated as read.
 
@@ -242,23 +242,37 @@ def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
     GcodeError
         The written file does not read back as the pieces written.
     """
-    read = read_gcode(dst if text is None else text, options=setting.read_options)
-    del text
-    if len(read) != len(current.draft):
-        raise GcodeError("the rewritten file does not read back as the pieces written "
-                         f"({len(read)} moves, {len(current.draft)} pieces)", source=dst,
-                         allowed="a reader/writer round trip that keeps every piece")
     mine = layout.rows
-    same = all(np.array_equal(read.moves[k], mine[k])
-               for k in ("x", "y", "z", "e", "de", "feed_mm_s", "kind", "layer", "tool",
-                         "flow", "feature", "line"))
-    if same and np.array_equal(np.asarray(read.layer_z, dtype=np.float64),
-                               np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
+    n = 0
+    same = True
+    last = None
+    for chunk in iter_move_chunks(dst if text is None else text, options=setting.read_options,
+                                  chunk_bytes=_READ_BACK_CHUNK_BYTES):
+        mv, k = chunk.moves, len(chunk)
+        same = same and n + k <= len(mine) and all(
+            np.array_equal(mv[name], mine[name][n:n + k]) for name in _READ_BACK_COLUMNS)
+        n += k
+        last = chunk
+    del text
+    if n != len(current.draft):
+        raise GcodeError("the rewritten file does not read back as the pieces written "
+                         f"({n} moves, {len(current.draft)} pieces)", source=dst,
+                         allowed="a reader/writer round trip that keeps every piece")
+    if same and last is not None and np.array_equal(
+            np.asarray(last.layer_z, dtype=np.float64),
+            np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
         return current.sim
+    del last
     if flush is not None:  # (simulate the file as stored and named)
         flush()
-        read = read_gcode(dst, options=setting.read_options)
-    return setting.twin.simulate_table(read)
+    return setting.twin.simulate_table(read_gcode(dst, options=setting.read_options))
+
+
+#: The move columns the read-back compares with the draft's table.
+_READ_BACK_COLUMNS = ("x", "y", "z", "e", "de", "feed_mm_s", "kind", "layer", "tool", "flow",
+                      "feature", "line")
+#: Text read back per chunk: the check holds one chunk's rows at a time, not the file's.
+_READ_BACK_CHUNK_BYTES = 1 << 20
 
 
 def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_passes: int,
