@@ -106,7 +106,7 @@ def test_the_pipeline_stores_the_file_before_it_returns(example: Path, tmp_path:
     def broken(*_args: object, **_kw: object) -> None:
         raise GcodeError("read-back refused", source=str(tmp_path / "out.gcode"))
 
-    monkeypatch.setattr(pipeline, "read_gcode", broken)
+    monkeypatch.setattr(pipeline, "iter_move_chunks", broken)
     with pytest.raises(GcodeError, match="read-back refused"):
         compensate(example, tmp_path / "out.gcode", advance=True, slip=True)
     assert (tmp_path / "out.gcode").stat().st_size > 0
