@@ -150,9 +150,15 @@ class LagModel:
         if precharge is None or not np.any(np.asarray(precharge[1]) != 0.0):
             return self.seg_c
         seg_c = self.seg_c.copy()
-        var, first = np.unique(self.seg_piece, return_index=True)
         first_seg = np.full(int(self.free_pieces.size), -1, dtype=np.int64)
-        first_seg[var[var >= 0]] = first[var >= 0]
+        at = np.flatnonzero(self.seg_piece >= 0)
+        var = self.seg_piece[at]
+        if np.all(var[1:] >= var[:-1]):  # (the chain's order: first occurrences in one pass)
+            new = np.concatenate(([True], var[1:] != var[:-1])) if var.size else var > 0
+            first_seg[var[new]] = at[new]
+        else:
+            var, first = np.unique(self.seg_piece, return_index=True)
+            first_seg[var[var >= 0]] = first[var >= 0]
         for p, y in zip(np.asarray(precharge[0]).tolist(), np.asarray(precharge[1]).tolist(),
                         strict=True):
             s = int(first_seg[p]) if 0 <= p < first_seg.size else -1
