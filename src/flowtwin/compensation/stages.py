@@ -567,7 +567,9 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
         if ahead is not None and k + 1 == options.iterations:
             ahead(draft, layout)
         sim = setting.twin.simulate_draft(draft, layout=layout)
-        slip = sim.dynamics.moves["slip"]
+        # a copy: a field of the structured array would hold all of this round's dynamics
+        # through the next round's simulation
+        slip = np.array(sim.dynamics.moves["slip"], dtype=np.float64)
     del slip
     if sim is None:  # no round (iterations is at least 1)
         raise DataError("the slip feed-forward needs at least one round",
