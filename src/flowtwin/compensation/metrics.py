@@ -27,13 +27,14 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.errors import DataError
-from flowtwin.gcode.moves import MoveKind
-from flowtwin.simulation import SimulationResult
+from flowtwin.gcode.moves import MoveKind, MoveTable
+from flowtwin.simulation import SimulationResult, SimulationSummary
 from flowtwin.simulation.windowed import windowed_flow
 
-__all__ = ["FlowFigures", "extruding_moves", "flow_figures", "window_peak"]
+__all__ = ["FlowFigures", "Intent", "extruding_moves", "flow_figures", "window_peak"]
 
 IntArray = npt.NDArray[np.int64]
+FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,22 +83,76 @@ class FlowFigures:
                 "window_mm": self.window_mm}
 
 
-def extruding_moves(original: SimulationResult) -> npt.NDArray[np.bool_]:
+@dataclass(frozen=True, slots=True)
+class Intent:
+    """What is read of the original file's simulation once its figures are taken, so that
+    the simulation itself can be let go (:func:`Intent.of`).
+
+    Attributes
+    ----------
+    table
+        The original's move table (its moves are the intent).
+    cmd_mm3, width_nominal_mm, lag_k_s
+        Per original move: commanded melt volume (mm³), nominal bead width (mm, ``nan``
+        without a bead), the twin's lag factor ``K`` (s); shape ``(n_moves,)``.
+    before
+        The original's flow figures against itself, windowed over ``window_mm``.
+    summary
+        The original's whole-print figures.
+    warnings
+        The original's simulation warnings.
+    time_s
+        The original's planned print time, s.
+    """
+
+    table: MoveTable
+    cmd_mm3: FloatArray
+    width_nominal_mm: FloatArray
+    lag_k_s: FloatArray
+    before: FlowFigures
+    summary: SimulationSummary
+    warnings: tuple[str, ...]
+    time_s: float
+
+    @classmethod
+    def of(cls, original: SimulationResult, *, window_mm: float) -> Intent:
+        """The intent of ``original`` (its arrays copied out of its records)."""
+        n = len(original.plan.table)
+        return cls(original.plan.table,
+                   np.array(original.dynamics.moves["cmd_mm3"], dtype=np.float64),
+                   np.array(original.metrics["width_nominal_mm"], dtype=np.float64),
+                   np.array(original.parameters.params.lag_k_s, dtype=np.float64),
+                   flow_figures(original, original, np.arange(n, dtype=np.int64),
+                                window_mm=window_mm),
+                   original.summary(), tuple(original.warnings),
+                   float(original.plan.timeline.total_time_s))
+
+
+def _read_intent(original: SimulationResult | Intent
+                 ) -> tuple[MoveTable, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The table, commanded volume and nominal width of ``original``."""
+    if isinstance(original, Intent):
+        return original.table, original.cmd_mm3, original.width_nominal_mm
+    return original.plan.table, original.dynamics.moves["cmd_mm3"], \
+        original.metrics["width_nominal_mm"]
+
+
+def extruding_moves(original: SimulationResult | Intent) -> npt.NDArray[np.bool_]:
     """The moves the twin scores: extruding, with XY motion, commanding a volume."""
-    m = original.plan.table.moves
-    cmd = original.dynamics.moves["cmd_mm3"]
+    table, cmd, _ = _read_intent(original)
+    m = table.moves
     return (((m["kind"] & MoveKind.EXTRUDE) != 0) & ((m["kind"] & MoveKind.XY) != 0)
             & (cmd > 0))
 
 
-def flow_figures(original: SimulationResult, compensated: SimulationResult,
+def flow_figures(original: SimulationResult | Intent, compensated: SimulationResult,
                  piece_row: IntArray, *, window_mm: float | None = None) -> FlowFigures:
     """Flow figures of ``compensated`` against the intent of ``original``.
 
     Parameters
     ----------
     original
-        The original file simulated (its moves are the intent).
+        The original file simulated (its moves are the intent), or its :class:`Intent`.
     compensated
         The compensated file simulated (its moves are pieces of the original's).
     piece_row
@@ -115,16 +170,16 @@ def flow_figures(original: SimulationResult, compensated: SimulationResult,
     DataError
         The piece map does not fit the compensated moves, or ``window_mm`` is not positive.
     """
-    n = len(original.plan.table)
+    tab, cmd, width = _read_intent(original)
+    n = len(tab)
     out = compensated.dynamics.moves["out_mm3"]
     if piece_row.shape != out.shape:
         raise DataError("piece map does not match the compensated moves",
                         field="piece_row", value=piece_row.shape, allowed=str(out.shape))
     delivered = np.asarray(np.bincount(piece_row, weights=out, minlength=n), dtype=np.float64)
-    cmd = original.dynamics.moves["cmd_mm3"]
     ext = extruding_moves(original)
     # the twin's own flow error needs a bead (a path and a duration); same selection here
-    bead = ext & np.isfinite(original.metrics["width_nominal_mm"])
+    bead = ext & np.isfinite(width)
     err = np.zeros(n)
     err[bead] = delivered[bead] / cmd[bead] - 1.0
     w = cmd[ext]
@@ -135,7 +190,6 @@ def flow_figures(original: SimulationResult, compensated: SimulationResult,
         if not (np.isfinite(window_mm) and window_mm > 0.0):
             raise DataError("window length must be positive", field="window_mm",
                             value=window_mm, allowed="> 0 mm")
-        tab = original.plan.table
         xyz = np.column_stack([tab.moves["x"], tab.moves["y"], tab.moves["z"]]).astype(
             np.float64)
         start = np.vstack([np.asarray(tab.start_xyze[:3], dtype=np.float64)[None, :],

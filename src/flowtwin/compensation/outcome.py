@@ -7,7 +7,7 @@ that order). The figures of every advance pass are an :class:`AdvancePassSummary
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -173,10 +173,14 @@ class CompensationReport:
         Print time the pacing added (re-planned with and without it), s.
     pace
         Figures of the pacing stage, or ``None`` when it did not run.
-    original_result, compensated_result, piece_row
-        The two simulations and the original move of every compensated move (for the
-        before/after report, :func:`flowtwin.report.write_comparison`); not part of
-        :meth:`as_dict`.
+    original_simulation
+        The original file's simulation, or how to simulate it again (the compensation
+        lets it go once its figures are taken: :attr:`original_result` simulates it when
+        it is first read); not part of :meth:`as_dict`.
+    compensated_result, piece_row
+        The compensated file's simulation and the original move of every compensated
+        move (with :attr:`original_result`, for the before/after report,
+        :func:`flowtwin.report.write_comparison`); not part of :meth:`as_dict`.
     """
 
     source: str
@@ -207,10 +211,22 @@ class CompensationReport:
     paced_moves: tuple[int, ...] = ()
     pace_time_cost_s: float = 0.0
     pace: PaceReport | None = None
-    original_result: SimulationResult | None = field(default=None, repr=False, compare=False)
+    original_simulation: SimulationResult | Callable[[], SimulationResult] | None = field(
+        default=None, repr=False, compare=False)
     compensated_result: SimulationResult | None = field(default=None, repr=False,
                                                         compare=False)
     piece_row: npt.NDArray[np.int64] | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def original_result(self) -> SimulationResult | None:
+        """The original file's simulation (simulated again the first time it is read when
+        the compensation let it go: the same machine, the same bits)."""
+        sim = self.original_simulation
+        if sim is None or not callable(sim):
+            return sim
+        sim = sim()
+        object.__setattr__(self, "original_simulation", sim)  # (kept once simulated)
+        return sim
 
     def _repr_html_(self) -> str:
         from flowtwin.report.notebook import compensation_repr

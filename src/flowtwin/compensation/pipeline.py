@@ -42,7 +42,7 @@ from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions
 from flowtwin.compensation.limits import extruder_limits
-from flowtwin.compensation.metrics import flow_figures
+from flowtwin.compensation.metrics import Intent, flow_figures
 from flowtwin.compensation.original import read_original
 from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
 from flowtwin.compensation.pace import PaceOptions, PaceReport
@@ -61,6 +61,7 @@ from flowtwin.compensation.stages import (
 )
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 from flowtwin.errors import DataError, GcodeError
+from flowtwin.gcode.moves import MoveTable
 from flowtwin.gcode.reader import iter_move_chunks, read_gcode
 from flowtwin.planner.from_profile import read_options
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
@@ -171,11 +172,14 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     src = Path(source)
     dst = Path(destination)
     step("simulate original")
-    setting, draft = _read(src, Twin(m, klipper_config, pa))
+    twin = Twin(m, klipper_config, pa)
+    # the original's simulation is handed to the stages (the advance lets it go), and
+    # simulated again only if the report's original_result is read
+    setting, handed = _read(src, twin)
     record = _Record([], [])
     with WriteAhead() as ahead:
-        current = _run_stages(setting, Current(draft, setting.original), stages,
-                              advance_passes, record, step, ahead)
+        current = _run_stages(setting, handed.pop(), stages, advance_passes, record, step,
+                              ahead)
         step("write")
         pending = ahead.take(current.draft, current.layout)
         text = None if pending is None else pending.text()
@@ -188,7 +192,8 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
             return _report(setting, current.draft, after, record, src, dst,
                            lines_rewritten=layout.lines_rewritten,
                            baked_advance=stages.advance is not None,
-                           seconds=time.perf_counter() - t_start)
+                           seconds=time.perf_counter() - t_start,
+                           original=lambda: twin.simulate(src))
         # read back the text and report while the worker compresses it; then store it
         layout = pending.layout
         written = False
@@ -205,15 +210,17 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
             del text
             report = _report(setting, current.draft, after, record, src, dst,
                              lines_rewritten=layout.lines_rewritten,
-                             baked_advance=stages.advance is not None, seconds=0.0)
+                             baked_advance=stages.advance is not None, seconds=0.0,
+                             original=lambda: twin.simulate(src))
         finally:
             flush()
     return replace(report, seconds=time.perf_counter() - t_start)
 
 
-def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
+def _read(src: Path, twin: Twin) -> tuple[Setting, list[Current]]:
     """Simulate the original, read its text and modes: the setting and the identity
-    draft."""
+    draft with the original's simulation (in a list: the caller hands it on with
+    ``pop`` and holds no reference to it)."""
     original = twin.simulate(src)
     table = original.plan.table
     if twin.klipper_config is not None:
@@ -223,8 +230,9 @@ def _read(src: Path, twin: Twin) -> tuple[Setting, Draft]:
     text = read_original(src, table, home_xyz=options.home_xyz)
     draft = Draft.identity(text, table)
     twin = replace(twin, settings=original.plan.settings, printer=original.plan.printer)
-    return Setting(twin, original, text, extruder_limits(original.plan.settings),
-                   options), draft
+    intent = Intent.of(original, window_mm=float(twin.machine.hotend.nozzle_diameter_mm))
+    return Setting(twin, intent, text, extruder_limits(original.plan.settings),
+                   options), [Current(draft, original, from_file=True)]
 
 
 def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
@@ -295,6 +303,7 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
     resume = None
     if pc is not None:
         step("pace")
+        # (the pacing holds the draft's simulation: it runs before the advance)
         paced = pace_stage(setting, current, pc, adv)
         current, record.pace, resume = paced.current, paced.report, paced.advanced
         if paced.applied:
@@ -303,7 +312,10 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         del paced
     if adv is not None and not adv.is_identity:
         step("advance")
-        advanced = advance_stage(setting, current, adv, passes=advance_passes, resume=resume)
+        handed = [current]
+        del current  # (the stage lets the draft's simulation go after its first pass)
+        advanced = advance_stage(setting, handed.pop(), adv, passes=advance_passes,
+                                 resume=resume)
         current, record.passes = advanced.current, advanced.passes
         record.warnings.extend(advanced.warnings)
         if advanced.applied:
@@ -326,26 +338,27 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
 
 def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record: _Record,
             src: Path, dst: Path, *, lines_rewritten: int, baked_advance: bool,
-            seconds: float) -> CompensationReport:
-    """Before/after figures of the written file against the original intent."""
-    original = setting.original
+            seconds: float, original: Callable[[], SimulationResult]) -> CompensationReport:
+    """Before/after figures of the written file against the original intent
+    (``original``: how to simulate the original again for the report's
+    ``original_result``)."""
+    intent = setting.original
     m = setting.twin.machine
-    table = original.plan.table
+    table = intent.table
     e_unit = setting.original_file.e_unit
     window = float(m.hotend.nozzle_diameter_mm)
-    before = flow_figures(original, original, np.arange(len(table), dtype=np.int64),
-                          window_mm=window)
-    after = flow_figures(original, after_sim, draft.row, window_mm=window)
+    before = intent.before
+    after = flow_figures(intent, after_sim, draft.row, window_mm=window)
     flow = after_sim.plan.table.moves["flow"].astype(np.float64)
     pr = printing_pieces(after_sim, draft)
-    summary0 = original.summary()
+    summary0 = intent.summary
     summary1 = after_sim.summary()
     warnings = list(record.warnings)
-    warnings.extend(str(w) for w in after_sim.warnings if w not in original.warnings)
-    changed_k = lag_factor_changes(original, after_sim, draft.row)
+    warnings.extend(str(w) for w in after_sim.warnings if w not in intent.warnings)
+    changed_k = lag_factor_changes(intent, after_sim, draft.row)
     if changed_k.size:
-        warnings.append(_lag_warning(original, after_sim, draft, changed_k))
-    if baked_advance and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(original)):
+        warnings.append(_lag_warning(intent, after_sim, draft, changed_k))
+    if baked_advance and (m.printer.pressure_advance.k_s > 0 or _has_pa_commands(table)):
         warnings.append("the advance is baked into the file: turn the firmware's pressure "
                         "advance off (M900 K0 / M572 S0 / SET_PRESSURE_ADVANCE ADVANCE=0) "
                         "when printing it")
@@ -358,7 +371,7 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
         source=str(src), destination=str(dst), machine=m.name,
         firmware_pressure_advance=setting.twin.pressure_advance,
         transformations=tuple(record.names), before=before, after=after,
-        time_before_s=float(original.plan.timeline.total_time_s),
+        time_before_s=intent.time_s,
         time_after_s=float(after_sim.plan.timeline.total_time_s),
         commanded_e_before_mm=float(np.sum(draft.row_e) * e_unit),
         commanded_e_after_mm=float(np.sum(draft.e_grid) * e_unit),
@@ -374,14 +387,14 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
         lines_rewritten=lines_rewritten, warnings=tuple(warnings), seconds=seconds,
         lag_factor_changed_moves=int(changed_k.size), paced_moves=paced,
         pace_time_cost_s=float(record.pace_cost_s), pace=record.pace,
-        original_result=original, compensated_result=after_sim,
+        original_simulation=original, compensated_result=after_sim,
         piece_row=np.asarray(draft.row, dtype=np.int64))
 
 
-def _lag_warning(original: SimulationResult, after: SimulationResult, draft: Draft,
+def _lag_warning(original: Intent, after: SimulationResult, draft: Draft,
                  changed: npt.NDArray[np.int64]) -> str:
-    table = original.plan.table
-    k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
+    table = original.table
+    k0 = original.lag_k_s
     k1 = np.asarray(after.parameters.params.lag_k_s, dtype=np.float64)
     worst = int(np.argmax(np.abs(np.log(k1 / k0[draft.row]))))
     lines = table.moves["line"][changed]
@@ -398,7 +411,7 @@ def _lag_warning(original: SimulationResult, after: SimulationResult, draft: Dra
 _LAG_TOLERANCE = 0.01
 
 
-def lag_factor_changes(original: SimulationResult, compensated: SimulationResult,
+def lag_factor_changes(original: SimulationResult | Intent, compensated: SimulationResult,
                        piece_row: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     """Original moves some piece of which the twin gives a different lag factor ``K``.
 
@@ -409,7 +422,8 @@ def lag_factor_changes(original: SimulationResult, compensated: SimulationResult
     Parameters
     ----------
     original, compensated
-        The original and the compensated file simulated on the same machine.
+        The original and the compensated file simulated on the same machine (the
+        original's :class:`~flowtwin.compensation.metrics.Intent` will do).
     piece_row
         Original move of every compensated move, shape ``(n_pieces,)``.
 
@@ -418,7 +432,8 @@ def lag_factor_changes(original: SimulationResult, compensated: SimulationResult
     ndarray of int64
         Sorted indices of the original moves concerned.
     """
-    k0 = np.asarray(original.parameters.params.lag_k_s, dtype=np.float64)
+    k0 = (original.lag_k_s if isinstance(original, Intent)
+          else np.asarray(original.parameters.params.lag_k_s, dtype=np.float64))
     k1 = np.asarray(compensated.parameters.params.lag_k_s, dtype=np.float64)
     if k1.shape != piece_row.shape:
         raise DataError("piece map does not match the compensated moves", field="piece_row",
@@ -427,8 +442,8 @@ def lag_factor_changes(original: SimulationResult, compensated: SimulationResult
     return np.unique(piece_row[off]).astype(np.int64)
 
 
-def _has_pa_commands(sim: SimulationResult) -> bool:
-    for ev in sim.plan.table.events:
+def _has_pa_commands(table: MoveTable) -> bool:
+    for ev in table.events:
         if ev.code in ("M900", "M572", "SET_PRESSURE_ADVANCE"):
             return True
     return False

@@ -25,7 +25,7 @@ from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions, guard_feeds
 from flowtwin.compensation.limits import ExtruderLimits
-from flowtwin.compensation.metrics import extruding_moves, flow_figures
+from flowtwin.compensation.metrics import Intent, extruding_moves, flow_figures
 from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
@@ -124,8 +124,9 @@ class Setting:
     twin
         The machine and the work file.
     original
-        The original file simulated (the intent every figure is measured against).
-    original
+        What is kept of the original file's simulation (the intent every figure is
+        measured against).
+    original_file
         The original file's text and the modes of its rows.
     limits
         The firmware's extruder limits.
@@ -134,7 +135,7 @@ class Setting:
     """
 
     twin: Twin
-    original: SimulationResult
+    original: Intent
     original_file: OriginalFile
     limits: ExtruderLimits
     read_options: ReadOptions
@@ -144,11 +145,14 @@ class Setting:
 class Current:
     """A draft and its simulation (the draft's rendered file, with the twin's default
     pressure advance); with the draft's layout (made without the check,
-    :meth:`Draft.layout`) when the stage kept it: the file is then written from it."""
+    :meth:`Draft.layout`) when the stage kept it: the file is then written from it;
+    ``from_file``: the simulation is the original file's, simulated as read (the twin
+    would not make it again from the draft to the bit)."""
 
     draft: Draft
     sim: SimulationResult
     layout: Layout | None = None
+    from_file: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -225,7 +229,7 @@ def guard_stage(setting: Setting, current: Current, options: GuardOptions) -> Gu
     """Slow the moves that would grind, in up to ``options.iterations`` rounds
     (:mod:`flowtwin.compensation.guard`)."""
     time0 = current.sim.plan.timeline.total_time_s
-    slowed = np.zeros(setting.original.plan.table.moves.shape[0], dtype=bool)
+    slowed = np.zeros(setting.original.table.moves.shape[0], dtype=bool)
     for _ in range(options.iterations):
         draft, now = _guard_step(current, setting.original_file, options)
         if not np.any(now):
@@ -323,8 +327,7 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
 
     original = setting.original
     window = float(twin.machine.hotend.nozzle_diameter_mm)
-    before = flow_figures(original, original, np.arange(len(original.plan.table)),
-                          window_mm=window)
+    before = original.before
 
     def judged(trial: AdvanceOutcome) -> tuple[float, FloatArray]:
         """The larger of the trial's RMS and windowed peak over the original's (the
@@ -366,7 +369,7 @@ def pace_stage(setting: Setting, current: Current, options: PaceOptions,
 
     cap_s = options.budget_cap * time0  # the time the pacing may add, s (inf: no cap)
     scored = extruding_moves(original)
-    volume = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    volume = original.cmd_mm3
     only = np.zeros(len(draft), dtype=bool)
     stubborn = np.zeros(len(draft), dtype=bool)  # spots left after a paced round
     left = np.zeros(len(draft), dtype=bool)  # near spots the budget left unpaced
@@ -432,16 +435,19 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     this stage on the same ``current`` (the pacing's trial); the stage goes on from it.
     """
     twin = setting.twin
+    first = current.draft
+    # the file's own simulation is kept while it is the kept one (it is not made again)
+    hold = current.from_file and not twin.pressure_advance
     start = (current.sim if not twin.pressure_advance
              else twin.simulate_draft(current.draft, pressure_advance=False,
                                       layout=current.layout))
     cur: SimulationResult | None = start
-    kept_draft = current.draft
+    kept_draft = first
     kept_sim: SimulationResult | None = start
     kept_layout, lay = current.layout, current.layout  # (of the kept draft, of draft)
-    kept_rms = flow_figures(setting.original, start, current.draft.row).rms_flow_error
-    del start
-    draft = current.draft
+    kept_rms = flow_figures(setting.original, start, first.row).rms_flow_error
+    del start, current  # (the caller hands the draft over: nothing else holds its sim)
+    draft = first
     attempts = [(k, ilc) for k in range(passes) for ilc in ((True, False) if k else (False,))]
     done: set[int] = set()
     summaries: list[AdvancePassSummary] = []
@@ -465,7 +471,7 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         plan, lag_k_s = cur.plan, cur.parameters.params.lag_k_s
         state_max = _grinding_state(cur, setting)
         delivered = _delivered_grid(setting.original, cur, draft) if ilc else None
-        if cur is not setting.original:
+        if not (hold and kept_draft is first):
             # the pass needs the plan, the lag factors, the cap and what was delivered:
             # the rest of the simulation (dynamics, deposition) and the layout are let go
             # while it runs
@@ -493,7 +499,7 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
                             "its result is not used")
             break
         kept_draft, kept_sim, kept_rms, kept_layout = draft, cur, rms, lay
-    applied = kept_draft is not current.draft
+    applied = kept_draft is not first
     if kept_sim is None:
         if kept_layout is None:
             kept_layout = kept_draft.layout(check=False)
@@ -513,7 +519,7 @@ def _grinding_state(sim: SimulationResult, setting: Setting) -> npt.NDArray[np.f
             / setting.original_file.e_unit)
 
 
-def _delivered_grid(original: SimulationResult, sim: SimulationResult,
+def _delivered_grid(original: Intent, sim: SimulationResult,
                     draft: Draft) -> npt.NDArray[np.float64]:
     """Melt the twin predicts every original row delivers in ``sim`` without the drive's
     slip, in E grid units of the row's intent (``delivered/commanded · row E``)."""
@@ -521,7 +527,7 @@ def _delivered_grid(original: SimulationResult, sim: SimulationResult,
     out = np.asarray(d["out_mm3"], dtype=np.float64) + np.asarray(d["slip_loss_mm3"],
                                                                    dtype=np.float64)
     delivered = np.bincount(draft.row, weights=out, minlength=draft.n_rows)
-    cmd = np.asarray(original.dynamics.moves["cmd_mm3"], dtype=np.float64)
+    cmd = original.cmd_mm3
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(cmd > 0, delivered / cmd * draft.row_e, draft.row_e.astype(float))
 
