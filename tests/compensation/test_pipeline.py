@@ -20,6 +20,7 @@ from flowtwin.compensation import (
     compensate,
     flow_figures,
 )
+from flowtwin.compensation.metrics import Intent
 from flowtwin.compensation.pipeline import lag_factor_changes
 from flowtwin.errors import DataError, GcodeError
 from flowtwin.gcode.generator import PrintSpec, generate_print, write_print
@@ -162,6 +163,44 @@ def test_metric_of_an_unchanged_file_is_the_twins(example: Path) -> None:
     assert fig.rms_flow_error == pytest.approx(s.rms_flow_error, rel=1e-12)
     assert fig.peak_overextrusion == pytest.approx(s.peak_overextrusion, rel=1e-12)
     assert fig.peak_underextrusion == pytest.approx(s.peak_underextrusion, rel=1e-12)
+
+
+def test_the_original_is_simulated_again_for_the_report_to_the_bit(
+        advanced: tuple[Path, CompensationReport], example: Path) -> None:
+    _, report = advanced
+    assert callable(report.original_simulation)  # let go during the run
+    again = report.original_result
+    assert again is not None and again is report.original_result  # simulated once
+    ref = simulate(example, pressure_advance=False)  # as compensate --advance simulates it
+    for name in ("cmd_mm3", "out_mm3", "slip", "peak_force_n"):
+        assert np.array_equal(again.dynamics.moves[name], ref.dynamics.moves[name])
+    assert np.array_equal(again.metrics["width_mean_mm"], ref.metrics["width_mean_mm"],
+                          equal_nan=True)
+    before = flow_figures(ref, ref, np.arange(len(ref.plan.table)),
+                          window_mm=report.before.window_mm)
+    assert report.before.rms_flow_error == before.rms_flow_error
+    assert report.before.peak_overextrusion_window == before.peak_overextrusion_window
+    assert report.time_before_s == ref.plan.timeline.total_time_s
+
+
+def test_the_intent_gives_the_figures_of_the_simulation(
+        advanced: tuple[Path, CompensationReport], example: Path) -> None:
+    _, report = advanced
+    ref = simulate(example, pressure_advance=False)
+    intent = Intent.of(ref, window_mm=0.4)
+    comp, row = report.compensated_result, report.piece_row
+    assert comp is not None and row is not None
+    a = flow_figures(ref, comp, row, window_mm=0.4)
+    b = flow_figures(intent, comp, row, window_mm=0.4)
+    assert (a.rms_flow_error, a.peak_overextrusion, a.peak_overextrusion_window,
+            a.delivered_volume_mm3) == (b.rms_flow_error, b.peak_overextrusion,
+                                        b.peak_overextrusion_window, b.delivered_volume_mm3)
+    assert np.array_equal(a.flow_error, b.flow_error)
+    assert np.array_equal(lag_factor_changes(ref, comp, row),
+                          lag_factor_changes(intent, comp, row))
+    own = flow_figures(ref, ref, np.arange(len(ref.plan.table)), window_mm=0.4)
+    assert intent.before.rms_flow_error == own.rms_flow_error
+    assert np.array_equal(intent.before.flow_error, own.flow_error)
 
 
 def test_bad_input_names_the_file_and_writes_nothing(tmp_path: Path) -> None:
