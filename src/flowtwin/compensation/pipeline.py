@@ -30,6 +30,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import TypeVar
 
@@ -193,7 +194,7 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                            lines_rewritten=layout.lines_rewritten,
                            baked_advance=stages.advance is not None,
                            seconds=time.perf_counter() - t_start,
-                           original=lambda: twin.simulate(src))
+                           original=partial(twin.simulate, src))
         # read back the text and report while the worker compresses it; then store it
         layout = pending.layout
         written = False
@@ -211,7 +212,7 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
             report = _report(setting, current.draft, after, record, src, dst,
                              lines_rewritten=layout.lines_rewritten,
                              baked_advance=stages.advance is not None, seconds=0.0,
-                             original=lambda: twin.simulate(src))
+                             original=partial(twin.simulate, src))
         finally:
             flush()
     return replace(report, seconds=time.perf_counter() - t_start)
