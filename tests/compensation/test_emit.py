@@ -150,7 +150,8 @@ def test_guard_feed_is_written_and_restored(tmp_path: Path) -> None:
     assert_reads_back(d.with_feed(feed), out)
 
 
-def test_checksummed_lines_are_refused(tmp_path: Path) -> None:
+def checksummed_draft(tmp_path: Path) -> Draft:
+    """A draft of a file with a checksummed line (N5 … *check), its E doubled."""
     src = tmp_path / "n.gcode"
     body = "N5 G1 X10 E0.5 F1200"
     check = 0
@@ -158,7 +159,11 @@ def test_checksummed_lines_are_refused(tmp_path: Path) -> None:
         check ^= ch
     src.write_text(f"G21\nM83\n{body}*{check}\n")
     d = draft_of(src)
-    new = d.with_e(d.e_grid * 2)
+    return d.with_e(d.e_grid * 2)
+
+
+def test_checksummed_lines_are_refused(tmp_path: Path) -> None:
+    new = checksummed_draft(tmp_path)
     with pytest.raises(GcodeError, match="checksum") as info:
         new.render(tmp_path / "out.gcode")
     assert info.value.line == 3

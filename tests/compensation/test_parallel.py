@@ -19,7 +19,7 @@ from flowtwin.compensation import compensate, pipeline
 from flowtwin.compensation.ahead import WriteAhead
 from flowtwin.errors import GcodeError
 
-from .test_emit import draft_of
+from .test_emit import checksummed_draft
 
 _RUN = """
 import sys
@@ -79,14 +79,7 @@ def test_bytes_made_ahead_are_the_serial_bytes(example: Path, example_gz: Path, 
 
 def test_a_layout_refused_ahead_raises_and_writes_nothing(tmp_path: Path) -> None:
     """A check that fails in the worker raises in the caller, as the serial write does."""
-    src = tmp_path / "n.gcode"
-    body = "N5 G1 X10 E0.5 F1200"
-    check = 0
-    for ch in body.encode():
-        check ^= ch
-    src.write_text(f"G21\nM83\n{body}*{check}\n")
-    d = draft_of(src)
-    new = d.with_e(d.e_grid * 2)
+    new = checksummed_draft(tmp_path)
     layout = new.layout(check=False)
     with WriteAhead() as ahead:
         ahead.start(new, layout)
