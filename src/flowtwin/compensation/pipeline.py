@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation.advance import AdvanceOptions
-from flowtwin.compensation.ahead import WriteAhead
+from flowtwin.compensation.ahead import Pending, WriteAhead
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions
@@ -184,38 +184,39 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         step("write")
         pending = ahead.take(current.draft, current.layout)
         text = None if pending is None else pending.text()
-        if pending is None or text is None:
+        store: Callable[[], None] | None = None
+        if pending is None or text is None:  # no bytes made ahead: written now
             layout = (current.draft.layout() if current.layout is None
                       else current.draft.check(current.layout))
             current.draft.render(dst, layout)
-            step("simulate result")
-            after = _written(setting, current, layout, dst)
-            return _report(setting, current.draft, after, record, src, dst,
-                           lines_rewritten=layout.lines_rewritten,
-                           baked_advance=stages.advance is not None,
-                           seconds=time.perf_counter() - t_start,
-                           original=partial(twin.simulate, src))
-        # read back the text and report while the worker compresses it; then store it
-        layout = pending.layout
-        written = False
-
-        def flush() -> None:
-            nonlocal written
-            if not written:
-                current.draft.render(dst, layout, encoded=pending.stored())
-                written = True
-
+        else:  # the text is read back and reported while the worker compresses it
+            layout = pending.layout
+            store = _storer(current.draft, dst, pending)
         step("simulate result")
         try:
-            after = _written(setting, current, layout, dst, text=text, flush=flush)
+            after = _written(setting, current, layout, dst, text=text, flush=store)
             del text
             report = _report(setting, current.draft, after, record, src, dst,
                              lines_rewritten=layout.lines_rewritten,
                              baked_advance=stages.advance is not None, seconds=0.0,
                              original=partial(twin.simulate, src))
         finally:
-            flush()
+            if store is not None:
+                store()
     return replace(report, seconds=time.perf_counter() - t_start)
+
+
+def _storer(draft: Draft, dst: Path, pending: Pending) -> Callable[[], None]:
+    """Store the bytes ``pending`` makes of ``draft`` at ``dst``, on the first call only."""
+    done = False
+
+    def store() -> None:
+        nonlocal done
+        if not done:
+            draft.render(dst, pending.layout, encoded=pending.stored())
+            done = True
+
+    return store
 
 
 def _read(src: Path, twin: Twin) -> tuple[Setting, list[Current]]:

@@ -353,10 +353,15 @@ class PartProgram:
         k_y = int(ys.size)
         size = n + k_y
         c0, c_min = self.c0[p0:p1], self.c_min[p0:p1]
+        # constraint rows, in the solver's order of the variables: the ratio box,
+        # 0 ≤ y_k ≤ y_max, no backflow, the ratio steps, the state cap
         con = [ch.box_rows(), ch.unit_rows(n + np.arange(k_y))]
         d_con = [c0, np.zeros(k_y)]
         lo_con = [c_min, np.zeros(k_y)]
         hi_con = [self.hi[p0:p1], self.y_max[ys]]
+        # no backflow [001 Fig. 8]: a piece that may pull back (c_min < 0) ends with x ≥ 0;
+        # the state falls monotonically while it pulls, so it stays ≥ 0 throughout and the
+        # linear model stays the twin's
         pull = np.flatnonzero(c_min < 0)
         if pull.size:
             con.append(ch.unit_rows(pull))
@@ -366,6 +371,7 @@ class PartProgram:
         if self.jump is not None:
             step = np.flatnonzero(self.stepped[p0:p1])
             if step.size:
+                # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1), within ±jump_p
                 j = np.maximum(self.jump[p0:p1][step], 1e-9)
                 con.append(ch.step_rows(step))
                 d_con.append(c0[step] - c0[step - 1])

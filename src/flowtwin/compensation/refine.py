@@ -444,6 +444,8 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     cuts = chain.cuts(alpha, l_p, v, grp, stepped)
     bounds = program_parts(cuts, n)
     order = chain.order
+    # the state cap: rows only where it binds (solved without it first; most runs stay
+    # far below the compression at which the drive would grind)
     cap = (None if state_max is None or not np.any(np.isfinite(state_max))
            else np.isfinite(state_max))
     x = np.empty(n + k_y)
