@@ -290,6 +290,9 @@ def moonraker_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Moonr
                 if p.poll() is not None:
                     pytest.fail(f"service exited ({p.args}):\n{_tail(klippy_log)}\n"
                                 f"{_tail(work / 'moonraker.out')}")
+            # klippy can die in its main thread and still not exit (its log thread lives on)
+            if "Traceback" in (work / "klippy.out").read_text(errors="replace"):
+                pytest.fail(f"klippy failed to start:\n{_tail(work / 'klippy.out')}")
             try:
                 r = httpx.get(url + "/server/info", timeout=2, trust_env=False)
                 state = r.json().get("result", {}).get("klippy_state", "?")

@@ -55,6 +55,17 @@ def _fetch_klipper_dict(venv: Path) -> None:
             (venv / "klipper.dict").write_bytes(member.read())
 
 
+def _build_klippy_chelper(venv: Path) -> None:
+    """Compile klippy's ``c_helper.so`` once, here, under the install lock.
+
+    klippy builds it on its first start when it is missing or older than its sources. Two
+    klippy hosts started at once (one per pytest-xdist worker) then both run gcc on the same
+    output file, and one of them loads it half-written ("file too short") and hangs.
+    """
+    _run([str(venv / "bin" / "python"), "-c",
+          "import klippy.chelper as c; c.get_ffi()"])
+
+
 def install(name: str, root: Path = DEFAULT_ROOT) -> Path:
     """Create or reuse the venv of ``name``; return its path."""
     specs = SERVICES[name]
@@ -65,6 +76,8 @@ def install(name: str, root: Path = DEFAULT_ROOT) -> Path:
     with open(root / f".{name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if stamp.exists() and stamp.read_text() == want:
+            if name == "moonraker":
+                _build_klippy_chelper(venv)  # a no-op (0.2 s) when already built
             return venv
         t0 = time.monotonic()
         if venv.exists():
@@ -74,6 +87,7 @@ def install(name: str, root: Path = DEFAULT_ROOT) -> Path:
         _run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", *specs])
         if name == "moonraker":
             _fetch_klipper_dict(venv)
+            _build_klippy_chelper(venv)
         stamp.write_text(want)
         print(f"installed {name} in {time.monotonic() - t0:.1f} s", file=sys.stderr)
     return venv
