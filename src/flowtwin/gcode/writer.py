@@ -123,7 +123,10 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
         compress = head == b"\x1f\x8b"
         stream: BinaryIO = gzip.GzipFile(fileobj=raw) if compress else raw  # type: ignore[assignment]
         with atomic_open(destination, "wb") as out:
-            sink: BinaryIO = gzip.GzipFile(fileobj=out, mode="wb", mtime=0) if compress else out  # type: ignore[assignment]
+            # level 6 (gzip's own default; compensation's too): level 9 takes 2.6x the time
+            # for 1.5 % less on G-code
+            sink: BinaryIO = (gzip.GzipFile(fileobj=out, mode="wb", mtime=0,  # type: ignore[assignment]
+                                            compresslevel=6) if compress else out)
             touched = _apply(stream, sink, edits, str(src))
             if compress:
                 sink.close()
