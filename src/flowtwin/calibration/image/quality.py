@@ -62,7 +62,7 @@ MAX_BLUR_MM = 0.35
 #: Narrowest resolvable bead, px.
 MIN_BEAD_PX = 2.0
 #: Largest disagreement ``z`` of the best line and the twin's lag (:func:`disagreement`).
-MAX_DISAGREEMENT = 6.0
+MAX_DISAGREEMENT = 4.0
 
 
 def edge_ratio(profile: FloatArray, dv: float) -> tuple[float, float]:
