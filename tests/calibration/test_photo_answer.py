@@ -125,7 +125,7 @@ def test_a_range_that_brackets_the_lag_is_read_and_the_answers_agree() -> None:
     assert res.summary()["disagreement"] == pytest.approx(res.disagreement)
 
 
-# --- best line and lag disagree, on a render ---------------------------------------------------------
+# --- best line and lag disagree, on a render ---------------------------------------------
 
 def test_best_chevron_and_lag_that_disagree_are_refused() -> None:
     """A chevron photo seen from above read as a mirrored scan (``view="mirrored"``): the
@@ -147,7 +147,7 @@ def test_best_chevron_and_lag_that_disagree_are_refused() -> None:
     assert abs(res.k_best_line_s - 0.045) <= 0.01
 
 
-# --- CLI ---------------------------------------------------------------------------------------------
+# --- CLI ---------------------------------------------------------------------------------------
 
 def test_cli_refuses_with_the_reason_exit_2_and_json(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
