@@ -129,6 +129,8 @@ def analyse_case(case: Case, method: str = "area") -> dict[str, Any]:
             res = analyse_line_photo(photo.image, pat, machine=MACHINE, method=method)
     except FlowtwinError as exc:
         row.update(refused=str(exc), seconds=time.perf_counter() - t0)
+        if isinstance(exc.value, dict) and "z" in exc.value:   # an answer check refused
+            row.update(answers=exc.value)
         return row
     best = res.k_best_line_s
     row.update(refused=None, seconds=time.perf_counter() - t0, k_best_line_s=best,
@@ -137,12 +139,17 @@ def analyse_case(case: Case, method: str = "area") -> dict[str, Any]:
                k_cross_s=getattr(res, "k_cross_s", None),
                lag_fit_s=None if res.lag is None else res.lag.k_s,
                lag_fit_err_s=None if res.lag is None else res.lag.k_err_s,
-               lag_problem=res.lag_problem, reading=res.reading)
+               lag_problem=res.lag_problem, reading=res.reading,
+               disagreement=_finite(res.disagreement))
     if row["k_cross_s"] is not None:
         row["cross_error_s"] = row["k_cross_s"] - case.lag_s
     if res.lag is not None:
         row["lag_error_s"] = res.lag.k_s - case.lag_s
     return row
+
+
+def _finite(x: float) -> float | None:
+    return x if math.isfinite(x) else None
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:

@@ -61,6 +61,7 @@ class Outcome:
     lag_err_s: float | None = None
     refused: str | None = None
     missing: bool = False
+    disagreement: float | None = None
 
     @property
     def within(self) -> bool:
@@ -129,14 +130,17 @@ def read_photo(entry: dict[str, Any], path: Path, machine: Machine = MACHINE) ->
         else:
             res = analyse_line_photo(path, pat, machine=machine)
     except FlowtwinError as exc:
-        return _replace(base, refused=str(exc))
+        z = exc.value.get("z") if isinstance(exc.value, dict) else None
+        return _replace(base, refused=str(exc), disagreement=z)
     best = float(res.k_best_line_s)
     errs = [best - k for k in judged]
     err = min(errs, key=abs)
     lag = res.lag
     return _replace(base, best_k_s=best, error_s=err, error_steps=err / step,
                     lag_s=None if lag is None else float(lag.k_s),
-                    lag_err_s=None if lag is None else float(lag.k_err_s))
+                    lag_err_s=None if lag is None else float(lag.k_err_s),
+                    disagreement=float(res.disagreement) if np.isfinite(res.disagreement)
+                    else None)
 
 
 def _replace(o: Outcome, **kw: Any) -> Outcome:

@@ -7,19 +7,21 @@ parameters (``None``: the tool's defaults).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
 import typer
 
 from flowtwin.calibration.fragment import write_fragment
 from flowtwin.calibration.guide import FROM_IMAGE_HELP
 from flowtwin.cli._common import console, err_console, print_json, table_from_rows
-from flowtwin.errors import CalibrationError
+from flowtwin.errors import CalibrationError, VisionError
 
 __all__ = ["FROM_IMAGE_HELP", "from_image_cmd"]
 
 _F = float | None
+_R = TypeVar("_R")
 
 
 def _opt(text: str) -> typer.models.OptionInfo:
@@ -141,10 +143,24 @@ def from_image_cmd(
         settings = layout_settings(pattern, base, line_width_given=line_width is not None,
                                    accel_given=accel is not None)
         pat = line_layout_pattern(pattern, settings, params)
-    res = analyse_line_photo(image, pat, machine=m, mm_per_px=mm_per_px, polarity=polarity,
-                             view=view, step_mm=step, method=method,
-                             fit_dead_time=fit_dead_time)
+    res = _refusing(lambda: analyse_line_photo(
+        image, pat, machine=m, mm_per_px=mm_per_px, polarity=polarity, view=view,
+        step_mm=step, method=method, fit_dead_time=fit_dead_time), image, json_out)
     _report(image, pattern, res, annotate=annotate, output=output, json_out=json_out)
+
+
+def _refusing(analyse: Callable[[], _R], image: Path, json_out: bool) -> _R:
+    """Run the analysis; with ``--json`` a refusal also prints one JSON object stating it
+    (``refused``: the reason, ``answers``: what the photo gave, when an answer check
+    refused) before the error ends the command with a non-zero exit."""
+    try:
+        return analyse()
+    except VisionError as exc:
+        if json_out:
+            print_json({"image": str(image), "refused": exc.message, "field": exc.field,
+                        "answers": exc.value if exc.field == "k_best_line_s" else None,
+                        "error": str(exc)})
+        raise
 
 
 def _report(image: Path, pattern: str, res: Any, *, annotate: Path | None,
@@ -224,6 +240,6 @@ def _chevron(image: Path, m: Any, base: Any, *, k_start: float | None, k_end: fl
                                    gap_mm=gap, mark_every=mark_every),
                      **{k: v for k, v in given.items() if v is not None})
     pat = chevron_pattern(base, params)
-    res = analyse_chevron_photo(image, pat, machine=m, polarity=polarity, view=view,
-                                step_mm=step)
+    res = _refusing(lambda: analyse_chevron_photo(image, pat, machine=m, polarity=polarity,
+                                                  view=view, step_mm=step), image, json_out)
     _report(image, "chevron", res, annotate=annotate, output=output, json_out=json_out)

@@ -41,7 +41,7 @@ from flowtwin.calibration.image.detect import LineSet, detect_lines
 from flowtwin.calibration.image.direction import choose_by_twin
 from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
-from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
+from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
 from flowtwin.calibration.image.widths import (
     band_half_mm,
@@ -94,6 +94,9 @@ class PhotoResult:
         (:mod:`.bestline`; ``None``: the errors do not rise with K).
     best_by
         How the best line was chosen: ``"errors"`` (nearest the crossing) or ``"score"``.
+    disagreement
+        ``|K_best − K_lag|`` over their combined uncertainty
+        (:func:`~.quality.disagreement`; NaN: no lag, or not commensurable).
     """
 
     source: str
@@ -113,6 +116,7 @@ class PhotoResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
     k_cross_s: float | None = None
     best_by: str = "score"
+    disagreement: float = math.nan
 
     @property
     def k_best_line_s(self) -> float:
@@ -129,7 +133,7 @@ class PhotoResult:
             "k_cross_s": self.k_cross_s, "k_accel_s": self.k_accel_s,
             "k_decel_s": self.k_decel_s,
             "lag": None if self.lag is None else self.lag.summary(),
-            "lag_problem": self.lag_problem,
+            "lag_problem": self.lag_problem, "disagreement": _num(self.disagreement),
             "beads": "light" if self.light_beads else "dark", "reading": self.reading,
             "px_per_mm": self.px_per_mm, "reprojection_rms_mm": self.reprojection_rms_mm,
             "lines": [{"k_s": r.k_la_s, "score": _num(r.score),
@@ -142,6 +146,7 @@ class PhotoResult:
 
 def _num(x: float) -> float | None:
     return x if math.isfinite(x) else None
+
 
 
 def _read(gray32: npt.NDArray[np.float32], light: bool, reading: Reading, model: LagModel, *,
@@ -359,8 +364,15 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
                                  f"(the widths do not pin it: {exc.message})")
                 except CalibrationError as exc2:
                     problem = exc2.message
+    check = answer_reason(ks, best, usable, k_lag_s=None if lag is None else lag.k_s,
+                          k_lag_err_s=None if lag is None else lag.k_err_s,
+                          dead_time=lag is not None and "dead_time_s" in lag.fitted)
+    if check.reason is not None:
+        raise VisionError(check.reason, source=name, field="k_best_line_s",
+                          value=check.values)
     ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines])
     return PhotoResult(name, pattern.kind, tuple(lines), best, k_acc, k_dec, lag, problem,
                        ls.light, f"{reading.name} (decided by {how})", reading.px_per_mm,
                        reading.reprojection_rms_mm, reading.homography, ends, tuple(notes),
-                       k_cross_s=choice_best.k_cross_s, best_by=choice_best.by)
+                       k_cross_s=choice_best.k_cross_s, best_by=choice_best.by,
+                       disagreement=check.z)

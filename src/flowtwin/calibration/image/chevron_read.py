@@ -62,7 +62,7 @@ from flowtwin.calibration.image.chevron_geom import ChevronGeometry, chevron_geo
 from flowtwin.calibration.image.detect import FoundLine, LineSet, detect_lines
 from flowtwin.calibration.image.geometry import LayoutGeometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey
-from flowtwin.calibration.image.quality import MIN_LINES, blur_reason
+from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import local_scale, marks_seen, refine_homography
 from flowtwin.calibration.image.widths import (
     SHEET_SMOOTH_MM,
@@ -114,6 +114,8 @@ class ChevronResult:
         Facts worth knowing.
     arm_errors
         Each chevron's upper and lower arm error, ``(n, 2)``.
+    disagreement
+        The best chevron's and the lag's disagreement (:func:`~.quality.disagreement`).
     """
 
     source: str
@@ -132,6 +134,7 @@ class ChevronResult:
     image_lines: FloatArray
     notes: tuple[str, ...] = field(default_factory=tuple)
     arm_errors: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    disagreement: float = math.nan
 
     @property
     def k_best_line_s(self) -> float:
@@ -147,7 +150,7 @@ class ChevronResult:
             "k_best_line_s": self.k_best_line_s, "best_by": self.best_by,
             "k_cross_s": self.k_cross_s,
             "lag": None if self.lag is None else self.lag.summary(),
-            "lag_problem": self.lag_problem,
+            "lag_problem": self.lag_problem, "disagreement": _num(self.disagreement),
             "beads": "light" if self.light_beads else "dark", "reading": self.reading,
             "px_per_mm": self.px_per_mm, "reprojection_rms_mm": self.reprojection_rms_mm,
             "chevrons": [{"k_s": r.k_la_s, "score": _num(r.score),
@@ -467,8 +470,14 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
             lag = fit_chevron_lag(full, geo, lines, d0=d0, step_mm=step_mm, source=name)
         except CalibrationError as exc:
             problem = exc.message
+    check = answer_reason(ks, choice.index, usable, k_lag_s=None if lag is None else lag.k_s,
+                          k_lag_err_s=None if lag is None else lag.k_err_s, item="chevron")
+    if check.reason is not None:
+        raise VisionError(check.reason, source=name, field="k_best_line_s",
+                          value=check.values)
     return ChevronResult(name, "chevron", tuple(lines), choice.index, choice.k_cross_s,
                          choice.by, lag, problem, fa.light,
                          f"{reading.name} (decided by {how})", scale,
                          reading.across_rms_px / scale, reading.hom, reading.paths,
-                         tuple(notes), np.asarray(arm_errors, dtype=np.float64))
+                         tuple(notes), np.asarray(arm_errors, dtype=np.float64),
+                         disagreement=check.z)

@@ -17,11 +17,31 @@ Each check returns a reason (a sentence) or ``None``; the analysis refuses with 
   is refused above :data:`MAX_BLUR_MM`, where the widths along the lines are no longer
   read well enough to rank the lines (measured on the independent renders:
   docs/calibration.md), and when a bead is under :data:`MIN_BEAD_PX` pixels wide.
+
+Two more checks look at the answer itself (:func:`answer_reason`), once the lines are read:
+
+* **Best line at an end of the range.** When the most even line is the first or the last
+  line measured, the advance factor may lie beyond it: the tuning guides read such a
+  pattern as "print it again with a range that brackets the answer" (docs/calibration.md
+  cites them). The photo gives a bound then, not a value, and the analysis refuses with it.
+* **Best line and twin's lag disagree.** Both are answers from the same photo: the line
+  whose K cancels the lag [001 Eq. 11] and the lag the twin fits to every line's widths.
+  Their difference is compared with the best line's resolution (half a step: the lag lies
+  anywhere between two lines) and the lag's standard error:
+  ``z = |K_best − K_lag| / sqrt((step/2)² + σ²)``; above :data:`MAX_DISAGREEMENT` the
+  photo does not support a confident answer. The threshold was set on the independent
+  renderer's study alone (docs/calibration.md, "Session 10"), never on the real photos.
+  The two are commensurable only where the lines' K is the firmware's advance factor in
+  seconds (Klipper ``pressure_advance``, Marlin ``M900 K`` of linear advance 1.5, RRF
+  ``M572 S``: every layout flowtwin writes) and the twin's lag is the ``τ`` that factor
+  cancels — not when a dead time is fitted too (then the best K is not ``τ`` alone), nor
+  when the lines' K do not step.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,8 +49,9 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 from scipy.special import erf
 
-__all__ = ["MAX_BLUR_MM", "MIN_BEAD_PX", "MIN_LINES", "BlurFit", "blur_fit", "blur_reason",
-           "edge_ratio"]
+__all__ = ["MAX_BLUR_MM", "MAX_DISAGREEMENT", "MIN_BEAD_PX", "MIN_LINES", "AnswerCheck",
+           "BlurFit", "answer_reason", "blur_fit", "blur_reason", "disagreement", "edge_ratio",
+           "range_end_reason"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -40,6 +61,8 @@ MIN_LINES = 3
 MAX_BLUR_MM = 0.35
 #: Narrowest resolvable bead, px.
 MIN_BEAD_PX = 2.0
+#: Largest disagreement ``z`` of the best line and the twin's lag (:func:`disagreement`).
+MAX_DISAGREEMENT = 4.0
 
 
 def edge_ratio(profile: FloatArray, dv: float) -> tuple[float, float]:
@@ -161,3 +184,110 @@ def blur_reason(profile: FloatArray, dv_mm: float, px_per_mm: float, *,
                 f"than {max_blur_mm:g} mm; refocus, hold still, use more light, or take "
                 "the photo closer")
     return None
+
+
+def range_end_reason(k_s: npt.ArrayLike, best_index: int, usable: Sequence[int], *,
+                     item: str = "line") -> str | None:
+    """Why the best line gives only a bound: it is the first or last line measured.
+
+    Parameters
+    ----------
+    k_s
+        Every line's advance factor, front to back (rising), s.
+    best_index
+        The best line.
+    usable
+        The lines measured well enough to be chosen.
+    item
+        ``"line"`` or ``"chevron"`` (for the message).
+
+    Returns
+    -------
+    str or None
+        The reason, or ``None`` when the best line has measured lines on both sides.
+    """
+    k = np.asarray(k_s, dtype=np.float64)
+    use = sorted(int(i) for i in usable)
+    if len(use) < 2 or best_index not in (use[0], use[-1]):
+        return None
+    which = "first" if best_index == use[0] else "last"
+    side = "below" if which == "first" else "above"
+    bound = "<=" if which == "first" else ">="
+    return (f"the best {item} is the {which} of the range measured (K {k[use[0]]:g} to "
+            f"{k[use[-1]]:g} s): the answer may lie {side} it (K {bound} {k[best_index]:g} s, "
+            f"a bound, not a value); print the pattern again with a range that brackets it")
+
+
+def disagreement(k_best_s: float, step_s: float, k_lag_s: float, k_lag_err_s: float) -> float:
+    """``|K_best − K_lag| / sqrt((step/2)² + σ²)``: the two answers' distance in units of
+    their combined uncertainty (module docstring)."""
+    u = math.hypot(0.5 * step_s, k_lag_err_s)
+    return abs(k_best_s - k_lag_s) / u if u > 0 else math.inf
+
+
+@dataclass(frozen=True)
+class AnswerCheck:
+    """The answer checks of one read photo (:func:`answer_reason`).
+
+    Attributes
+    ----------
+    reason
+        Why the photo cannot give a confident K, or ``None``.
+    check
+        ``"range-end"``, ``"disagreement"`` or ``None``.
+    z
+        Disagreement of the best line and the lag (NaN when not commensurable or no lag).
+    values
+        The two answers (a refusal's ``value``): ``best_k_s``, ``lag_k_s``, ``lag_err_s``
+        (s; ``None`` without a lag) and ``z`` (``None`` when not compared).
+    """
+
+    reason: str | None
+    check: str | None
+    z: float
+    values: dict[str, float | None]
+
+
+def answer_reason(k_s: npt.ArrayLike, best_index: int, usable: Sequence[int], *,
+                  k_lag_s: float | None, k_lag_err_s: float | None, dead_time: bool = False,
+                  item: str = "line", max_z: float = MAX_DISAGREEMENT) -> AnswerCheck:
+    """Both answer checks (module docstring): the best line at an end of the range first,
+    then its disagreement with the twin's lag where the two are commensurable.
+
+    Parameters
+    ----------
+    k_s, best_index, usable, item
+        As for :func:`range_end_reason`.
+    k_lag_s, k_lag_err_s
+        The twin's fitted lag and its standard error, s (``None``: no lag fit).
+    dead_time
+        A dead time was fitted with the lag (then the two are not compared).
+    max_z
+        Largest disagreement accepted.
+
+    Returns
+    -------
+    AnswerCheck
+    """
+    k = np.asarray(k_s, dtype=np.float64)
+    steps = np.diff(k)
+    step = float(np.median(np.abs(steps))) if steps.size else 0.0
+    z = math.nan
+    if k_lag_s is not None and k_lag_err_s is not None and not dead_time and step > 0:
+        z = disagreement(float(k[best_index]), step, k_lag_s, k_lag_err_s)
+    values = {"best_k_s": round(float(k[best_index]), 6),
+              "lag_k_s": None if k_lag_s is None else round(k_lag_s, 5),
+              "lag_err_s": None if k_lag_err_s is None else round(k_lag_err_s, 5),
+              "z": round(z, 1) if math.isfinite(z) else None}
+    end = range_end_reason(k, best_index, usable, item=item)
+    if end is not None:
+        return AnswerCheck(end, "range-end", z, values)
+    if math.isfinite(z) and z > max_z:
+        assert k_lag_s is not None and k_lag_err_s is not None
+        return AnswerCheck(
+            f"the best {item} (K {k[best_index]:g} s) and the twin's lag fitted to the same "
+            f"photo ({k_lag_s:.4g} ± {k_lag_err_s:.2g} s) disagree by {z:.1f} times their "
+            f"combined uncertainty (more than {max_z:g}): the photo does not support a "
+            "confident K; check the pattern's parameters as printed, or photograph it again "
+            "square on, evenly lit", "disagreement", z, values)
+    return AnswerCheck(None, None, z, values)
