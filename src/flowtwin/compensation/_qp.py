@@ -52,7 +52,7 @@ _MIN_GAP_DECREASE = 0.01
 _START_GAP = 10.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def envelope_ldl(first: IntArray, ptr: IntArray, m: FloatArray, sign: npt.NDArray[np.int8],
                  out: FloatArray) -> bool:
     """``M = L·D·Lᵀ`` (``L`` unit lower) of a symmetric matrix in envelope storage.
@@ -88,7 +88,7 @@ def envelope_ldl(first: IntArray, ptr: IntArray, m: FloatArray, sign: npt.NDArra
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArray,
                        out: FloatArray) -> None:
     """Solve ``L·D·Lᵀ·x = rhs`` with the factor of :func:`envelope_ldl`."""
@@ -110,7 +110,16 @@ def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: Float
             out[k] -= f[pi + k] * xi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_to_zero(value: float, change: float, step: float) -> float:
+    """``−value/change`` when ``change < 0`` and that is below ``step`` (a NaN is no
+    candidate), else ``step``. The division is made every time, so that the test
+    compiles without a branch."""
+    ratio = -value / change
+    return ratio if change < 0.0 and ratio < step else step
+
+
+@njit(cache=True, error_model="numpy")
 def _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr, c_col, r0, r1,  # type: ignore[no-untyped-def]
                         r_ptr, r_col, q0, q1):
     """Order and envelope of a block's step matrix with one extra row per squared row.
@@ -166,7 +175,7 @@ def _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr, c_col, r0, r1,  #
     return pos, pos_r, first, ptr, sign
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r1, d, lo, hi,  # type: ignore[no-untyped-def]
                  r_ptr, r_col, r_val, r_w, q0, q1, a, e, max_iterations, tolerance):
     """Interior-point loop on variables ``a:e``, constraint rows ``r0:r1`` and squared rows
@@ -270,7 +279,6 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     rhs = np.zeros(big)
     sol = np.empty(big)
     dx = np.empty(n)
-    cdx = np.empty(m)
     ds = np.empty(m)
     dt = np.empty(m)
     dz = np.empty(m)
@@ -313,7 +321,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             mu += s[q] * z[q] + t[q] * w[q]
             if abs(r_l[q]) > pmax:
                 pmax = abs(r_l[q])
-            dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)  # (for the step matrix)
+            dd[q] = z[q] / s[q] + w[q] / t[q]  # (for the step matrix; w = 0 without hi)
         mu /= max(n_c, 1)
         dual = 0.0
         for i in range(n):
@@ -359,8 +367,8 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                            if fin[q] else 0.0)
                 i = r0 + q
                 v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
-                if fin[q]:
-                    v -= (-rc_u[q] - w[q] * r_u[q]) / t[q]
+                v_u = v - (-rc_u[q] - w[q] * r_u[q]) / t[q]
+                v = v_u if fin[q] else v
                 for p in range(c_ptr[i], c_ptr[i + 1]):
                     rhs[lpos[p - p_0]] += c_val[p] * v
             envelope_ldl_solve(first, ptr, uf, rhs, sol)
@@ -373,25 +381,22 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 v = 0.0
                 for p in range(c_ptr[i], c_ptr[i + 1]):
                     v += c_val[p] * dx[lcol[p - p_0]]
-                cdx[q] = v
                 ds[q] = v + r_l[q]
                 dt[q] = -v + r_u[q] if fin[q] else 0.0
                 dz[q] = (-rc_l[q] - z[q] * ds[q]) / s[q]
-                dw[q] = (-rc_u[q] - w[q] * dt[q]) / t[q] if fin[q] else 0.0
-                if ds[q] < 0.0 and -s[q] / ds[q] < a_p:
-                    a_p = -s[q] / ds[q]
-                if fin[q] and dt[q] < 0.0 and -t[q] / dt[q] < a_p:
-                    a_p = -t[q] / dt[q]
-                if dz[q] < 0.0 and -z[q] / dz[q] < a_d:
-                    a_d = -z[q] / dz[q]
-                if fin[q] and dw[q] < 0.0 and -w[q] / dw[q] < a_d:
-                    a_d = -w[q] / dw[q]
+                dw_q = (-rc_u[q] - w[q] * dt[q]) / t[q]
+                dw[q] = dw_q if fin[q] else 0.0
+                # (dt = dw = 0 for a row without upper bound: no ratio)
+                a_p = _step_to_zero(s[q], ds[q], a_p)
+                a_p = _step_to_zero(t[q], dt[q], a_p)
+                a_d = _step_to_zero(z[q], dz[q], a_d)
+                a_d = _step_to_zero(w[q], dw[q], a_d)
             if corr == 0:
                 mu_aff = 0.0
                 for q in range(m):
                     mu_aff += (s[q] + a_p * ds[q]) * (z[q] + a_d * dz[q])
-                    if fin[q]:
-                        mu_aff += (t[q] + a_p * dt[q]) * (w[q] + a_d * dw[q])
+                    mu_u = mu_aff + (t[q] + a_p * dt[q]) * (w[q] + a_d * dw[q])
+                    mu_aff = mu_u if fin[q] else mu_aff
                 mu_aff /= max(n_c, 1)
                 # Mehrotra's centring, never above the current gap
                 sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0.0 else 0.0
@@ -408,8 +413,8 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 mu_new = 0.0
                 for q in range(m):
                     mu_new += (s[q] + al * ds[q]) * (z[q] + al * dz[q])
-                    if fin[q]:
-                        mu_new += (t[q] + al * dt[q]) * (w[q] + al * dw[q])
+                    mu_u = mu_new + (t[q] + al * dt[q]) * (w[q] + al * dw[q])
+                    mu_new = mu_u if fin[q] else mu_new
                 if mu_new > (1.0 - _MIN_GAP_DECREASE * al) * mu * max(n_c, 1):
                     corr = 2
                     continue
@@ -448,11 +453,12 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     return it
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _solve_blocks(x, block_a, block_e, h_ptr, h_r, h_c, h_v, g, row_ptr,  # type: ignore[no-untyped-def]
                   c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val, r_w,
-                  max_iterations, tolerance, iters):
-    for k in prange(block_a.shape[0]):
+                  max_iterations, tolerance, iters, order):
+    for kk in prange(order.shape[0]):
+        k = order[kk]
         iters[k] = _solve_block(x, h_ptr[k], h_ptr[k + 1], h_r, h_c, h_v, g, c_ptr, c_col,
                                 c_val, row_ptr[k], row_ptr[k + 1], d, lo, hi, r_ptr, r_col,
                                 r_val, r_w, sq_ptr[k], sq_ptr[k + 1], block_a[k], block_e[k],
@@ -582,13 +588,16 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
     sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
                              np.arange(starts.size + 1)).astype(np.int64)
     iters = np.zeros(starts.size, dtype=np.int64)
-    # blocks differ in size by 100× and more: the threads take a few at a time (results
-    # do not depend on which thread solves a block)
+    # blocks differ in size by 100× and more: the threads take a few at a time, the
+    # largest first, so that no large block is left to one thread at the end (results do
+    # not depend on which thread solves a block, nor when)
+    order = np.argsort(-((ends - starts) + np.diff(row_ptr) + np.diff(sq_ptr)),
+                       kind="stable").astype(np.int64)
     chunk = set_parallel_chunksize(_CHUNK_BLOCKS)
     try:
         _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
                       row_ptr, c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val,
-                      wq, int(max_iterations), float(tolerance), iters)
+                      wq, int(max_iterations), float(tolerance), iters, order)
     finally:
         set_parallel_chunksize(chunk)
     return x, int(iters.max(initial=0)), 0.0
