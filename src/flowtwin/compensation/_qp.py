@@ -38,6 +38,7 @@ import numpy.typing as npt
 from numba import set_parallel_chunksize
 
 from flowtwin._jit import njit, prange
+from flowtwin.compensation._qp_blocks import block_layout, qp_blocks
 
 __all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_program"]
 
@@ -465,39 +466,6 @@ def _solve_blocks(x, block_a, block_e, h_ptr, h_r, h_c, h_v, g, row_ptr,  # type
                                 max_iterations, tolerance)
 
 
-def qp_blocks(n: int, h_r: IntArray, h_c: IntArray, row_lo: IntArray, row_hi: IntArray
-              ) -> tuple[IntArray, IntArray]:
-    """Independent blocks of variables: ``[starts[k], ends[k])``.
-
-    Variables ``i`` and ``i + 1`` belong together when an entry ``H[r, c]`` with
-    ``r ≤ i < c`` or a constraint row spanning columns ``row_lo … row_hi`` across them
-    couples them.
-    """
-    cover = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(cover, np.minimum(h_r, h_c), 1)
-    np.add.at(cover, np.maximum(h_r, h_c), -1)
-    np.add.at(cover, row_lo, 1)
-    np.add.at(cover, row_hi, -1)
-    joined = np.cumsum(cover)[:max(n - 1, 0)] > 0  # boundary i | i + 1 is joined
-    cuts = np.flatnonzero(~joined) + 1
-    starts = np.concatenate(([0], cuts)).astype(np.int64)
-    ends = np.concatenate((cuts, [n])).astype(np.int64)
-    return starts, ends
-
-
-def _row_spans(ptr: IntArray, col: IntArray) -> tuple[IntArray, IntArray]:
-    """Lowest and highest column of every row of a CSR pattern (``0, 0`` for an empty row,
-    which joins nothing)."""
-    m = ptr.size - 1
-    row_lo = np.zeros(m, dtype=np.int64)
-    row_hi = np.zeros(m, dtype=np.int64)
-    nonempty = np.flatnonzero(np.diff(ptr) > 0)
-    if nonempty.size:
-        row_lo[nonempty] = np.minimum.reduceat(col, ptr[nonempty])
-        row_hi[nonempty] = np.maximum.reduceat(col, ptr[nonempty])
-    return row_lo, row_hi
-
-
 def _take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
                ) -> tuple[IntArray, IntArray, FloatArray]:
     """The given rows of a CSR matrix, in the given order."""
@@ -555,38 +523,24 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
         lo, hi = np.where(upper_only, -hi, lo)[keep], np.where(upper_only, np.inf, hi)[keep]
     x = np.array(x0, dtype=np.float64)
     h_r, h_c, h_v = h
-    row_lo, row_hi = _row_spans(c_ptr, c_col)
     r_ptr, r_col, r_val, wq = squares
     used = np.flatnonzero((wq > 0) & (np.diff(r_ptr) > 0))  # an empty row is a constant
     if used.size < wq.size:
         r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, used)
         wq = wq[used]
-    sq_lo, sq_hi = _row_spans(r_ptr, r_col)
-    starts, ends = qp_blocks(n, h_r, h_c, np.concatenate((row_lo, sq_lo)),
-                             np.concatenate((row_hi, sq_hi)))
-    del row_hi, sq_lo, used, upper_only, keep  # (the rows' spans are large: let them go)
     # H entries, constraint rows and squared rows ordered by block (squared rows by their
-    # last variable)
-    h_block = np.searchsorted(starts, h_r, side="right") - 1
-    if np.any(h_block[1:] < h_block[:-1]):
-        order = np.argsort(h_block, kind="stable")
-        h_r, h_c, h_v, h_block = h_r[order], h_c[order], h_v[order], h_block[order]
-    h_ptr = np.searchsorted(h_block, np.arange(starts.size + 1)).astype(np.int64)
-    row_block = np.searchsorted(starts, row_lo, side="right") - 1
-    del row_lo
-    if np.any(row_block[1:] < row_block[:-1]):  # (copies only when out of order)
-        rorder = np.argsort(row_block, kind="stable")
+    # last variable); an order is empty where nothing moves (copies only then)
+    starts, ends, h_order, h_ptr, rorder, row_ptr, sorder, sq_ptr = block_layout(
+        n, np.asarray(h_r, dtype=np.int64), np.asarray(h_c, dtype=np.int64), c_ptr, c_col,
+        r_ptr, r_col)
+    if h_order.size:
+        h_r, h_c, h_v = h_r[h_order], h_c[h_order], h_v[h_order]
+    if rorder.size:
         c_ptr, c_col, c_val = _take_rows(c_ptr, c_col, c_val, rorder)
-        d, lo, hi, row_block = d[rorder], lo[rorder], hi[rorder], row_block[rorder]
-        del rorder
-    row_ptr = np.searchsorted(row_block, np.arange(starts.size + 1)).astype(np.int64)
-    del row_block, h_block
-    if np.any(sq_hi[1:] < sq_hi[:-1]):
-        sorder = np.argsort(sq_hi, kind="stable")
+        d, lo, hi = d[rorder], lo[rorder], hi[rorder]
+    if sorder.size:
         r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, sorder)
-        wq, sq_hi = wq[sorder], sq_hi[sorder]
-    sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
-                             np.arange(starts.size + 1)).astype(np.int64)
+        wq = wq[sorder]
     iters = np.zeros(starts.size, dtype=np.int64)
     # blocks differ in size by 100× and more: the threads take a few at a time, the
     # largest first, so that no large block is left to one thread at the end (results do
