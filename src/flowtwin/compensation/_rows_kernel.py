@@ -68,14 +68,14 @@ def fill_rows(out, row, src, xyz, de, feed, kind, changed_lines, shift_after,  #
         tool = src[r]["tool"]
         out[i]["tool"] = tool
         out[i]["feature"] = src[r]["feature"]
-        t = np.int64(tool) + (_TOOLS >> 1)
+        t = int(tool) + (_TOOLS >> 1)
         if seen[t]:
             e_tool[t] = e_tool[t] + de[i]
         else:  # (the first value itself, as a cumulative sum starts: keeps −0.0)
             e_tool[t] = de[i]
             seen[t] = True
         out[i]["e"] = e_tool[t]
-        line = np.int64(src[r]["line"])
+        line = int(src[r]["line"])
         if line < last_line:  # out of order: search afresh
             k = 0
         last_line = line
