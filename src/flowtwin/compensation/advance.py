@@ -43,6 +43,7 @@ from flowtwin.compensation._law_kernel import (
     accumulate_runs,
     f2_values,
     last_at_or_before,
+    search_right,
     segment_at,
 )
 from flowtwin.compensation._track_kernel import FLAG_NAMES, track_runs
@@ -241,10 +242,13 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
 
     def f2_at(t: FloatArray) -> FloatArray:
         """``F₂`` at ``t`` within each query's run (0 before the run)."""
-        if in_order and np.all(t[1:] >= t[:-1]):  # (a rounding can put a start an ulp late)
+        if in_order and np.all(t[1:] >= t[:-1]):
             k = last_at_or_before(starts, t)
-        else:
-            k = (np.searchsorted(starts, t, side="right") - 1).astype(np.int64)
+        else:  # a rounding can put a start an ulp late: numpy's search, done faster
+            k = search_right(starts, t)
+            if k.size != t.size:
+                k = np.searchsorted(starts, t, side="right")
+            k = (k - 1).astype(np.int64)
         k, u, inside, after = segment_at(starts, durs, lo, hi, t, k)
         return f2_values(k, u, inside, inside ** 3, after, f1, f2, a0, slope, f1_len)
 
