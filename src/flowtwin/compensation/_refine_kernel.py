@@ -24,7 +24,8 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["lag_gain", "model_pass", "phase_point", "piece_segments", "segment_states"]
+__all__ = ["first_segments", "lag_gain", "model_pass", "phase_point", "piece_segments",
+           "segment_states"]
 
 
 @njit(cache=True)
@@ -348,3 +349,15 @@ def piece_segments(row: npt.NDArray[np.int64], t0_s: npt.NDArray[np.float64],
                 k += 1
     return (seg_piece[:k].copy(), seg_t[:k].copy(), seg_len[:k].copy(), seg_va[:k].copy(),
             seg_vb[:k].copy(), owner[:k].copy())
+
+
+@njit(cache=True)
+def first_segments(seg_piece: npt.NDArray[np.int64], n_free: int) -> npt.NDArray[np.int64]:
+    """First segment of every free piece (``seg_piece`` its free piece, or −1), −1 for a
+    piece without one, shape ``(n_free,)``."""
+    out = np.full(n_free, -1, dtype=np.int64)
+    for s in range(seg_piece.shape[0]):
+        p = seg_piece[s]
+        if 0 <= p < n_free and out[p] < 0:
+            out[p] = s
+    return out

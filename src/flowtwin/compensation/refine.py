@@ -29,6 +29,7 @@ import numpy.typing as npt
 
 from flowtwin.compensation._refine_kernel import (
     apply_holds,
+    first_segments,
     model_pass,
     piece_segments,
     segment_maps,
@@ -150,20 +151,17 @@ class LagModel:
         if precharge is None or not np.any(np.asarray(precharge[1]) != 0.0):
             return self.seg_c
         seg_c = self.seg_c.copy()
-        first_seg = np.full(int(self.free_pieces.size), -1, dtype=np.int64)
-        at = np.flatnonzero(self.seg_piece >= 0)
-        var = self.seg_piece[at]
-        if np.all(var[1:] >= var[:-1]):  # (the chain's order: first occurrences in one pass)
-            new = np.concatenate(([True], var[1:] != var[:-1])) if var.size else var > 0
-            first_seg[var[new]] = at[new]
-        else:
-            var, first = np.unique(self.seg_piece, return_index=True)
-            first_seg[var[var >= 0]] = first[var >= 0]
-        for p, y in zip(np.asarray(precharge[0]).tolist(), np.asarray(precharge[1]).tolist(),
-                        strict=True):
-            s = int(first_seg[p]) if 0 <= p < first_seg.size else -1
-            if y != 0.0 and s > 0 and self.seg_a[s - 1] == 0.0:
-                seg_c[s - 1] += y
+        first_seg = first_segments(self.seg_piece, int(self.free_pieces.size))
+        piece = np.asarray(precharge[0], dtype=np.int64)
+        y = np.asarray(precharge[1], dtype=np.float64)
+        if piece.size != y.size:
+            raise ValueError("one pre-charge per piece")
+        known = (piece >= 0) & (piece < first_seg.size)
+        s = np.full(piece.size, -1, dtype=np.int64)
+        s[known] = first_seg[piece[known]]
+        put = np.flatnonzero((y != 0.0) & (s > 0))
+        put = put[self.seg_a[s[put] - 1] == 0.0]  # on the reset segment before the piece
+        np.add.at(seg_c, s[put] - 1, y[put])  # (in order, repeated segments add up)
         return seg_c
 
     def evaluate(self, ratios: FloatArray, intent: FloatArray,
