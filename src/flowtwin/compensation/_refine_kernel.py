@@ -25,7 +25,7 @@ import numpy.typing as npt
 from flowtwin._jit import njit
 
 __all__ = ["first_segments", "lag_gain", "model_pass", "phase_point", "piece_segments",
-           "segment_states"]
+           "row_starts", "segment_states"]
 
 
 @njit(cache=True)
@@ -361,3 +361,21 @@ def first_segments(seg_piece: npt.NDArray[np.int64], n_free: int) -> npt.NDArray
         if 0 <= p < n_free and out[p] < 0:
             out[p] = s
     return out
+
+
+@njit(cache=True)
+def row_starts(seg_gap: npt.NDArray[np.bool_], seg_owner: npt.NDArray[np.int64],
+               states: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
+    """State before the first own (non-gap) segment of every stretch of one row's
+    segments, at ``out[row]`` (0 before the first segment; a later stretch of the same row
+    overwrites an earlier one)."""
+    prev = -1
+    started = False
+    for s in range(seg_gap.shape[0]):
+        if seg_gap[s]:
+            continue
+        row = seg_owner[s]
+        if not started or row != prev:
+            out[row] = states[s - 1] if s > 0 else 0.0
+        started = True
+        prev = row
