@@ -211,7 +211,8 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
     ndarray
         Smoothed advance term at the query times (E units of ``rate`` times mm), ``(q,)``.
     """
-    t0, ta, tc, td, sv, cv, ev = timeline.trapezoids(rows)
+    # (every row's, then these rows': the same values, without copying the rows' records)
+    t0, ta, tc, td, sv, cv, ev = (a[rows] for a in timeline.trapezoids())
     g = k_la * rate
     # three segments per row: (start, duration, A at start, slope)
     starts = np.column_stack([t0, t0 + ta, t0 + ta + tc]).ravel()
