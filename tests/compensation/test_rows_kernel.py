@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.compensation import compensate, emit
-from flowtwin.compensation._rows_kernel import fill_rows
+from flowtwin.compensation import compensate, draft, emit
+from flowtwin.compensation._rows_kernel import changed_rows, fill_rows
 from flowtwin.gcode.moves import MOVE_DTYPE
 
 
@@ -98,3 +98,56 @@ def test_the_drafts_of_a_slicer_file(name: str, corpus_dir: Path, tmp_path: Path
     compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
     assert seen and max(seen) > 1000
     assert (len(tools) > 1) == ("2colour" in name)  # (T255, T1000 as written too)
+
+
+def _numpy_changed(row: Any, n: int, xyz: Any, mv: Any, e_grid: Any, row_e: Any, feed: Any,
+                   piece_feed: Any) -> Any:
+    """The rows to rewrite as the draft found them with numpy."""
+    counts = np.bincount(row, minlength=n).astype(np.int64)
+    orig = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
+    changed = counts != 1
+    single = np.flatnonzero(~changed)
+    piece_of = np.searchsorted(row, single)
+    moved = np.any(np.abs(xyz[piece_of] - orig[single]) > 1e-9, axis=1)
+    e_diff = e_grid[piece_of] != row_e[single]
+    changed[single] = moved | e_diff
+    changed |= np.isfinite(feed)
+    changed |= np.bincount(row, weights=np.isfinite(piece_feed), minlength=n) > 0
+    return np.asarray(changed & (np.arange(n) >= 0))
+
+
+def test_changed_rows_edge_cases() -> None:
+    src = np.zeros(4, dtype=MOVE_DTYPE)
+    src["x"] = [1.0, 2.0, 3.0, 4.0]
+    nan = np.nan
+    cases = [
+        (np.zeros(0, np.int64), np.zeros((0, 3)), [], [nan] * 4, []),  # no piece at all
+        # as written; moved by 2e-9; other E; cut in two; a row feed; a piece feed
+        (np.array([0, 1, 2, 3]), np.array([[1, 0, 0], [2 + 2e-9, 0, 0], [3, 0, 0], [4, 0, 0]]),
+         [5, 6, 9, 8], [nan, nan, nan, 1200.0], [nan, nan, nan, nan]),
+        (np.array([0, 0, 2, 3]), np.array([[1, 0, 0], [1, 0, 0], [3, 0, 0], [4, 0, 0]]),
+         [5, 6, 7, 8], [nan] * 4, [nan, nan, 600.0, nan]),
+    ]
+    for row, xyz, e, feed, piece_feed in cases:
+        args = (np.asarray(row, dtype=np.int64), 4, np.asarray(xyz, dtype=np.float64), src,
+                np.asarray(e, dtype=np.int64), np.array([5, 6, 7, 8], dtype=np.int64),
+                np.asarray(feed, dtype=np.float64), np.asarray(piece_feed, dtype=np.float64))
+        np.testing.assert_array_equal(changed_rows(*args), _numpy_changed(*args))
+
+
+@pytest.mark.corpus
+def test_changed_rows_of_a_slicer_file(corpus_dir: Path, tmp_path: Path,
+                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every draft's rows to rewrite (advance and slip) are the ones numpy found."""
+    seen: list[int] = []
+
+    def checked(*args: Any) -> Any:
+        got = changed_rows(*args)
+        np.testing.assert_array_equal(got, _numpy_changed(*args))
+        seen.append(int(np.count_nonzero(got)))
+        return got
+
+    monkeypatch.setattr(draft, "changed_rows", checked)
+    name = "prusaslicer_2.8.1_minicube_small.gcode"
+    compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
+    assert seen and max(seen) > 1000

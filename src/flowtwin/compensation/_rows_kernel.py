@@ -1,4 +1,5 @@
-"""Compiled kernel of the writer: the reader's rows of the written file in one pass.
+"""Compiled kernels of the writer: the reader's rows of the written file in one pass, and
+the original rows whose line is rewritten (:func:`changed_rows`).
 
 :func:`fill_rows` fills the move table (:data:`flowtwin.gcode.moves.MOVE_DTYPE`) the
 written draft reads back as, from the pieces' laid-out positions, E and feeds
@@ -15,7 +16,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["fill_rows"]
+__all__ = ["changed_rows", "fill_rows"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -86,3 +87,46 @@ def fill_rows(out, row, src, xyz, de, feed, kind, changed_lines, shift_after,  #
             first_idx = i
         within = i - first_idx if changed_piece[i] else 0
         out[i]["line"] = np.int32(line + before + within)
+
+
+@njit(cache=True)
+def changed_rows(row, n_rows, xyz, src, e_grid, row_e, feed, piece_feed):  # type: ignore[no-untyped-def]
+    """Original rows whose line must be rewritten, shape ``(n_rows,)``: cut into other
+    than one piece, or its one piece moved (by more than 10⁻⁹ mm on an axis) or given
+    other E, or a feed written on the row or one of its pieces.
+
+    Parameters
+    ----------
+    row
+        Original row of every piece (non-decreasing), shape ``(n,)``.
+    n_rows
+        Original rows.
+    xyz, e_grid, piece_feed
+        Every piece's end position ``(n, 3)``, E (grid units) and feed (``nan``: none).
+    src
+        The original rows (``MOVE_DTYPE``): their end positions.
+    row_e, feed
+        Every original row's E (grid units) and written feed (``nan``: none).
+    """
+    out = np.zeros(n_rows, dtype=np.bool_)
+    n = row.shape[0]
+    p = 0
+    for r in range(n_rows):
+        start = p
+        while p < n and row[p] == r:
+            p += 1
+        count = p - start
+        if count != 1:
+            changed = True
+        else:
+            changed = (abs(xyz[start, 0] - src[r]["x"]) > 1e-9
+                       or abs(xyz[start, 1] - src[r]["y"]) > 1e-9
+                       or abs(xyz[start, 2] - src[r]["z"]) > 1e-9
+                       or e_grid[start] != row_e[r])
+        if np.isfinite(feed[r]):
+            changed = True
+        for q in range(start, p):
+            if np.isfinite(piece_feed[q]):
+                changed = True
+        out[r] = changed
+    return out
