@@ -19,10 +19,62 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["accumulate_runs", "f2_values", "last_at_or_before", "search_right", "segment_at"]
+__all__ = ["accumulate_runs", "f2_values", "last_at_or_before", "run_segments", "search_right",
+           "segment_at", "segment_integrals"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+
+
+@njit(cache=True, nogil=True)
+def run_segments(t0: FloatArray, ta: FloatArray, tc: FloatArray, td: FloatArray,
+                 sv: FloatArray, cv: FloatArray, ev: FloatArray, g: FloatArray,
+                 run_of_row: IntArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                FloatArray, npt.NDArray[np.bool_]]:
+    """The three segments of every row (acceleration, cruise, deceleration), row by row:
+    start, duration, ``A`` at the start (``g·v``) and slope (``g·Δv/duration``, 0 for a
+    phase of no duration and for the cruise), and whether the segment starts a run (the
+    first of the file's or of a row of another run), each ``(3m,)``."""
+    m = t0.shape[0]
+    starts = np.empty(3 * m)
+    durs = np.empty(3 * m)
+    a0 = np.empty(3 * m)
+    slope = np.empty(3 * m)
+    first = np.zeros(3 * m, dtype=np.bool_)
+    for i in range(m):
+        k = 3 * i
+        starts[k] = t0[i]
+        starts[k + 1] = t0[i] + ta[i]
+        starts[k + 2] = t0[i] + ta[i] + tc[i]
+        durs[k] = ta[i]
+        durs[k + 1] = tc[i]
+        durs[k + 2] = td[i]
+        a0[k] = g[i] * sv[i]
+        a0[k + 1] = g[i] * cv[i]
+        a0[k + 2] = g[i] * cv[i]
+        slope[k] = g[i] * (cv[i] - sv[i]) / ta[i] if ta[i] > 0 else 0.0
+        slope[k + 1] = 0.0
+        slope[k + 2] = g[i] * (ev[i] - cv[i]) / td[i] if td[i] > 0 else 0.0
+        first[k] = i == 0 or run_of_row[i] != run_of_row[i - 1]
+    return starts, durs, a0, slope, first
+
+
+@njit(cache=True, nogil=True)
+def segment_integrals(starts: FloatArray, durs: FloatArray, durs_cubed: FloatArray,
+                      a0: FloatArray, slope: FloatArray) -> tuple[FloatArray, FloatArray,
+                                                                  FloatArray]:
+    """``∫A`` and ``∫∫A`` over every whole segment and its end: ``a0·T + ½·s·T²``,
+    ``½·a0·T² + s·T³/6`` (``T³`` given: numpy's ``power``) and ``start + T``."""
+    n = starts.shape[0]
+    f1_len = np.empty(n)
+    f2_len = np.empty(n)
+    ends = np.empty(n)
+    for k in range(n):
+        d = durs[k]
+        f1_len[k] = a0[k] * d + 0.5 * slope[k] * d * d
+        f2_len[k] = 0.5 * a0[k] * (d * d) + slope[k] * durs_cubed[k] / 6.0
+        ends[k] = starts[k] + d
+    return f1_len, f2_len, ends
 
 
 @njit(cache=True, nogil=True)

@@ -43,8 +43,10 @@ from flowtwin.compensation._law_kernel import (
     accumulate_runs,
     f2_values,
     last_at_or_before,
+    run_segments,
     search_right,
     segment_at,
+    segment_integrals,
 )
 from flowtwin.compensation._track_kernel import FLAG_NAMES, track_runs
 from flowtwin.compensation.limits import ExtruderLimits
@@ -214,23 +216,16 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
     # (every row's, then these rows': the same values, without copying the rows' records)
     t0, ta, tc, td, sv, cv, ev = (a[rows] for a in timeline.trapezoids())
     g = k_la * rate
-    # three segments per row: (start, duration, A at start, slope)
-    starts = np.column_stack([t0, t0 + ta, t0 + ta + tc]).ravel()
-    durs = np.column_stack([ta, tc, td]).ravel()
-    a0 = np.column_stack([g * sv, g * cv, g * cv]).ravel()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = np.column_stack([np.where(ta > 0, g * (cv - sv) / ta, 0.0), np.zeros_like(g),
-                                 np.where(td > 0, g * (ev - cv) / td, 0.0)]).ravel()
-    seg_run = np.repeat(run_of_row, 3)
-    # F1, F2 at segment starts, restarted at every run
-    f1_len = a0 * durs + 0.5 * slope * durs * durs
-    f2_len = 0.5 * a0 * durs ** 2 + slope * durs ** 3 / 6.0
+    # three segments per row: (start, duration, A at start, slope), F1 and F2 over each
+    # (the cube of the durations: numpy's power, as before), restarted at every run
+    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (t0, ta, tc, td, sv, cv, ev, g)]
+    starts, durs, a0, slope, first = run_segments(
+        f64[0], f64[1], f64[2], f64[3], f64[4], f64[5], f64[6], f64[7],
+        np.ascontiguousarray(run_of_row, dtype=np.int64))
+    f1_len, f2_len, ends = segment_integrals(starts, durs, durs ** 3, a0, slope)
     n = starts.size
     f1 = np.zeros(n)
     f2 = np.zeros(n)
-    first = np.ones(n, dtype=bool)
-    first[1:] = seg_run[1:] != seg_run[:-1]
-    ends = starts + durs
     # sequential accumulation (gaps between rows add F1·gap to F2)
     accumulate_runs(starts, ends, f1_len, f2_len, first, f1, f2)
     h = 0.5 * smooth_time_s
@@ -248,8 +243,8 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
         else:  # a rounding can put a start an ulp late: numpy's search, done faster
             k = search_right(starts, t)
             if k.size != t.size:
-                k = np.searchsorted(starts, t, side="right")
-            k = (k - 1).astype(np.int64)
+                k = np.searchsorted(starts, t, side="right").astype(np.int64)
+            k -= 1
         k, u, inside, after = segment_at(starts, durs, lo, hi, t, k)
         return f2_values(k, u, inside, inside ** 3, after, f1, f2, a0, slope, f1_len)
 
