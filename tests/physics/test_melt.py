@@ -235,3 +235,36 @@ def test_stored_melt_length_factor_is_the_fit() -> None:
                                     inlet_c=defaults.MELT_INLET_C, diffusivity_mm2_s=alpha,
                                     heated_length_mm=defaults.V6_HEATED_LENGTH_MM)
     assert defaults.MELT_LENGTH_FACTOR == pytest.approx(factor, rel=1e-3)
+
+
+@pytest.mark.parametrize("spans", [1, 2, 3, 7, 5000])
+def test_the_melt_temperatures_in_spans_on_threads_are_the_one_pass_numbers(spans: int) -> None:
+    """Large tables are computed in spans on numba's threads (``PARALLEL_MOVES``): each span
+    starts its searches afresh, and every move must still get the one-pass value to the
+    bit — on pieces as short as pressure-advance pieces, with rests and a prior memory."""
+    from flowtwin.physics._melt_history_kernel import (
+        breakpoints,
+        mean_temperatures,
+        mean_temperatures_parallel,
+    )
+
+    rng = np.random.default_rng(11)
+    n = 4000
+    q = rng.uniform(0.0, 20.0, n) * (rng.random(n) < 0.7)
+    dur = rng.choice([0.002, 0.01, 0.3], size=n)
+    start = 5.0 + np.concatenate(([0.0], np.cumsum(dur + rng.uniform(0.0, 0.05, n))[:-1]))
+    _, prior = _run(np.full(50, 9.0), np.full(50, 0.1))
+    vol = q * dur
+    base = float(prior.volumes_mm3[-1])
+    v_start = base + np.concatenate(([0.0], np.cumsum(vol)[:-1]))
+    v_end = v_start + vol
+    bt, bv = breakpoints(prior.times_s, prior.volumes_mm3, start, dur, v_start, v_end, vol)
+    wall = np.where(np.arange(n) < n // 2, 215.0, 230.0)
+    zone = math.pi * 0.875 ** 2 * 24.3
+    args = (start, dur, v_start, v_end, wall, bt, bv, zone, prior.fill_time_s, 25.0, 0.0578,
+            0.875)
+    one, spanned = np.empty(n), np.empty(n)
+    mean_temperatures(*args, one)
+    mean_temperatures_parallel(*args, spanned, spans)
+    np.testing.assert_array_equal(spanned, one)
+    assert np.ptp(one) > 20.0  # the melt does vary: the comparison is not of constants

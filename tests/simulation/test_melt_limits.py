@@ -160,3 +160,30 @@ def test_a_move_feeding_more_than_a_spool_is_refused_with_its_line(tmp_path: Pat
         simulate(path, machine="tronvoll2019")
     path.write_text(f"M83\nG1 X10 Y10 F3000\nG1 E{MAX_MOVE_FILAMENT_MM:.0f} F6000\n")
     assert simulate(path, machine="tronvoll2019").summary().moves == 2
+
+
+def test_flow_flags_give_each_row_the_limit_of_its_own_temperature_and_height() -> None:
+    """The limits are looked up once per distinct (temperature, layer height), found among
+    runs of equal rows: every row must still get the limit computed for its own pair."""
+    from flowtwin.simulation.limits import _limit_mm3_s, flow_flags
+
+    m = load_machine("tronvoll2019")
+    rng = np.random.default_rng(7)
+    n = 3000
+    # runs of repeated pairs, pairs coming back later, a temperature at the inlet, NaN heights
+    temps = np.repeat(rng.choice([205.0, 215.2, 230.0, 25.0], size=60), 50)
+    heights = np.repeat(rng.choice([0.2, 0.1, 0.28, np.nan], size=60), 50)
+    temps[::7] = 215.0
+    extruding = rng.random(n) > 0.2
+    flow = rng.uniform(0.0, 40.0, n)
+    got = flow_flags(m, flow, temps, extruding, heights)
+    want = np.full(n, np.nan)
+    for i in range(n):
+        t = float(np.round(temps[i]))
+        if extruding[i] and t > m.hotend.melt_inlet_temperature_c:
+            h = float(np.round(heights[i], 2))
+            want[i] = _limit_mm3_s(m, t, None if np.isnan(h) else h)
+    np.testing.assert_array_equal(got.limit_mm3_s, want)
+    np.testing.assert_array_equal(got.over, extruding & ~np.isnan(want)
+                                  & (flow > np.where(np.isnan(want), np.inf, want)))
+    assert 0 < got.count < n

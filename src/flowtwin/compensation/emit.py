@@ -22,7 +22,6 @@ the written file without writing it (the twin simulates drafts in memory) and
 
 from __future__ import annotations
 
-import gzip
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +35,7 @@ from flowtwin.compensation._rows_kernel import fill_rows
 from flowtwin.compensation._write_kernel import XYZ_DECIMALS, lay_out, write_text
 from flowtwin.compensation.original import OriginalFile, check_rewritable
 from flowtwin.errors import GcodeError
+from flowtwin.gcode import gz
 from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode.moves import MOVE_DTYPE, Event, MoveKind, MoveTable
 
@@ -348,6 +348,6 @@ def encode_draft(draft: Draft, lay: Layout) -> bytes:
 
 
 def store_text(draft: Draft, text: bytes) -> bytes:
-    """The draft's text as stored: gzip-compressed (level 6, no time stamp) when the
-    original was (zlib lets other threads run meanwhile), else as it is."""
-    return gzip.compress(text, compresslevel=6, mtime=0) if draft.original.gzip else text
+    """The draft's text as stored: gzip-compressed (:func:`flowtwin.gcode.gz.compress`,
+    no time stamp) when the original was, else as it is."""
+    return gz.compress(text) if draft.original.gzip else text

@@ -59,7 +59,9 @@ def open_source(source: str | os.PathLike[str] | bytes | BinaryIO) -> tuple[Bina
     if not peek and isinstance(raw, io.BytesIO):
         peek = raw.getvalue()[:4]
     if peek[:2] == _GZIP_MAGIC:
-        return gzip.GzipFile(fileobj=raw, mode="rb"), name  # type: ignore[return-value]
+        from flowtwin.gcode import gz
+
+        return gz.reader(raw), name
     if peek == _BGCODE_MAGIC:
         from flowtwin.gcode.bgcode.read import BgcodeText
 

@@ -9,15 +9,15 @@ and written back as ``.bgcode`` stored the same way (checksum, compressions, enc
 
 from __future__ import annotations
 
-import gzip
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import BinaryIO
+from typing import IO, BinaryIO
 
 from flowtwin.atomic import atomic_open
 from flowtwin.errors import GcodeError
+from flowtwin.gcode import gz
 
 __all__ = ["Edit", "rewrite_gcode"]
 
@@ -44,7 +44,7 @@ def _render(edit: Edit, original: bytes) -> bytes:
     return body + ending
 
 
-def _apply(stream: BinaryIO, sink: BinaryIO, edits: Mapping[int, Edit], name: str) -> int:
+def _apply(stream: BinaryIO, sink: IO[bytes], edits: Mapping[int, Edit], name: str) -> int:
     """Copy ``stream`` to ``sink`` with ``edits``; return how many lines they touched.
 
     Untouched stretches are copied in bulk; only chunks holding an edited line are cut at
@@ -121,9 +121,9 @@ def rewrite_gcode(source: str | os.PathLike[str], destination: str | os.PathLike
             return _rewrite_bgcode(src, Path(destination), edits)
         head = raw.peek(2)[:2] if hasattr(raw, "peek") else b""
         compress = head == b"\x1f\x8b"
-        stream: BinaryIO = gzip.GzipFile(fileobj=raw) if compress else raw  # type: ignore[assignment]
+        stream: BinaryIO = gz.reader(raw) if compress else raw
         with atomic_open(destination, "wb") as out:
-            sink: BinaryIO = gzip.GzipFile(fileobj=out, mode="wb", mtime=0) if compress else out  # type: ignore[assignment]
+            sink = gz.writer(out) if compress else out
             touched = _apply(stream, sink, edits, str(src))
             if compress:
                 sink.close()

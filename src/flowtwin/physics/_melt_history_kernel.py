@@ -18,10 +18,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin._jit import njit
+from flowtwin._jit import njit, prange
 from flowtwin.physics._melt_kernel import theta_scalar
 
-__all__ = ["breakpoints", "mean_temperatures"]
+__all__ = ["breakpoints", "mean_temperatures", "mean_temperatures_parallel",
+           "mean_temperatures_span"]
 
 
 @njit(cache=True, nogil=True)
@@ -100,16 +101,22 @@ def _temperature(t: float, entry: float, wall: float, inlet_c: float, a: float,
 
 
 @njit(cache=True, nogil=True)
-def mean_temperatures(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
-                      v_start: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
-                      wall: npt.NDArray[np.float64], bt: npt.NDArray[np.float64],
-                      bv: npt.NDArray[np.float64], zone: float, fill: float, inlet_c: float,
-                      a: float, r: float, out: npt.NDArray[np.float64]) -> None:
-    """``out[i]``: Simpson mean of the melt temperature over move ``i`` (start, middle,
-    end), °C."""
+def mean_temperatures_span(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
+                           v_start: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
+                           wall: npt.NDArray[np.float64], bt: npt.NDArray[np.float64],
+                           bv: npt.NDArray[np.float64], zone: float, fill: float,
+                           inlet_c: float, a: float, r: float, out: npt.NDArray[np.float64],
+                           i0: int, i1: int) -> None:
+    """``out[i]`` for the moves ``i0 ≤ i < i1``: Simpson mean of the melt temperature over
+    move ``i`` (start, middle, end), °C.
+
+    Each move's value depends on its own inputs and the breakpoints only (the searches
+    find the same index from any starting point), so spans give the numbers of one pass.
+    """
     k_s = k_m = k_e = 0
-    last_s = last_m = last_e = -math.inf
-    for i in range(t0.shape[0]):
+    # the first queries of a span after the first are binary searches (from +inf)
+    last_s = last_m = last_e = -math.inf if i0 == 0 else math.inf
+    for i in range(i0, i1):
         w = wall[i]
         vs = v_start[i] - zone
         vm = 0.5 * (v_start[i] + v_end[i]) - zone
@@ -124,3 +131,30 @@ def mean_temperatures(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
         t_e = _temperature(t0[i] + dur[i], _entry_time(bt, bv, ve, k_e, fill), w, inlet_c,
                            a, r)
         out[i] = (t_s + 4.0 * t_m + t_e) / 6.0
+
+
+@njit(cache=True, nogil=True)
+def mean_temperatures(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
+                      v_start: npt.NDArray[np.float64], v_end: npt.NDArray[np.float64],
+                      wall: npt.NDArray[np.float64], bt: npt.NDArray[np.float64],
+                      bv: npt.NDArray[np.float64], zone: float, fill: float, inlet_c: float,
+                      a: float, r: float, out: npt.NDArray[np.float64]) -> None:
+    """``out[i]``: Simpson mean of the melt temperature over move ``i`` (start, middle,
+    end), °C; every move in one pass (:func:`mean_temperatures_span`)."""
+    mean_temperatures_span(t0, dur, v_start, v_end, wall, bt, bv, zone, fill, inlet_c, a, r,
+                           out, 0, t0.shape[0])
+
+
+@njit(cache=True, parallel=True)
+def mean_temperatures_parallel(t0: npt.NDArray[np.float64], dur: npt.NDArray[np.float64],
+                               v_start: npt.NDArray[np.float64],
+                               v_end: npt.NDArray[np.float64], wall: npt.NDArray[np.float64],
+                               bt: npt.NDArray[np.float64], bv: npt.NDArray[np.float64],
+                               zone: float, fill: float, inlet_c: float, a: float, r: float,
+                               out: npt.NDArray[np.float64], spans: int) -> None:
+    """:func:`mean_temperatures` in ``spans`` equal spans of moves, on numba's threads
+    (the same numbers)."""
+    n = t0.shape[0]
+    for j in prange(spans):
+        mean_temperatures_span(t0, dur, v_start, v_end, wall, bt, bv, zone, fill, inlet_c, a,
+                               r, out, j * n // spans, (j + 1) * n // spans)

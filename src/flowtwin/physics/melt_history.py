@@ -33,10 +33,19 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.physics._checks import require_positive
-from flowtwin.physics._melt_history_kernel import breakpoints, mean_temperatures
+from flowtwin.physics._melt_history_kernel import (
+    breakpoints,
+    mean_temperatures,
+    mean_temperatures_parallel,
+)
 from flowtwin.physics.melt import bulk_temperature_fraction
 
-__all__ = ["MeltState", "fill_time_for_temperature_s", "melt_temperature_history"]
+__all__ = ["PARALLEL_MOVES", "MeltState", "fill_time_for_temperature_s",
+           "melt_temperature_history"]
+
+#: Moves from which the mean temperatures are computed in spans on numba's threads (the
+#: same numbers): below it, loading the parallel runtime costs more than it saves.
+PARALLEL_MOVES = 200_000
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -148,8 +157,14 @@ def melt_temperature_history(q_mm3_s: FloatArray, start_s: FloatArray, duration_
                          np.asarray(prior_v, dtype=np.float64), t0, dur, v_start, v_end, vol)
     wall = np.asarray(wall_c, dtype=np.float64)
     mean = np.empty(t0.shape[0])
-    mean_temperatures(t0, dur, v_start, v_end, wall, bt, bv, zone, fill, float(inlet_c), a, r,
-                      mean)
+    if t0.shape[0] >= PARALLEL_MOVES:
+        import numba
+
+        mean_temperatures_parallel(t0, dur, v_start, v_end, wall, bt, bv, zone, fill,
+                                   float(inlet_c), a, r, mean, 2 * numba.get_num_threads())
+    else:
+        mean_temperatures(t0, dur, v_start, v_end, wall, bt, bv, zone, fill, float(inlet_c), a,
+                          r, mean)
 
     def entry_time(v_out: FloatArray) -> FloatArray:
         """Entry time of the slice at cumulative volume ``v_out − V`` (fill: ``fill``)."""

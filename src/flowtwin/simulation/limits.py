@@ -423,14 +423,16 @@ def flow_flags(machine: Machine, flow_mm3_s: npt.NDArray[np.float64],
     ok = (np.isfinite(temps) & (temps > machine.hotend.melt_inlet_temperature_c)
           & np.asarray(extruding, dtype=bool))
     if np.any(ok):
-        # one limit per (temperature, layer height): few distinct pairs in a print
+        # one limit per (temperature, layer height): few distinct pairs in a print, in
+        # long runs of rows (the distinct keys are found among the runs' first rows)
         h_key = np.nan_to_num(heights, nan=-1.0)
         rows = np.flatnonzero(ok)
-        _, first, inverse = np.unique(temps[rows] * 1000.0 + h_key[rows], return_index=True,
-                                      return_inverse=True)
+        key = temps[rows] * 1000.0 + h_key[rows]
+        run = np.flatnonzero(np.concatenate(([True], key[1:] != key[:-1])))
+        _, first, inverse = np.unique(key[run], return_index=True, return_inverse=True)
+        head = rows[run[first]]  # the first row of each distinct key
         values = np.array([_limit_mm3_s(machine, t, None if h < 0.0 else h) for t, h in
-                           zip(temps[rows[first]].tolist(), h_key[rows[first]].tolist(),
-                               strict=True)])
-        limit[rows] = values[inverse]
+                           zip(temps[head].tolist(), h_key[head].tolist(), strict=True)])
+        limit[rows] = np.repeat(values[inverse], np.diff(np.append(run, rows.size)))
     over = ok & (np.asarray(flow_mm3_s) > np.where(np.isnan(limit), np.inf, limit))
     return FlowFlags(limit_mm3_s=limit, over=over)
