@@ -45,8 +45,9 @@ def _numpy_bounds(rate: Any, row: Any, v_b: Any, cruise: Any, accel: Any, pull: 
         c_star = (target - prev_target) / length
     anchor = (duration >= anchor_s) if anchors else np.zeros(rate.size, bool)
     band = band_k * np.abs(c_star)
-    env_lo = np.where(anchor, c_star - band, c_min)
-    env_hi = np.where(anchor, c_star + band, c_max)
+    with np.errstate(invalid="ignore"):  # (a piece of no length: inf − inf)
+        env_lo = np.where(anchor, c_star - band, c_min)
+        env_hi = np.where(anchor, c_star + band, c_max)
     return np.stack([c_min, c_max, dc, env_lo, env_hi])
 
 
@@ -84,6 +85,11 @@ def test_edge_cases_and_random_pieces() -> None:
     args = list(_case(3, 4, [True] * 5))
     args[0] = np.array([0.0, -0.0, 0.0])
     args[10] = np.array([-0.0, 0.5, 0.0, 0.0, 0.0, -0.0, 0.02, 0.1])
+    _assert_same(tuple(args))
+    # a piece of no length: the target ratio infinite or undefined, as numpy divides
+    args = list(_case(4, 7, [True] * 5))
+    args[7] = np.array([1.0, 0.0, 0.0, 2.0])
+    args[6] = np.array([1.0, 2.0, 2.0, 3.0])
     _assert_same(tuple(args))
 
 

@@ -110,7 +110,7 @@ def _numpy_sum(a: FloatArray, lo: int, n: int) -> float:
     return float(vals[0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def split_lines(de: FloatArray, first: IntArray, counts: IntArray, line_grid: IntArray,
                 out: IntArray) -> IntArray:
     """Split the grid E of every line of more than one row over its rows, in ``out``.

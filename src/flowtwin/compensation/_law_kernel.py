@@ -26,7 +26,7 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def run_segments(t0: FloatArray, ta: FloatArray, tc: FloatArray, td: FloatArray,
                  sv: FloatArray, cv: FloatArray, ev: FloatArray, g: FloatArray,
                  run_of_row: IntArray) -> tuple[FloatArray, FloatArray, FloatArray,
@@ -59,7 +59,7 @@ def run_segments(t0: FloatArray, ta: FloatArray, tc: FloatArray, td: FloatArray,
     return starts, durs, a0, slope, first
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def segment_integrals(starts: FloatArray, durs: FloatArray, durs_cubed: FloatArray,
                       a0: FloatArray, slope: FloatArray) -> tuple[FloatArray, FloatArray,
                                                                   FloatArray]:

@@ -159,7 +159,7 @@ def track_runs(length: npt.NDArray[np.float64], target: npt.NDArray[np.float64],
             c_prev = c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _maximum(a: float, b: float) -> float:
     """``numpy.maximum`` of two floats as numpy gives it here: a NaN wins, ``b`` on a tie
     (so ``maximum(0.0, −0.0)`` is ``−0.0``)."""
@@ -170,7 +170,7 @@ def _maximum(a: float, b: float) -> float:
     return a if a > b else b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _minimum(a: float, b: float) -> float:
     """``numpy.minimum`` likewise: a NaN wins, ``b`` on a tie."""
     if a != a:
@@ -180,7 +180,7 @@ def _minimum(a: float, b: float) -> float:
     return a if a < b else b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def piece_bounds(rate: npt.NDArray[np.float64], row: npt.NDArray[np.int64],
                  v_start: npt.NDArray[np.float64], cruise: npt.NDArray[np.float64],
                  accel: npt.NDArray[np.float64], pull: npt.NDArray[np.bool_],

@@ -289,7 +289,7 @@ def _cut_rows(cut: npt.NDArray[np.bool_], edge_ok: npt.NDArray[np.bool_], n_acc:
     return row, tau0, tau1, s0, s1, v0, v1, offsets
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def piece_points(row: IntArray, s1_mm: FloatArray, row_length_mm: FloatArray,
                  offsets: IntArray, start: FloatArray, end: FloatArray) -> FloatArray:
     """Toolhead position at every piece's end, ``(n, 3)``: along its row's straight path
