@@ -38,6 +38,7 @@ import numpy.typing as npt
 from numba import set_parallel_chunksize
 
 from flowtwin._jit import njit, prange
+from flowtwin.compensation._qp_blocks import block_layout, qp_blocks
 
 __all__ = ["envelope_ldl", "envelope_ldl_solve", "qp_blocks", "solve_program"]
 
@@ -52,7 +53,7 @@ _MIN_GAP_DECREASE = 0.01
 _START_GAP = 10.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def envelope_ldl(first: IntArray, ptr: IntArray, m: FloatArray, sign: npt.NDArray[np.int8],
                  out: FloatArray) -> bool:
     """``M = L·D·Lᵀ`` (``L`` unit lower) of a symmetric matrix in envelope storage.
@@ -88,7 +89,7 @@ def envelope_ldl(first: IntArray, ptr: IntArray, m: FloatArray, sign: npt.NDArra
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: FloatArray,
                        out: FloatArray) -> None:
     """Solve ``L·D·Lᵀ·x = rhs`` with the factor of :func:`envelope_ldl`."""
@@ -110,7 +111,16 @@ def envelope_ldl_solve(first: IntArray, ptr: IntArray, f: FloatArray, rhs: Float
             out[k] -= f[pi + k] * xi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
+def _step_to_zero(value: float, change: float, step: float) -> float:
+    """``−value/change`` when ``change < 0`` and that is below ``step`` (a NaN is no
+    candidate), else ``step``. The division is made every time, so that the test
+    compiles without a branch."""
+    ratio = -value / change
+    return ratio if change < 0.0 and ratio < step else step
+
+
+@njit(cache=True, error_model="numpy")
 def _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr, c_col, r0, r1,  # type: ignore[no-untyped-def]
                         r_ptr, r_col, q0, q1):
     """Order and envelope of a block's step matrix with one extra row per squared row.
@@ -166,7 +176,7 @@ def _augmented_envelope(a, e, h_ptr0, h_ptr1, h_r, h_c, c_ptr, c_col, r0, r1,  #
     return pos, pos_r, first, ptr, sign
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r1, d, lo, hi,  # type: ignore[no-untyped-def]
                  r_ptr, r_col, r_val, r_w, q0, q1, a, e, max_iterations, tolerance):
     """Interior-point loop on variables ``a:e``, constraint rows ``r0:r1`` and squared rows
@@ -270,7 +280,6 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     rhs = np.zeros(big)
     sol = np.empty(big)
     dx = np.empty(n)
-    cdx = np.empty(m)
     ds = np.empty(m)
     dt = np.empty(m)
     dz = np.empty(m)
@@ -313,7 +322,7 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
             mu += s[q] * z[q] + t[q] * w[q]
             if abs(r_l[q]) > pmax:
                 pmax = abs(r_l[q])
-            dd[q] = z[q] / s[q] + (w[q] / t[q] if fin[q] else 0.0)  # (for the step matrix)
+            dd[q] = z[q] / s[q] + w[q] / t[q]  # (for the step matrix; w = 0 without hi)
         mu /= max(n_c, 1)
         dual = 0.0
         for i in range(n):
@@ -359,8 +368,8 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                            if fin[q] else 0.0)
                 i = r0 + q
                 v = (-rc_l[q] - z[q] * r_l[q]) / s[q]
-                if fin[q]:
-                    v -= (-rc_u[q] - w[q] * r_u[q]) / t[q]
+                v_u = v - (-rc_u[q] - w[q] * r_u[q]) / t[q]
+                v = v_u if fin[q] else v
                 for p in range(c_ptr[i], c_ptr[i + 1]):
                     rhs[lpos[p - p_0]] += c_val[p] * v
             envelope_ldl_solve(first, ptr, uf, rhs, sol)
@@ -373,25 +382,22 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 v = 0.0
                 for p in range(c_ptr[i], c_ptr[i + 1]):
                     v += c_val[p] * dx[lcol[p - p_0]]
-                cdx[q] = v
                 ds[q] = v + r_l[q]
                 dt[q] = -v + r_u[q] if fin[q] else 0.0
                 dz[q] = (-rc_l[q] - z[q] * ds[q]) / s[q]
-                dw[q] = (-rc_u[q] - w[q] * dt[q]) / t[q] if fin[q] else 0.0
-                if ds[q] < 0.0 and -s[q] / ds[q] < a_p:
-                    a_p = -s[q] / ds[q]
-                if fin[q] and dt[q] < 0.0 and -t[q] / dt[q] < a_p:
-                    a_p = -t[q] / dt[q]
-                if dz[q] < 0.0 and -z[q] / dz[q] < a_d:
-                    a_d = -z[q] / dz[q]
-                if fin[q] and dw[q] < 0.0 and -w[q] / dw[q] < a_d:
-                    a_d = -w[q] / dw[q]
+                dw_q = (-rc_u[q] - w[q] * dt[q]) / t[q]
+                dw[q] = dw_q if fin[q] else 0.0
+                # (dt = dw = 0 for a row without upper bound: no ratio)
+                a_p = _step_to_zero(s[q], ds[q], a_p)
+                a_p = _step_to_zero(t[q], dt[q], a_p)
+                a_d = _step_to_zero(z[q], dz[q], a_d)
+                a_d = _step_to_zero(w[q], dw[q], a_d)
             if corr == 0:
                 mu_aff = 0.0
                 for q in range(m):
                     mu_aff += (s[q] + a_p * ds[q]) * (z[q] + a_d * dz[q])
-                    if fin[q]:
-                        mu_aff += (t[q] + a_p * dt[q]) * (w[q] + a_d * dw[q])
+                    mu_u = mu_aff + (t[q] + a_p * dt[q]) * (w[q] + a_d * dw[q])
+                    mu_aff = mu_u if fin[q] else mu_aff
                 mu_aff /= max(n_c, 1)
                 # Mehrotra's centring, never above the current gap
                 sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0.0 else 0.0
@@ -408,8 +414,8 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
                 mu_new = 0.0
                 for q in range(m):
                     mu_new += (s[q] + al * ds[q]) * (z[q] + al * dz[q])
-                    if fin[q]:
-                        mu_new += (t[q] + al * dt[q]) * (w[q] + al * dw[q])
+                    mu_u = mu_new + (t[q] + al * dt[q]) * (w[q] + al * dw[q])
+                    mu_new = mu_u if fin[q] else mu_new
                 if mu_new > (1.0 - _MIN_GAP_DECREASE * al) * mu * max(n_c, 1):
                     corr = 2
                     continue
@@ -448,48 +454,16 @@ def _solve_block(x, h_ptr0, h_ptr1, h_r, h_c, h_v, g, c_ptr, c_col, c_val, r0, r
     return it
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def _solve_blocks(x, block_a, block_e, h_ptr, h_r, h_c, h_v, g, row_ptr,  # type: ignore[no-untyped-def]
                   c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val, r_w,
-                  max_iterations, tolerance, iters):
-    for k in prange(block_a.shape[0]):
+                  max_iterations, tolerance, iters, order):
+    for kk in prange(order.shape[0]):
+        k = order[kk]
         iters[k] = _solve_block(x, h_ptr[k], h_ptr[k + 1], h_r, h_c, h_v, g, c_ptr, c_col,
                                 c_val, row_ptr[k], row_ptr[k + 1], d, lo, hi, r_ptr, r_col,
                                 r_val, r_w, sq_ptr[k], sq_ptr[k + 1], block_a[k], block_e[k],
                                 max_iterations, tolerance)
-
-
-def qp_blocks(n: int, h_r: IntArray, h_c: IntArray, row_lo: IntArray, row_hi: IntArray
-              ) -> tuple[IntArray, IntArray]:
-    """Independent blocks of variables: ``[starts[k], ends[k])``.
-
-    Variables ``i`` and ``i + 1`` belong together when an entry ``H[r, c]`` with
-    ``r ≤ i < c`` or a constraint row spanning columns ``row_lo … row_hi`` across them
-    couples them.
-    """
-    cover = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(cover, np.minimum(h_r, h_c), 1)
-    np.add.at(cover, np.maximum(h_r, h_c), -1)
-    np.add.at(cover, row_lo, 1)
-    np.add.at(cover, row_hi, -1)
-    joined = np.cumsum(cover)[:max(n - 1, 0)] > 0  # boundary i | i + 1 is joined
-    cuts = np.flatnonzero(~joined) + 1
-    starts = np.concatenate(([0], cuts)).astype(np.int64)
-    ends = np.concatenate((cuts, [n])).astype(np.int64)
-    return starts, ends
-
-
-def _row_spans(ptr: IntArray, col: IntArray) -> tuple[IntArray, IntArray]:
-    """Lowest and highest column of every row of a CSR pattern (``0, 0`` for an empty row,
-    which joins nothing)."""
-    m = ptr.size - 1
-    row_lo = np.zeros(m, dtype=np.int64)
-    row_hi = np.zeros(m, dtype=np.int64)
-    nonempty = np.flatnonzero(np.diff(ptr) > 0)
-    if nonempty.size:
-        row_lo[nonempty] = np.minimum.reduceat(col, ptr[nonempty])
-        row_hi[nonempty] = np.maximum.reduceat(col, ptr[nonempty])
-    return row_lo, row_hi
 
 
 def _take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
@@ -549,46 +523,35 @@ def solve_program(n: int, h: tuple[IntArray, IntArray, FloatArray], g: FloatArra
         lo, hi = np.where(upper_only, -hi, lo)[keep], np.where(upper_only, np.inf, hi)[keep]
     x = np.array(x0, dtype=np.float64)
     h_r, h_c, h_v = h
-    row_lo, row_hi = _row_spans(c_ptr, c_col)
     r_ptr, r_col, r_val, wq = squares
     used = np.flatnonzero((wq > 0) & (np.diff(r_ptr) > 0))  # an empty row is a constant
     if used.size < wq.size:
         r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, used)
         wq = wq[used]
-    sq_lo, sq_hi = _row_spans(r_ptr, r_col)
-    starts, ends = qp_blocks(n, h_r, h_c, np.concatenate((row_lo, sq_lo)),
-                             np.concatenate((row_hi, sq_hi)))
-    del row_hi, sq_lo, used, upper_only, keep  # (the rows' spans are large: let them go)
     # H entries, constraint rows and squared rows ordered by block (squared rows by their
-    # last variable)
-    h_block = np.searchsorted(starts, h_r, side="right") - 1
-    if np.any(h_block[1:] < h_block[:-1]):
-        order = np.argsort(h_block, kind="stable")
-        h_r, h_c, h_v, h_block = h_r[order], h_c[order], h_v[order], h_block[order]
-    h_ptr = np.searchsorted(h_block, np.arange(starts.size + 1)).astype(np.int64)
-    row_block = np.searchsorted(starts, row_lo, side="right") - 1
-    del row_lo
-    if np.any(row_block[1:] < row_block[:-1]):  # (copies only when out of order)
-        rorder = np.argsort(row_block, kind="stable")
+    # last variable); an order is empty where nothing moves (copies only then)
+    starts, ends, h_order, h_ptr, rorder, row_ptr, sorder, sq_ptr = block_layout(
+        n, np.asarray(h_r, dtype=np.int64), np.asarray(h_c, dtype=np.int64), c_ptr, c_col,
+        r_ptr, r_col)
+    if h_order.size:
+        h_r, h_c, h_v = h_r[h_order], h_c[h_order], h_v[h_order]
+    if rorder.size:
         c_ptr, c_col, c_val = _take_rows(c_ptr, c_col, c_val, rorder)
-        d, lo, hi, row_block = d[rorder], lo[rorder], hi[rorder], row_block[rorder]
-        del rorder
-    row_ptr = np.searchsorted(row_block, np.arange(starts.size + 1)).astype(np.int64)
-    del row_block, h_block
-    if np.any(sq_hi[1:] < sq_hi[:-1]):
-        sorder = np.argsort(sq_hi, kind="stable")
+        d, lo, hi = d[rorder], lo[rorder], hi[rorder]
+    if sorder.size:
         r_ptr, r_col, r_val = _take_rows(r_ptr, r_col, r_val, sorder)
-        wq, sq_hi = wq[sorder], sq_hi[sorder]
-    sq_ptr = np.searchsorted(np.searchsorted(starts, sq_hi, side="right") - 1,
-                             np.arange(starts.size + 1)).astype(np.int64)
+        wq = wq[sorder]
     iters = np.zeros(starts.size, dtype=np.int64)
-    # blocks differ in size by 100× and more: the threads take a few at a time (results
-    # do not depend on which thread solves a block)
+    # blocks differ in size by 100× and more: the threads take a few at a time, the
+    # largest first, so that no large block is left to one thread at the end (results do
+    # not depend on which thread solves a block, nor when)
+    order = np.argsort(-((ends - starts) + np.diff(row_ptr) + np.diff(sq_ptr)),
+                       kind="stable").astype(np.int64)
     chunk = set_parallel_chunksize(_CHUNK_BLOCKS)
     try:
         _solve_blocks(x, starts, ends, h_ptr, h_r, h_c, h_v, np.asarray(g, np.float64),
                       row_ptr, c_ptr, c_col, c_val, d, lo, hi, sq_ptr, r_ptr, r_col, r_val,
-                      wq, int(max_iterations), float(tolerance), iters)
+                      wq, int(max_iterations), float(tolerance), iters, order)
     finally:
         set_parallel_chunksize(chunk)
     return x, int(iters.max(initial=0)), 0.0

@@ -24,7 +24,8 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["lag_gain", "model_pass", "phase_point", "piece_segments", "segment_states"]
+__all__ = ["first_segments", "lag_gain", "model_columns", "model_pass", "phase_point",
+           "piece_segments", "row_starts", "segment_states"]
 
 
 @njit(cache=True)
@@ -348,3 +349,101 @@ def piece_segments(row: npt.NDArray[np.int64], t0_s: npt.NDArray[np.float64],
                 k += 1
     return (seg_piece[:k].copy(), seg_t[:k].copy(), seg_len[:k].copy(), seg_va[:k].copy(),
             seg_vb[:k].copy(), owner[:k].copy())
+
+
+@njit(cache=True)
+def first_segments(seg_piece: npt.NDArray[np.int64], n_free: int) -> npt.NDArray[np.int64]:
+    """First segment of every free piece (``seg_piece`` its free piece, or −1), −1 for a
+    piece without one, shape ``(n_free,)``."""
+    out = np.full(n_free, -1, dtype=np.int64)
+    for s in range(seg_piece.shape[0]):
+        p = seg_piece[s]
+        if 0 <= p < n_free and out[p] < 0:
+            out[p] = s
+    return out
+
+
+@njit(cache=True)
+def row_starts(seg_gap: npt.NDArray[np.bool_], seg_owner: npt.NDArray[np.int64],
+               states: npt.NDArray[np.float64], out: npt.NDArray[np.float64]) -> None:
+    """State before the first own (non-gap) segment of every stretch of one row's
+    segments, at ``out[row]`` (0 before the first segment; a later stretch of the same row
+    overwrites an earlier one)."""
+    prev = -1
+    started = False
+    for s in range(seg_gap.shape[0]):
+        if seg_gap[s]:
+            continue
+        row = seg_owner[s]
+        if not started or row != prev:
+            out[row] = states[s - 1] if s > 0 else 0.0
+        started = True
+        prev = row
+
+
+@njit(cache=True)
+def model_columns(seg_piece: npt.NDArray[np.int64], owner: npt.NDArray[np.int64],
+                  var_of_piece: npt.NDArray[np.int64], piece_ratio: npt.NDArray[np.float64],
+                  g: npt.NDArray[np.float64], row_free: npt.NDArray[np.bool_],
+                  row_de: npt.NDArray[np.float64], row_hold: npt.NDArray[np.bool_],
+                  row_group: npt.NDArray[np.int64]):  # type: ignore[no-untyped-def]
+    """The lag model's per-segment columns and its units (gaps and rows, in time order).
+
+    For every segment (``seg_piece``: its piece, −1 for the rest before ``owner``):
+    its free variable (or −1), fixed ratio (0 in a gap), ``B`` (``G`` for a free piece),
+    ``C`` (``G·ratio`` otherwise), objective row (the owner's group; −1 in a gap) and
+    whether it is the first / last segment of its objective row's stretch. Every unit
+    (a run of segments of one gap or one row) with its first and end segment, and its
+    row's freedom, E and hold (none for a gap).
+    """
+    n = seg_piece.shape[0]
+    seg_var = np.empty(n, dtype=np.int64)
+    ratio = np.empty(n)
+    seg_b = np.empty(n)
+    seg_c = np.empty(n)
+    seg_row = np.empty(n, dtype=np.int64)
+    first = np.zeros(n, dtype=np.bool_)
+    last = np.zeros(n, dtype=np.bool_)
+    n_units = 0
+    for s in range(n):
+        gap = seg_piece[s] < 0
+        if s == 0 or gap != (seg_piece[s - 1] < 0) or owner[s] != owner[s - 1]:
+            n_units += 1
+        p = max(seg_piece[s], 0)
+        seg_var[s] = -1 if gap else var_of_piece[p]
+        ratio[s] = 0.0 if gap else piece_ratio[p]
+        seg_b[s] = g[s] if seg_var[s] >= 0 else 0.0
+        seg_c[s] = 0.0 if seg_var[s] >= 0 else g[s] * ratio[s]
+        seg_row[s] = -1 if gap else row_group[owner[s]]
+    unit_start = np.empty(n_units, dtype=np.int64)
+    unit_end = np.empty(n_units, dtype=np.int64)
+    unit_free = np.empty(n_units, dtype=np.bool_)
+    unit_de = np.empty(n_units)
+    unit_hold = np.empty(n_units, dtype=np.bool_)
+    k = -1
+    for s in range(n):
+        gap = seg_piece[s] < 0
+        if s == 0 or gap != (seg_piece[s - 1] < 0) or owner[s] != owner[s - 1]:
+            k += 1
+            unit_start[k] = s
+            if k > 0:
+                unit_end[k - 1] = s
+            r = owner[s]
+            unit_free[k] = False if gap else row_free[r]
+            unit_de[k] = 0.0 if gap else row_de[r]
+            unit_hold[k] = False if gap else row_hold[r]
+    if n_units:
+        unit_end[n_units - 1] = n
+    prev = -1  # the objective rows' stretches, over segments that count
+    for s in range(n):
+        if seg_row[s] < 0:
+            continue
+        if prev < 0 or seg_row[s] != seg_row[prev]:
+            first[s] = True
+            if prev >= 0:
+                last[prev] = True
+        prev = s
+    if prev >= 0:
+        last[prev] = True
+    return (seg_var, ratio, seg_b, seg_c, seg_row, first, last, unit_start, unit_end,
+            unit_free, unit_de, unit_hold)

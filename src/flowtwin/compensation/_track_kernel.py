@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["FLAG_NAMES", "track_runs"]
+__all__ = ["FLAG_NAMES", "piece_bounds", "track_runs"]
 
 #: Meaning of the per-piece flags.
 FLAG_NAMES = ("on_target", "ratio_bounds", "jump_bounds", "jump_exceeded", "forced_end")
@@ -157,3 +157,79 @@ def track_runs(length: npt.NDArray[np.float64], target: npt.NDArray[np.float64],
             out[j] = pos
             flags[j] = flag
             c_prev = c
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _maximum(a: float, b: float) -> float:
+    """``numpy.maximum`` of two floats as numpy gives it here: a NaN wins, ``b`` on a tie
+    (so ``maximum(0.0, −0.0)`` is ``−0.0``)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a > b else b
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _minimum(a: float, b: float) -> float:
+    """``numpy.minimum`` likewise: a NaN wins, ``b`` on a tie."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a < b else b
+
+
+@njit(cache=True, error_model="numpy")
+def piece_bounds(rate: npt.NDArray[np.float64], row: npt.NDArray[np.int64],
+                 v_start: npt.NDArray[np.float64], cruise: npt.NDArray[np.float64],
+                 accel: npt.NDArray[np.float64], pull: npt.NDArray[np.bool_],
+                 target: npt.NDArray[np.float64], length: npt.NDArray[np.float64],
+                 duration: npt.NDArray[np.float64], run_first: npt.NDArray[np.bool_],
+                 scalars: npt.NDArray[np.float64], switches: npt.NDArray[np.bool_],
+                 out: npt.NDArray[np.float64]) -> None:
+    """Every run piece's ratio box, jump limit and starting envelope (the law's, see
+    :func:`flowtwin.compensation.advance.follow_law`), in ``out`` ``(5, p)``: ``c_min``,
+    ``c_max``, the jump limit ``Δc`` at the junction before it (from the previous piece:
+    the run's own first junction is set by the caller), the envelope's low and high end.
+
+    ``rate``, ``row``, ``v_start``, ``cruise``, ``accel``: every piece's intended ratio,
+    row, start speed and its row's cruise speed and acceleration; ``pull``: it may pull
+    back; ``target``, ``length``, ``duration``: its cumulative target, path, time;
+    ``run_first``: it starts a run. ``scalars``: ``min_flow_fraction``, ``retract_ratio``,
+    the caps ``margin·max_ratio·grid``, ``margin·max_e_speed·grid``,
+    ``margin·max_e_accel·grid``, ``margin·jump·grid``, the anchor's ``smooth_time_s`` and
+    ``anchor_band``; ``switches``: pieces may pull, each of the three caps applies,
+    anchors apply. The arithmetic is the array expressions', operation by operation.
+    """
+    min_flow, retract, cap_ratio, cap_speed, cap_accel, jump_grid, anchor_s, band_k = (
+        scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5], scalars[6],
+        scalars[7])
+    pulls, has_ratio, has_speed, has_accel, anchors = (
+        switches[0], switches[1], switches[2], switches[3], switches[4])
+    inf = np.inf
+    for i in range(rate.shape[0]):
+        r = rate[i]
+        c_min = min_flow * r
+        if pulls and pull[i]:
+            c_min = -retract * r
+        c_cap = inf
+        if has_ratio:
+            c_cap = _minimum(c_cap, cap_ratio)
+        if has_speed:
+            c_cap = _minimum(c_cap, cap_speed / cruise[i] if cruise[i] > 0 else inf)
+        if has_accel:
+            c_cap = _minimum(c_cap, cap_accel / accel[i] if accel[i] > 0 else inf)
+        c_max = _maximum(c_cap, r)
+        prev_rate = rate[i - 1] if i > 0 else 0.0
+        step = 0.0 if i > 0 and row[i] == row[i - 1] else abs(r - prev_rate)
+        v = v_start[i]
+        out[2, i] = _maximum(jump_grid, step * v) / v if v > 1e-9 else inf
+        prev_target = 0.0 if i == 0 or run_first[i] else target[i - 1]
+        c_star = (target[i] - prev_target) / length[i]
+        band = band_k * abs(c_star)
+        anchor = anchors and duration[i] >= anchor_s
+        out[0, i] = c_min
+        out[1, i] = c_max
+        out[3, i] = c_star - band if anchor else c_min
+        out[4, i] = c_star + band if anchor else c_max

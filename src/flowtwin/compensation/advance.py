@@ -43,9 +43,12 @@ from flowtwin.compensation._law_kernel import (
     accumulate_runs,
     f2_values,
     last_at_or_before,
+    run_segments,
+    search_right,
     segment_at,
+    segment_integrals,
 )
-from flowtwin.compensation._track_kernel import FLAG_NAMES, track_runs
+from flowtwin.compensation._track_kernel import FLAG_NAMES, piece_bounds, track_runs
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.pieces import Pieces
 from flowtwin.compensation.refine import RefineOptions
@@ -210,25 +213,19 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
     ndarray
         Smoothed advance term at the query times (E units of ``rate`` times mm), ``(q,)``.
     """
-    t0, ta, tc, td, sv, cv, ev = timeline.trapezoids(rows)
+    # (every row's, then these rows': the same values, without copying the rows' records)
+    t0, ta, tc, td, sv, cv, ev = (a[rows] for a in timeline.trapezoids())
     g = k_la * rate
-    # three segments per row: (start, duration, A at start, slope)
-    starts = np.column_stack([t0, t0 + ta, t0 + ta + tc]).ravel()
-    durs = np.column_stack([ta, tc, td]).ravel()
-    a0 = np.column_stack([g * sv, g * cv, g * cv]).ravel()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = np.column_stack([np.where(ta > 0, g * (cv - sv) / ta, 0.0), np.zeros_like(g),
-                                 np.where(td > 0, g * (ev - cv) / td, 0.0)]).ravel()
-    seg_run = np.repeat(run_of_row, 3)
-    # F1, F2 at segment starts, restarted at every run
-    f1_len = a0 * durs + 0.5 * slope * durs * durs
-    f2_len = 0.5 * a0 * durs ** 2 + slope * durs ** 3 / 6.0
+    # three segments per row: (start, duration, A at start, slope), F1 and F2 over each
+    # (the cube of the durations: numpy's power, as before), restarted at every run
+    f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (t0, ta, tc, td, sv, cv, ev, g)]
+    starts, durs, a0, slope, first = run_segments(
+        f64[0], f64[1], f64[2], f64[3], f64[4], f64[5], f64[6], f64[7],
+        np.ascontiguousarray(run_of_row, dtype=np.int64))
+    f1_len, f2_len, ends = segment_integrals(starts, durs, durs ** 3, a0, slope)
     n = starts.size
     f1 = np.zeros(n)
     f2 = np.zeros(n)
-    first = np.ones(n, dtype=bool)
-    first[1:] = seg_run[1:] != seg_run[:-1]
-    ends = starts + durs
     # sequential accumulation (gaps between rows add F1·gap to F2)
     accumulate_runs(starts, ends, f1_len, f2_len, first, f1, f2)
     h = 0.5 * smooth_time_s
@@ -241,10 +238,13 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
 
     def f2_at(t: FloatArray) -> FloatArray:
         """``F₂`` at ``t`` within each query's run (0 before the run)."""
-        if in_order and np.all(t[1:] >= t[:-1]):  # (a rounding can put a start an ulp late)
+        if in_order and np.all(t[1:] >= t[:-1]):
             k = last_at_or_before(starts, t)
-        else:
-            k = (np.searchsorted(starts, t, side="right") - 1).astype(np.int64)
+        else:  # a rounding can put a start an ulp late: numpy's search, done faster
+            k = search_right(starts, t)
+            if k.size != t.size:
+                k = np.searchsorted(starts, t, side="right").astype(np.int64)
+            k -= 1
         k, u, inside, after = segment_at(starts, durs, lo, hi, t, k)
         return f2_values(k, u, inside, inside ** 3, after, f1, f2, a0, slope, f1_len)
 
@@ -418,39 +418,42 @@ def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
     run_total = np.bincount(row_run - row_run[0],
                             weights=np.asarray(row_e_exact, dtype=np.float64)[run_rows],
                             minlength=n_runs).astype(np.float64)
-    # ratio box (grid units per mm) from the firmware limits
+    # ratio box (grid units per mm) from the firmware limits, the jump limit at the
+    # junction before each piece (a step the original had is allowed) and the starting
+    # envelope: anchors (long pieces) keep a ratio near their target's
     margin = 1.0 - options.limit_margin
-    cruise = np.asarray(ph["cruise_v"], dtype=np.float64)
-    accel = np.asarray(ph["accel"], dtype=np.float64)
     grid_per_mm = 1.0 / e_unit_mm
-    c_min = options.min_flow_fraction * rate[pr]
-    if options.retract_ratio > 0 and options.refine is not None:
-        # while the head slows down the extruder may pull back (retract while moving: the
-        # law's −K·dv⁰_E/dt where the flow falls [001 Eq. 11, Fig. 8]); the refinement
-        # keeps the column at x ≥ 0 there (no backflow), so only with it
-        slowing = (pieces.v1_mm_s[sel] < pieces.v0_mm_s[sel] - 1e-9 if pull_rows is None
-                   else np.asarray(pull_rows, dtype=bool)[pr])
-        c_min = np.where(slowing, -options.retract_ratio * rate[pr], c_min)
-    c_cap = np.full(sel.size, math.inf)
-    if math.isfinite(limits.max_ratio):
-        c_cap = np.minimum(c_cap, margin * limits.max_ratio * grid_per_mm)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if math.isfinite(limits.max_e_speed_mm_s):
-            c_cap = np.minimum(c_cap, np.where(cruise[pr] > 0, margin * limits.max_e_speed_mm_s
-                                               * grid_per_mm / cruise[pr], math.inf))
-        if math.isfinite(limits.max_e_accel_mm_s2):
-            c_cap = np.minimum(c_cap, np.where(accel[pr] > 0, margin * limits.max_e_accel_mm_s2
-                                               * grid_per_mm / accel[pr], math.inf))
-    c_max = np.maximum(c_cap, rate[pr])  # never below the intended ratio
-    # jump limit at the junction before each piece (a step the original had is allowed)
-    v_b = pieces.v0_mm_s[sel]
+    rate_pr = np.ascontiguousarray(rate[pr], dtype=np.float64)
+    # while the head slows down the extruder may pull back (retract while moving: the
+    # law's −K·dv⁰_E/dt where the flow falls [001 Eq. 11, Fig. 8]); the refinement keeps
+    # the column at x ≥ 0 there (no backflow), so only with it
+    pulls = options.retract_ratio > 0 and options.refine is not None
+    if pulls and pull_rows is None:
+        slowing = pieces.v1_mm_s[sel] < pieces.v0_mm_s[sel] - 1e-9
+    elif pulls:
+        slowing = np.asarray(pull_rows, dtype=bool)[pr]
+    else:
+        slowing = np.zeros(sel.size, dtype=bool)
+    duration = pieces.t1_s[sel] - pieces.t0_s[sel]
+    smoothed = options.law is AdvanceLaw.SMOOTHED
     jump_grid = margin * limits.jump_mm_s * grid_per_mm
-    prev_rate = np.zeros(sel.size)
-    prev_rate[1:] = rate[pr[:-1]]
-    same_row = np.concatenate(([False], pr[1:] == pr[:-1]))
-    orig_step = np.where(same_row, 0.0, np.abs(rate[pr] - prev_rate))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dc = np.where(v_b > 1e-9, np.maximum(jump_grid, orig_step * v_b) / v_b, math.inf)
+    scalars = np.array([options.min_flow_fraction, options.retract_ratio,
+                        margin * limits.max_ratio * grid_per_mm,
+                        margin * limits.max_e_speed_mm_s * grid_per_mm,
+                        margin * limits.max_e_accel_mm_s2 * grid_per_mm, jump_grid,
+                        options.smooth_time_s, options.anchor_band], dtype=np.float64)
+    switches = np.array([pulls, math.isfinite(limits.max_ratio),
+                         math.isfinite(limits.max_e_speed_mm_s),
+                         math.isfinite(limits.max_e_accel_mm_s2), smoothed], dtype=bool)
+    bounds = np.empty((5, sel.size))
+    piece_bounds(rate_pr, np.ascontiguousarray(pr, dtype=np.int64),
+                 np.ascontiguousarray(pieces.v0_mm_s[sel], dtype=np.float64),
+                 np.asarray(ph["cruise_v"], dtype=np.float64)[pr],
+                 np.asarray(ph["accel"], dtype=np.float64)[pr],
+                 np.ascontiguousarray(slowing, dtype=bool), target, length,
+                 np.ascontiguousarray(duration, dtype=np.float64), first_flag, scalars,
+                 switches, bounds)
+    c_min, c_max, dc, env_lo, env_hi = bounds
     before = pr[run_first] - 1
     prev_xy = (before >= 0) & xy_rows[np.maximum(before, 0)]
     c_prev0 = np.zeros(sel.size)
@@ -466,16 +469,6 @@ def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
                          / v_end, math.inf)
     end_lo = next_rate - allow
     end_hi = next_rate + allow
-    # anchors: long pieces keep a ratio near their target's
-    prev_target = np.concatenate(([0.0], target[:-1]))
-    prev_target[run_first] = 0.0
-    c_star = (target - prev_target) / length
-    duration = pieces.t1_s[sel] - pieces.t0_s[sel]
-    smoothed = options.law is AdvanceLaw.SMOOTHED
-    anchor = (duration >= options.smooth_time_s) if smoothed else np.zeros(sel.size, bool)
-    band = options.anchor_band * np.abs(c_star)
-    env_lo = np.where(anchor, c_star - band, c_min)
-    env_hi = np.where(anchor, c_star + band, c_max)
     out = np.empty(sel.size)
     flags = np.zeros(sel.size, dtype=np.int8)
     run_start = np.append(run_first, sel.size).astype(np.int64)

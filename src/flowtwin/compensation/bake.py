@@ -39,7 +39,7 @@ from flowtwin.compensation.advance import (
 )
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.limits import ExtruderLimits
-from flowtwin.compensation.pieces import split_rows
+from flowtwin.compensation.pieces import piece_points, split_rows
 from flowtwin.compensation.refine import LagModel, build_lag_model, refine_qp
 from flowtwin.compensation.relief import (
     first_free_pieces,
@@ -301,10 +301,11 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     if n:
         start[0] = table.start_xyze[:3]
         start[1:] = end[:-1]
-    f = pieces.fraction_end
-    xyz = start[pieces.row] + f[:, None] * (end[pieces.row] - start[pieces.row])
-    last = pieces.offsets[1:] - 1
-    xyz[last] = end
+    xyz = piece_points(np.ascontiguousarray(pieces.row, dtype=np.int64),
+                       np.ascontiguousarray(pieces.s1_mm, dtype=np.float64),
+                       np.ascontiguousarray(pieces.row_length_mm, dtype=np.float64),
+                       np.ascontiguousarray(pieces.offsets, dtype=np.int64), start,
+                       np.ascontiguousarray(end))
     piece_of = pieces.row.copy()
     feed = draft.piece_feed_mm_min[piece_of].copy()
     if reliefs:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.compensation._rows_kernel import changed_rows
 from flowtwin.compensation.emit import (
     Layout,
     check_layout,
@@ -101,20 +102,12 @@ class Draft:
 
     def changed_rows(self) -> npt.NDArray[np.bool_]:
         """Original rows whose line must be rewritten."""
-        n = self.n_rows
-        counts = self.counts
-        mv = self.table.moves
-        orig = np.column_stack([mv["x"], mv["y"], mv["z"]]).astype(np.float64)
-        changed = counts != 1
-        single = np.flatnonzero(~changed)
-        piece_of = np.searchsorted(self.row, single)
-        moved = np.any(np.abs(self.xyz_mm[piece_of] - orig[single]) > 1e-9, axis=1)
-        e_diff = self.e_grid[piece_of] != self.row_e[single]
-        changed[single] = moved | e_diff
-        changed |= np.isfinite(self.feed_mm_min)
-        changed |= np.bincount(self.row, weights=np.isfinite(self.piece_feed_mm_min),
-                               minlength=n) > 0
-        return np.asarray(changed & (np.arange(n) >= 0))
+        return changed_rows(np.ascontiguousarray(self.row, dtype=np.int64), self.n_rows,
+                            np.ascontiguousarray(self.xyz_mm, dtype=np.float64),
+                            self.table.moves, np.ascontiguousarray(self.e_grid, dtype=np.int64),
+                            np.ascontiguousarray(self.row_e, dtype=np.int64),
+                            np.ascontiguousarray(self.feed_mm_min, dtype=np.float64),
+                            np.ascontiguousarray(self.piece_feed_mm_min, dtype=np.float64))
 
     def layout(self, *, check: bool = True) -> Layout:
         """The words of every piece as they will be written (:mod:`.emit`).

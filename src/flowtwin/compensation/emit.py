@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.atomic import atomic_write_bytes
+from flowtwin.compensation._rows_kernel import fill_rows
 from flowtwin.compensation._write_kernel import XYZ_DECIMALS, lay_out, write_text
 from flowtwin.compensation.original import OriginalFile, check_rewritable
 from flowtwin.errors import GcodeError
@@ -245,34 +246,16 @@ def _rows(draft: Draft, xyz: FloatArray, de: FloatArray, feed: FloatArray,
     r = draft.row
     n = r.size
     out = np.zeros(n, dtype=MOVE_DTYPE)
-    out["x"], out["y"], out["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    out["de"] = de
-    out["feed_mm_s"] = feed
-    out["kind"] = kind
-    for name in ("layer", "flow", "tool", "feature"):
-        out[name] = mv[name][r]
-    # running E per tool, summed in file order like the reader
-    tool = np.asarray(out["tool"], dtype=np.int64)
-    if n == 0 or tool.min() == tool.max():
-        out["e"] = np.cumsum(de)
-    else:
-        e = np.empty(n)
-        for t in np.unique(tool).tolist():
-            sel = tool == t
-            e[sel] = np.cumsum(de[sel])
-        out["e"] = e
     # line numbers: every rewritten line grows by its pieces, an F restore and a G92
-    line = np.asarray(mv["line"], dtype=np.int64)[r]
     grow = (ends - starts) + (f_restore >= 0) + g92 - 1
-    shift_after = np.cumsum(grow)
-    k = np.searchsorted(changed_lines, line, side="left")  # rewritten lines before (or it)
-    before = np.where(k > 0, shift_after[np.maximum(k - 1, 0)], 0) if changed_lines.size \
-        else np.zeros(n, dtype=np.int64)
-    # pieces of a rewritten line are consecutive lines from its first
-    idx = np.arange(n)
-    first_idx = np.maximum.accumulate(np.where(line_first, idx, 0)) if n else idx
-    within = np.where(changed_piece, idx - first_idx, 0)
-    out["line"] = (line + before + within).astype(np.int32)
+    fill_rows(out, np.ascontiguousarray(r, dtype=np.int64), mv,
+              np.ascontiguousarray(xyz, dtype=np.float64),
+              np.ascontiguousarray(de, dtype=np.float64),
+              np.ascontiguousarray(feed, dtype=np.float64),
+              np.ascontiguousarray(kind, dtype=np.uint8),
+              np.ascontiguousarray(changed_lines, dtype=np.int64),
+              np.cumsum(grow).astype(np.int64), np.ascontiguousarray(line_first, dtype=bool),
+              np.ascontiguousarray(changed_piece, dtype=bool))
     layer_z = list(draft.table.layer_z)
     if draft.original.layers_by_z:
         # no layer markers: the reader starts a layer at each extrusion above the last,

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin._jit import njit
+from flowtwin.compensation._grid_kernel import split_lines
 from flowtwin.errors import GcodeError
 from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode.inputs import open_source
@@ -283,7 +284,8 @@ def _e_grid(table: MoveTable, e_sets: list[tuple[int, float]], name: str
         counts = np.diff(np.append(first, n))
         single = counts == 1
         out[first[single]] = line_grid[single]
-        for k in np.flatnonzero(~single).tolist():  # arcs: split over the chords
+        # arcs: split over the chords (the few the kernel leaves, here)
+        for k in split_lines(de, first, counts, line_grid, out).tolist():
             a, b = int(first[k]), int(first[k] + counts[k])
             w = de[a:b]
             s = float(np.sum(w))

@@ -287,3 +287,31 @@ def _cut_rows(cut: npt.NDArray[np.bool_], edge_ok: npt.NDArray[np.bool_], n_acc:
         s1[offsets[i + 1] - 1] = length[i]
         v1[offsets[i + 1] - 1] = ev[i]
     return row, tau0, tau1, s0, s1, v0, v1, offsets
+
+
+@njit(cache=True, error_model="numpy")
+def piece_points(row: IntArray, s1_mm: FloatArray, row_length_mm: FloatArray,
+                 offsets: IntArray, start: FloatArray, end: FloatArray) -> FloatArray:
+    """Toolhead position at every piece's end, ``(n, 3)``: along its row's straight path
+    from ``start`` to ``end`` (``(n_rows, 3)``) at the share :attr:`Pieces.fraction_end`,
+    every row's last piece exactly at the row's end. As the array expressions give it:
+    ``start + f·(end − start)``, then the rows' ends put at ``offsets[r + 1] − 1`` in row
+    order (a row without pieces puts its end on the piece before, as they did)."""
+    n = row.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        r = row[k]
+        length = row_length_mm[r]
+        f = s1_mm[k] / length if length > 0 else 1.0
+        if k == offsets[r + 1] - 1:
+            f = 1.0
+        for c in range(3):
+            out[k, c] = start[r, c] + f * (end[r, c] - start[r, c])
+    if n:
+        for r in range(offsets.shape[0] - 1):
+            at = offsets[r + 1] - 1
+            if at < 0:
+                at += n
+            for c in range(3):
+                out[at, c] = end[r, c]
+    return out

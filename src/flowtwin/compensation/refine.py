@@ -29,6 +29,8 @@ import numpy.typing as npt
 
 from flowtwin.compensation._refine_kernel import (
     apply_holds,
+    first_segments,
+    model_columns,
     model_pass,
     piece_segments,
     segment_maps,
@@ -150,20 +152,17 @@ class LagModel:
         if precharge is None or not np.any(np.asarray(precharge[1]) != 0.0):
             return self.seg_c
         seg_c = self.seg_c.copy()
-        first_seg = np.full(int(self.free_pieces.size), -1, dtype=np.int64)
-        at = np.flatnonzero(self.seg_piece >= 0)
-        var = self.seg_piece[at]
-        if np.all(var[1:] >= var[:-1]):  # (the chain's order: first occurrences in one pass)
-            new = np.concatenate(([True], var[1:] != var[:-1])) if var.size else var > 0
-            first_seg[var[new]] = at[new]
-        else:
-            var, first = np.unique(self.seg_piece, return_index=True)
-            first_seg[var[var >= 0]] = first[var >= 0]
-        for p, y in zip(np.asarray(precharge[0]).tolist(), np.asarray(precharge[1]).tolist(),
-                        strict=True):
-            s = int(first_seg[p]) if 0 <= p < first_seg.size else -1
-            if y != 0.0 and s > 0 and self.seg_a[s - 1] == 0.0:
-                seg_c[s - 1] += y
+        first_seg = first_segments(self.seg_piece, int(self.free_pieces.size))
+        piece = np.asarray(precharge[0], dtype=np.int64)
+        y = np.asarray(precharge[1], dtype=np.float64)
+        if piece.size != y.size:
+            raise ValueError("one pre-charge per piece")
+        known = (piece >= 0) & (piece < first_seg.size)
+        s = np.full(piece.size, -1, dtype=np.int64)
+        s[known] = first_seg[piece[known]]
+        put = np.flatnonzero((y != 0.0) & (s > 0))
+        put = put[self.seg_a[s[put] - 1] == 0.0]  # on the reset segment before the piece
+        np.add.at(seg_c, s[put] - 1, y[put])  # (in order, repeated segments add up)
         return seg_c
 
     def evaluate(self, ratios: FloatArray, intent: FloatArray,
@@ -252,39 +251,23 @@ def build_lag_model(pieces: Pieces, timeline: Timeline, lag_k_s: FloatArray,
     free_idx = np.flatnonzero(free_piece)
     var_of_piece = np.full(n_p, -1, dtype=np.int64)
     var_of_piece[free_idx] = np.arange(free_idx.size)
-    seg_var = np.where(is_gap, -1, var_of_piece[np.maximum(seg_piece_of, 0)])
-    ratio = np.where(is_gap, 0.0, piece_ratio[np.maximum(seg_piece_of, 0)])
-    seg_a = e
-    seg_b = np.where(seg_var >= 0, g, 0.0)
-    seg_c = np.where(seg_var >= 0, 0.0, g * ratio)
-    # holds through retractions: units = gaps and rows in time order
-    change = np.ones(n_s, dtype=bool)
-    change[1:] = (is_gap[1:] != is_gap[:-1]) | (owner_row[1:] != owner_row[:-1])
-    unit_start = np.flatnonzero(change)
-    unit_end = np.append(unit_start[1:], n_s)
-    unit_is_gap = is_gap[unit_start]
-    unit_row = owner_row[unit_start]
     row_free = np.zeros(n_rows, dtype=bool)
     row_free[r[free_idx]] = True
-    unit_free = np.where(unit_is_gap, False, row_free[unit_row])
-    unit_de = np.where(unit_is_gap, 0.0, np.asarray(row_de, dtype=np.float64)[unit_row])
     hold_rows = np.zeros(n_rows, dtype=bool) if travel_holds is None else travel_holds
-    unit_hold = np.where(unit_is_gap, False, hold_rows[unit_row])
-    holds = apply_holds(unit_start.astype(np.int64), unit_end.astype(np.int64), unit_free,
-                        unit_de, unit_hold, seg_a, seg_b, seg_c)
-    # objective: the groups
+    # the segments' columns, the objective's stretches, and the units (gaps and rows in
+    # time order) the holds through retractions are made of
+    (seg_var, ratio, seg_b, seg_c, seg_row, first, last, unit_start, unit_end, unit_free,
+     unit_de, unit_hold) = model_columns(
+        np.ascontiguousarray(seg_piece_of, dtype=np.int64),
+        np.ascontiguousarray(owner_row, dtype=np.int64), var_of_piece,
+        np.ascontiguousarray(piece_ratio, dtype=np.float64), g, row_free,
+        np.ascontiguousarray(row_de, dtype=np.float64),
+        np.ascontiguousarray(hold_rows, dtype=bool),
+        np.ascontiguousarray(row_group, dtype=np.int64))
+    seg_a = e
+    holds = apply_holds(unit_start, unit_end, unit_free, unit_de, unit_hold, seg_a, seg_b,
+                        seg_c)
     obj_rows = np.arange(n_groups, dtype=np.int64)
-    seg_row = np.where(is_gap, -1, np.asarray(row_group, dtype=np.int64)[owner_row])
-    valid = seg_row >= 0
-    first = np.zeros(n_s, dtype=bool)
-    last = np.zeros(n_s, dtype=bool)
-    idx = np.flatnonzero(valid)
-    if idx.size:
-        rows_v = seg_row[idx]
-        starts = np.concatenate(([True], rows_v[1:] != rows_v[:-1]))
-        ends = np.concatenate((rows_v[1:] != rows_v[:-1], [True]))
-        first[idx[starts]] = True
-        last[idx[ends]] = True
     return LagModel(seg_var.astype(np.int64), ratio, seg_len, seg_a, seg_b, seg_c,
                     seg_row.astype(np.int64), first, last, free_idx.astype(np.int64),
                     obj_rows.astype(np.int64), int(holds), owner_row.astype(np.int64), seg_t,

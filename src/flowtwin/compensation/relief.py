@@ -19,6 +19,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.compensation._refine_kernel import row_starts
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.pieces import Pieces
 from flowtwin.compensation.refine import LagModel
@@ -232,12 +233,8 @@ def row_start_states(model: LagModel, states: FloatArray, n_rows: int) -> FloatA
         Shape ``(n_rows,)``, grid units (``0`` before the file's first segment).
     """
     out = np.full(n_rows, np.nan)
-    own = np.flatnonzero(~model.seg_gap)
-    if own.size == 0:
-        return out
-    owners = model.seg_owner[own]
-    first = own[np.concatenate(([True], owners[1:] != owners[:-1]))]
-    out[model.seg_owner[first]] = np.where(first > 0, states[np.maximum(first - 1, 0)], 0.0)
+    row_starts(model.seg_gap, model.seg_owner, np.ascontiguousarray(states, dtype=np.float64),
+               out)
     return out
 
 
