@@ -49,6 +49,6 @@ def test_a_damaged_gzip_file_is_a_clear_error_naming_the_file(tmp_path: Path,
     bad = packed[:len(packed) // 2] if damage == "truncated" else packed[:-8] + bytes(8)
     path = tmp_path / "damaged.gcode.gz"
     path.write_bytes(bad)
-    with pytest.raises(GcodeError, match="damaged.gcode.gz") as err:
+    with pytest.raises(GcodeError, match=r"damaged\.gcode\.gz") as err:
         read_gcode(path)
     assert "cannot read G-code" in str(err.value)
