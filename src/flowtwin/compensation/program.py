@@ -19,6 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation._program_kernel import (
+    chain_matvec,
+    chain_rmatvec,
     compact_slots,
     csr_matvec,
     csr_rmatvec,
@@ -154,6 +156,20 @@ class Chain:
         p = np.arange(n)
         cols = np.column_stack((np.maximum(p - 1, 0), p, n + np.maximum(self.pre_of, 0)))
         return slot_rows(cols, np.column_stack((self.sub, self.diag, self.pre)))
+
+    def matvec(self, x: FloatArray) -> FloatArray:
+        """``C·x`` (as :meth:`matrix`'s, to the bit), shape ``(n,)``."""
+        out = np.empty(self.n)
+        chain_matvec(self.diag, self.sub, self.pre, self.pre_of,
+                     np.ascontiguousarray(x, dtype=np.float64), out)
+        return out
+
+    def rmatvec(self, y: FloatArray) -> FloatArray:
+        """``Cᵀ·y`` (as :meth:`matrix`'s, to the bit), shape ``(size,)``."""
+        out = np.zeros(self.size)
+        chain_rmatvec(self.diag, self.sub, self.pre, self.pre_of,
+                      np.ascontiguousarray(y, dtype=np.float64), out)
+        return out
 
     def _pre_column(self, piece: IntArray) -> IntArray:
         """Solver's column of the pre-charge feeding each piece (0 for none)."""
