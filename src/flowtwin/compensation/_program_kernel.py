@@ -15,7 +15,7 @@ import numpy.typing as npt
 from flowtwin._jit import njit
 
 __all__ = ["chain_matvec", "chain_rmatvec", "compact_slots", "csr_matvec", "csr_rmatvec",
-           "group_rows", "sort_rows", "take_rows"]
+           "drop_zeros", "group_rows", "sort_rows", "take_rows"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -50,6 +50,30 @@ def take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
     for k in range(rows.shape[0]):
         at = new_ptr[k]
         for p in range(ptr[rows[k]], ptr[rows[k] + 1]):
+            new_col[at] = col[p]
+            new_val[at] = val[p]
+            at += 1
+    return new_ptr, new_col, new_val
+
+
+@njit(cache=True)
+def drop_zeros(ptr: IntArray, col: IntArray, val: FloatArray
+               ) -> tuple[IntArray, IntArray, FloatArray]:
+    """The same rows without their entries whose value is zero (order kept)."""
+    m = ptr.shape[0] - 1
+    new_ptr = np.empty(m + 1, dtype=np.int64)
+    new_ptr[0] = 0
+    k = 0
+    for i in range(m):
+        for p in range(ptr[i], ptr[i + 1]):
+            if val[p] != 0.0:
+                k += 1
+        new_ptr[i + 1] = k
+    new_col = np.empty(k, dtype=np.int64)
+    new_val = np.empty(k)
+    at = 0
+    for p in range(ptr[m]):
+        if val[p] != 0.0:
             new_col[at] = col[p]
             new_val[at] = val[p]
             at += 1

@@ -24,6 +24,7 @@ from flowtwin.compensation._program_kernel import (
     compact_slots,
     csr_matvec,
     csr_rmatvec,
+    drop_zeros,
     group_rows,
     sort_rows,
     take_rows,
@@ -253,11 +254,7 @@ class Chain:
         ptr, col, val = group_rows(np.ascontiguousarray(grp, dtype=np.int64), int(n_groups),
                                    l_p, self.diag, self.sub, self.pre, self.pre_of, alpha,
                                    self.n)
-        keep = val != 0.0
-        row_of = np.repeat(np.arange(int(n_groups)), np.diff(ptr))
-        new_ptr = np.zeros(ptr.size, dtype=np.int64)
-        np.cumsum(np.bincount(row_of[keep], minlength=int(n_groups)), out=new_ptr[1:])
-        return Csr(new_ptr, col[keep], val[keep])
+        return Csr(*drop_zeros(ptr, col, val))
 
     def cuts(self, alpha: FloatArray, l_p: FloatArray, v: FloatArray, grp: IntArray,
              stepped: npt.NDArray[np.bool_]) -> IntArray:
