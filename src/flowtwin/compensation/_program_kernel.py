@@ -14,7 +14,8 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["compact_slots", "csr_matvec", "csr_rmatvec", "group_rows", "sort_rows", "take_rows"]
+__all__ = ["chain_matvec", "chain_rmatvec", "compact_slots", "csr_matvec", "csr_rmatvec",
+           "drop_zeros", "group_rows", "sort_rows", "take_rows"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -49,6 +50,30 @@ def take_rows(ptr: IntArray, col: IntArray, val: FloatArray, rows: IntArray
     for k in range(rows.shape[0]):
         at = new_ptr[k]
         for p in range(ptr[rows[k]], ptr[rows[k] + 1]):
+            new_col[at] = col[p]
+            new_val[at] = val[p]
+            at += 1
+    return new_ptr, new_col, new_val
+
+
+@njit(cache=True)
+def drop_zeros(ptr: IntArray, col: IntArray, val: FloatArray
+               ) -> tuple[IntArray, IntArray, FloatArray]:
+    """The same rows without their entries whose value is zero (order kept)."""
+    m = ptr.shape[0] - 1
+    new_ptr = np.empty(m + 1, dtype=np.int64)
+    new_ptr[0] = 0
+    k = 0
+    for i in range(m):
+        for p in range(ptr[i], ptr[i + 1]):
+            if val[p] != 0.0:
+                k += 1
+        new_ptr[i + 1] = k
+    new_col = np.empty(k, dtype=np.int64)
+    new_val = np.empty(k)
+    at = 0
+    for p in range(ptr[m]):
+        if val[p] != 0.0:
             new_col[at] = col[p]
             new_val[at] = val[p]
             at += 1
@@ -100,6 +125,42 @@ def csr_rmatvec(ptr: IntArray, col: IntArray, val: FloatArray, y: FloatArray,
         yi = y[i]
         for p in range(ptr[i], ptr[i + 1]):
             out[col[p]] += val[p] * yi
+
+
+@njit(cache=True)
+def chain_matvec(diag: FloatArray, sub: FloatArray, pre: FloatArray, pre_of: IntArray,
+                 x: FloatArray, out: FloatArray) -> None:
+    """``out = C·x`` for the chain's ratio map ``C`` (``sub`` below the diagonal, ``diag``
+    on it, ``pre`` in the column ``n + pre_of`` of a piece with a pre-charge), without
+    the matrix: row ``p`` adds its non-zero entries from the left, as :func:`csr_matvec`
+    does on the canonical rows of ``C``."""
+    n = diag.shape[0]
+    for p in range(n):
+        s = 0.0
+        if p >= 1 and sub[p] != 0.0:
+            s += sub[p] * x[p - 1]
+        if diag[p] != 0.0:
+            s += diag[p] * x[p]
+        if pre[p] != 0.0:
+            s += pre[p] * x[n + pre_of[p]]
+        out[p] = s
+
+
+@njit(cache=True)
+def chain_rmatvec(diag: FloatArray, sub: FloatArray, pre: FloatArray, pre_of: IntArray,
+                  y: FloatArray, out: FloatArray) -> None:
+    """``out = Cᵀ·y`` (``out`` zeroed by the caller) for the chain's ratio map, without
+    the matrix: rows taken from the top, each row's non-zero entries from the left, as
+    :func:`csr_rmatvec` does on the canonical rows of ``C``."""
+    n = diag.shape[0]
+    for p in range(n):
+        yp = y[p]
+        if p >= 1 and sub[p] != 0.0:
+            out[p - 1] += sub[p] * yp
+        if diag[p] != 0.0:
+            out[p] += diag[p] * yp
+        if pre[p] != 0.0:
+            out[n + pre_of[p]] += pre[p] * yp
 
 
 @njit(cache=True)

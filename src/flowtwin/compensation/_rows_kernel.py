@@ -16,7 +16,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["changed_rows", "fill_rows"]
+__all__ = ["changed_rows", "fill_rows", "g92_after"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -130,3 +130,49 @@ def changed_rows(row, n_rows, xyz, src, e_grid, row_e, feed, piece_feed):  # typ
                 changed = True
         out[r] = changed
     return out
+
+
+@njit(cache=True)
+def g92_after(line_inert: BoolArray, abs_e: BoolArray, row_line: IntArray,
+              changed_lines: IntArray, out: BoolArray) -> bool:
+    """Mark in ``out`` (zeroed, ``(n_rows,)``) the last row of every rewritten line
+    whose next line that is not inert (1-based ``line_inert[l − 1]`` false) is not
+    rewritten and is read in absolute E (``abs_e`` of the first row at or after it, or
+    of the last row). One merge over lines, rows and rewritten lines, all ascending.
+
+    Returns False (``out`` untouched) when ``row_line`` is not in order or
+    ``changed_lines`` not strictly ascending: the caller then searches as before.
+    """
+    n_rows = row_line.shape[0]
+    n_ch = changed_lines.shape[0]
+    for i in range(1, n_rows):
+        if row_line[i] < row_line[i - 1]:
+            return False
+    for k in range(1, n_ch):
+        if changed_lines[k] <= changed_lines[k - 1]:
+            return False
+    n_lines = line_inert.shape[0]
+    nxt = 0  # candidate next line (1-based), never decreasing
+    j = 0  # first rewritten line ≥ nxt
+    at = 0  # first row whose line is ≥ nxt
+    last = 0  # first row whose line is > the rewritten line
+    for k in range(n_ch):
+        c = changed_lines[k]
+        if nxt <= c:
+            nxt = c + 1
+        while nxt <= n_lines and line_inert[nxt - 1]:
+            nxt += 1
+        if nxt > n_lines:
+            break  # no line after it may read E (nor after any later one)
+        while j < n_ch and changed_lines[j] < nxt:
+            j += 1
+        if j < n_ch and changed_lines[j] == nxt:
+            continue
+        while at < n_rows and row_line[at] < nxt:
+            at += 1
+        if not abs_e[min(at, n_rows - 1)]:
+            continue
+        while last < n_rows and row_line[last] <= c:
+            last += 1
+        out[last - 1 if last >= 1 else n_rows - 1] = True
+    return True

@@ -32,7 +32,10 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["FLAG_NAMES", "piece_bounds", "track_runs"]
+__all__ = ["FLAG_NAMES", "piece_bounds", "run_pieces", "track_runs"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 #: Meaning of the per-piece flags.
 FLAG_NAMES = ("on_target", "ratio_bounds", "jump_bounds", "jump_exceeded", "forced_end")
@@ -233,3 +236,88 @@ def piece_bounds(rate: npt.NDArray[np.float64], row: npt.NDArray[np.int64],
         out[1, i] = c_max
         out[3, i] = c_star - band if anchor else c_min
         out[4, i] = c_star + band if anchor else c_max
+
+
+@njit(cache=True)
+def run_pieces(piece_run: IntArray, row: IntArray, s0: FloatArray, s1: FloatArray,
+               rate: FloatArray, adv: FloatArray, row_run: IntArray, run_e: FloatArray,
+               n_runs: int):  # type: ignore[no-untyped-def]
+    """The pieces of the runs and every piece's target, in one pass.
+
+    Parameters
+    ----------
+    piece_run
+        Run of every piece, −1 outside the runs, ``(p,)`` (pieces of a run consecutive).
+    row, s0, s1
+        Row and path positions of every piece, ``(p,)``.
+    rate
+        Law's E per mm of every row, ``(n_rows,)``.
+    adv
+        Advance term of every piece, ``(p,)``.
+    row_run, run_e
+        Run of every eligible row and its exact E, in row order, ``(r,)``.
+    n_runs
+        Runs.
+
+    Returns
+    -------
+    tuple
+        ``sel`` (the run pieces), their rows and lengths, ``first_flag`` (a run's first
+        piece), ``run_first``, ``run_last``, ``run_id``, the targets (cumulative E⁰
+        within the run, ``E⁰ = rate·length``, plus the advance term; the run's exact
+        E⁰ total at its last piece) and every run's exact E total: as the array
+        expressions give them (sums in numpy's ``cumsum``/``bincount`` order).
+    """
+    n_p = piece_run.shape[0]
+    m = 0
+    for i in range(n_p):
+        if piece_run[i] >= 0:
+            m += 1
+    sel = np.empty(m, dtype=np.int64)
+    pr = np.empty(m, dtype=np.int64)
+    length = np.empty(m)
+    first_flag = np.empty(m, dtype=np.bool_)
+    run_id = np.empty(m, dtype=np.int64)
+    target = np.empty(m)
+    k = 0
+    n_first = 0
+    for i in range(n_p):
+        if piece_run[i] >= 0:
+            sel[k] = i
+            pr[k] = row[i]
+            length[k] = s1[i] - s0[i]
+            first = k == 0 or piece_run[i] != piece_run[sel[k - 1]]
+            first_flag[k] = first
+            if first:
+                n_first += 1
+            run_id[k] = n_first - 1
+            k += 1
+    run_first = np.empty(n_first, dtype=np.int64)
+    run_last = np.empty(n_first, dtype=np.int64)
+    j = 0
+    for k in range(m):
+        if first_flag[k]:
+            run_first[j] = k
+            if j > 0:
+                run_last[j - 1] = k - 1
+            j += 1
+    if n_first > 0:
+        run_last[n_first - 1] = m - 1
+    cum = 0.0
+    base = 0.0
+    for k in range(m):
+        e0 = rate[pr[k]] * length[k]
+        cum = e0 if k == 0 else cum + e0
+        if first_flag[k]:
+            base = cum - e0
+        rel = cum - base
+        last = k == m - 1 or first_flag[k + 1]
+        target[k] = rel if last else rel + adv[sel[k]]
+    size = n_runs
+    r0 = row_run[0] if row_run.shape[0] else 0
+    for i in range(row_run.shape[0]):
+        size = max(size, row_run[i] - r0 + 1)
+    run_total = np.zeros(size)
+    for i in range(row_run.shape[0]):
+        run_total[row_run[i] - r0] += run_e[i]
+    return sel, pr, length, first_flag, run_first, run_last, run_id, target, run_total

@@ -48,7 +48,7 @@ from flowtwin.compensation._law_kernel import (
     segment_at,
     segment_integrals,
 )
-from flowtwin.compensation._track_kernel import FLAG_NAMES, piece_bounds, track_runs
+from flowtwin.compensation._track_kernel import FLAG_NAMES, piece_bounds, run_pieces, track_runs
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.pieces import Pieces
 from flowtwin.compensation.refine import RefineOptions
@@ -397,27 +397,22 @@ def follow_law(pieces: Pieces, timeline: Timeline, elig: npt.NDArray[np.bool_],
     n_runs = int(np.count_nonzero(start))
     piece_run = np.where(elig[pieces.row], row_run_all[pieces.row], -1)
     adv = advance_targets(pieces, timeline, rate, k_la, piece_run, run_rows, row_run, options)
-    sel = np.flatnonzero(piece_run >= 0)
+    # the run pieces, their targets (E⁰ summed within the run plus the advance term, the
+    # run's exact E⁰ at its end) and every run's exact total
+    sel, pr, length, first_flag, run_first, run_last, run_id, target, run_total = run_pieces(
+        np.ascontiguousarray(piece_run, dtype=np.int64),
+        np.ascontiguousarray(pieces.row, dtype=np.int64),
+        np.ascontiguousarray(pieces.s0_mm, dtype=np.float64),
+        np.ascontiguousarray(pieces.s1_mm, dtype=np.float64),
+        np.ascontiguousarray(rate, dtype=np.float64),
+        np.ascontiguousarray(adv, dtype=np.float64),
+        np.ascontiguousarray(row_run, dtype=np.int64),
+        np.asarray(row_e_exact, dtype=np.float64)[run_rows], n_runs)
     empty = np.zeros(0)
     if sel.size == 0:
         z = np.zeros(0, dtype=np.int64)
         return LawResult(z, z, z, z, empty, empty, empty, empty, empty,
                          dict.fromkeys(FLAG_NAMES, 0))
-    pr = pieces.row[sel]
-    length = pieces.length_mm[sel]
-    e0_piece = rate[pr] * length
-    prun = piece_run[sel] - int(piece_run[sel][0])
-    first_flag = np.concatenate(([True], prun[1:] != prun[:-1]))
-    run_first = np.flatnonzero(first_flag)
-    run_last = np.append(run_first[1:], sel.size) - 1
-    run_id = np.cumsum(first_flag) - 1
-    cum = np.cumsum(e0_piece)
-    cum_rel = cum - (cum - e0_piece)[run_first][run_id]
-    target = cum_rel + adv[sel]
-    target[run_last] = cum_rel[run_last]
-    run_total = np.bincount(row_run - row_run[0],
-                            weights=np.asarray(row_e_exact, dtype=np.float64)[run_rows],
-                            minlength=n_runs).astype(np.float64)
     # ratio box (grid units per mm) from the firmware limits, the jump limit at the
     # junction before each piece (a step the original had is allowed) and the starting
     # envelope: anchors (long pieces) keep a ratio near their target's

@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.atomic import atomic_write_bytes
-from flowtwin.compensation._rows_kernel import fill_rows
+from flowtwin.compensation._rows_kernel import fill_rows, g92_after
 from flowtwin.compensation._write_kernel import XYZ_DECIMALS, lay_out, write_text
 from flowtwin.compensation.original import OriginalFile, check_rewritable
 from flowtwin.errors import GcodeError
@@ -220,6 +220,15 @@ def _g92_after(original: OriginalFile, row_line: IntArray, changed_lines: IntArr
     out = np.zeros(row_line.size, dtype=bool)
     if changed_lines.size == 0:
         return out
+    if g92_after(original.line_inert, original.abs_e, np.ascontiguousarray(row_line,
+                 dtype=np.int64), np.ascontiguousarray(changed_lines, dtype=np.int64), out):
+        return out
+    return _g92_after_searched(original, row_line, changed_lines, out)
+
+
+def _g92_after_searched(original: OriginalFile, row_line: IntArray, changed_lines: IntArray,
+                        out: BoolArray) -> BoolArray:
+    """:func:`_g92_after` by binary searches (lines or rows out of order)."""
     unsafe = np.flatnonzero(~original.line_inert) + 1  # line numbers
     k = np.searchsorted(unsafe, changed_lines, side="right")
     has_next = k < unsafe.size

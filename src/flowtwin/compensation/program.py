@@ -19,9 +19,12 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation._program_kernel import (
+    chain_matvec,
+    chain_rmatvec,
     compact_slots,
     csr_matvec,
     csr_rmatvec,
+    drop_zeros,
     group_rows,
     sort_rows,
     take_rows,
@@ -155,6 +158,20 @@ class Chain:
         cols = np.column_stack((np.maximum(p - 1, 0), p, n + np.maximum(self.pre_of, 0)))
         return slot_rows(cols, np.column_stack((self.sub, self.diag, self.pre)))
 
+    def matvec(self, x: FloatArray) -> FloatArray:
+        """``C·x`` (as :meth:`matrix`'s, to the bit), shape ``(n,)``."""
+        out = np.empty(self.n)
+        chain_matvec(self.diag, self.sub, self.pre, self.pre_of,
+                     np.ascontiguousarray(x, dtype=np.float64), out)
+        return out
+
+    def rmatvec(self, y: FloatArray) -> FloatArray:
+        """``Cᵀ·y`` (as :meth:`matrix`'s, to the bit), shape ``(size,)``."""
+        out = np.zeros(self.size)
+        chain_rmatvec(self.diag, self.sub, self.pre, self.pre_of,
+                      np.ascontiguousarray(y, dtype=np.float64), out)
+        return out
+
     def _pre_column(self, piece: IntArray) -> IntArray:
         """Solver's column of the pre-charge feeding each piece (0 for none)."""
         k = self.pre_of[piece]
@@ -237,11 +254,7 @@ class Chain:
         ptr, col, val = group_rows(np.ascontiguousarray(grp, dtype=np.int64), int(n_groups),
                                    l_p, self.diag, self.sub, self.pre, self.pre_of, alpha,
                                    self.n)
-        keep = val != 0.0
-        row_of = np.repeat(np.arange(int(n_groups)), np.diff(ptr))
-        new_ptr = np.zeros(ptr.size, dtype=np.int64)
-        np.cumsum(np.bincount(row_of[keep], minlength=int(n_groups)), out=new_ptr[1:])
-        return Csr(new_ptr, col[keep], val[keep])
+        return Csr(*drop_zeros(ptr, col, val))
 
     def cuts(self, alpha: FloatArray, l_p: FloatArray, v: FloatArray, grp: IntArray,
              stepped: npt.NDArray[np.bool_]) -> IntArray:
@@ -346,59 +359,37 @@ class PartProgram:
               tolerance: float) -> tuple[int, FloatArray, int]:
         """Solve the part of pieces ``p0 … p1 − 1`` (with the state cap where ``capped``):
         its first position in the solver's order, its variables there, the iterations."""
+        from flowtwin.compensation._part_kernel import part_hessian, part_rows
         from flowtwin.compensation._qp import solve_program
 
         ch, ys, q0 = self.chain.part(p0, p1)
-        n = p1 - p0
-        k_y = int(ys.size)
-        size = n + k_y
-        c0, c_min = self.c0[p0:p1], self.c_min[p0:p1]
+        size = ch.size
         # constraint rows, in the solver's order of the variables: the ratio box,
-        # 0 ≤ y_k ≤ y_max, no backflow, the ratio steps, the state cap
-        con = [ch.box_rows(), ch.unit_rows(n + np.arange(k_y))]
-        d_con = [c0, np.zeros(k_y)]
-        lo_con = [c_min, np.zeros(k_y)]
-        hi_con = [self.hi[p0:p1], self.y_max[ys]]
-        # no backflow [001 Fig. 8]: a piece that may pull back (c_min < 0) ends with x ≥ 0;
-        # the state falls monotonically while it pulls, so it stays ≥ 0 throughout and the
-        # linear model stays the twin's
-        pull = np.flatnonzero(c_min < 0)
-        if pull.size:
-            con.append(ch.unit_rows(pull))
-            d_con.append(np.zeros(pull.size))
-            lo_con.append(np.zeros(pull.size))
-            hi_con.append(np.full(pull.size, np.inf))
-        if self.jump is not None:
-            step = np.flatnonzero(self.stepped[p0:p1])
-            if step.size:
-                # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1), within ±jump_p
-                j = np.maximum(self.jump[p0:p1][step], 1e-9)
-                con.append(ch.step_rows(step))
-                d_con.append(c0[step] - c0[step - 1])
-                lo_con.append(-j)
-                hi_con.append(j)
+        # 0 ≤ y_k ≤ y_max, no backflow [001 Fig. 8] (a piece that may pull back, c_min < 0,
+        # ends with x ≥ 0; the state falls monotonically while it pulls, so it stays ≥ 0
+        # throughout and the linear model stays the twin's), the ratio steps
+        # c_p − c_(p−1) = (C[p] − C[p−1])·x + c0_p − c0_(p−1) within ±jump_p, the state cap
+        # (the rows box_rows, unit_rows and step_rows give, stacked)
+        cap_part, cap_max = np.zeros(0, dtype=np.bool_), self.c0[:0]
         if capped is not None and state_max is not None:
-            part = capped[p0:p1]
-            con.append(ch.unit_rows(np.flatnonzero(part)))
-            limit = np.asarray(state_max, dtype=np.float64)[p0:p1][part]
-            d_con.append(np.zeros(limit.size))
-            lo_con.append(np.full(limit.size, -np.inf))
-            hi_con.append(limit)
-        rows = stack_rows(con)
-        del con
-        h_upper, _ = ch.hessian(self.v[p0:p1], self.v_y[ys])
-        h_val = h_upper.val * (1.0 / self.scale)  # (as scipy.sparse divides)
-        keep = h_val != 0.0
-        h = (np.repeat(np.arange(size), np.diff(h_upper.ptr))[keep], h_upper.col[keep],
-             h_val[keep])
-        del h_upper, h_val, keep
+            cap_part = capped[p0:p1]
+            cap_max = np.asarray(state_max, dtype=np.float64)[p0:p1]
+        rows_ptr, rows_col, rows_val, d_con, lo_con, hi_con = part_rows(
+            ch.diag, ch.sub, ch.pre, ch.pre_of, ch.new_index, self.c0[p0:p1],
+            self.c_min[p0:p1], self.hi[p0:p1], self.y_max[ys], self.jump is not None,
+            self.stepped[p0:p1], self.c0[p0:p1] if self.jump is None else self.jump[p0:p1],
+            cap_part, cap_max)
+        # the Hessian's upper triangle (as hessian() gives it, divided as scipy.sparse
+        # divides, zeros dropped)
+        h = part_hessian(ch.diag, ch.sub, ch.pre, ch.pre_of, ch.pre_piece, ch.new_index,
+                         self.v[p0:p1], self.v_y[ys], 1.0 / self.scale)
         g0, g1 = int(self.grp[p0]), int(self.grp[p1 - 1]) + 1
         r = ch.outputs(self.grp[p0:p1] - g0, g1 - g0, self.l_p[p0:p1], self.alpha[p0:p1])
-        if k_y:
+        if ys.size:
             r = r.renumbered(ch.new_index)
         z, its, _mu = solve_program(
-            size, h, self.g[q0:q0 + size], (rows.ptr, rows.col, rows.val),
-            np.concatenate(d_con), np.concatenate(lo_con), np.concatenate(hi_con),
+            size, h, self.g[q0:q0 + size], (rows_ptr, rows_col, rows_val),
+            d_con, lo_con, hi_con,
             self.x0[q0:q0 + size], squares=(r.ptr, r.col, r.val, self.w[g0:g1]),
             max_iterations=max_iterations, tolerance=tolerance)
         return q0, z, its

@@ -378,7 +378,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     after_v, y_max, use = _precharge_entries(precharge, alpha, kappa, n)
     k_y = int(after_v.size)
     chain = Chain.of(alpha, e_p, b_p, after_v)
-    c_mat = chain.matrix()  # c = C·[x; y] + c0
+    # c = C·[x; y] + c0 (products from the chain's arrays: chain.matvec, chain.rmatvec)
     c0 = -(e_p * kappa + k_p) / b_p
     # outputs R·[x; y] + r0: Σ L_p·c_p over the move's pieces, minus the state after its
     # last piece, plus the state before its first (x_pre = α·x_(p−1) + κ, or y)
@@ -395,7 +395,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
     # the Hessian is Cᵀ·V·C + Rᵀ·diag(w)·R; the solver takes R's rows as they are (a
     # move cut into many pieces would make its block of Rᵀ·W·R dense)
     size = chain.size
-    g = r_mat.rmatvec(w * r0, size) + c_mat.rmatvec(v * (c0 - c_hat), size)
+    g = r_mat.rmatvec(w * r0, size) + chain.rmatvec(v * (c0 - c_hat))
     r_diag = r_mat.squared().rmatvec(w, size)
     scale = float(np.mean(np.abs(chain.hessian_diagonal(v, v_y) + r_diag))) or 1.0
     del r_diag
@@ -403,7 +403,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
 
     def objective(x: FloatArray) -> float:  # x: [states; pre-charges]
         r = r_mat.matvec(x) + r0
-        c = c_mat.matvec(x) + c0
+        c = chain.matvec(x) + c0
         return float(0.5 * np.sum(w * r * r) + 0.5 * np.sum(v * (c - c_hat) ** 2)
                      + 0.5 * np.sum(v_y * x[n:] ** 2))
 
@@ -454,7 +454,7 @@ def refine_qp(model: LagModel, pieces: Pieces, initial_e: FloatArray, intent: Fl
             iterations = max(iterations, its)
             x[order[q0:q0 + z.size]] = z
     del problem
-    c = np.clip(c_mat.matvec(x) + c0, c_min, hi)
+    c = np.clip(chain.matvec(x) + c0, c_min, hi)
     e_new = c * l_p
     after = objective(x)
     total = float(np.sum(intent))
