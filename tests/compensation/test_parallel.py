@@ -15,9 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from flowtwin.compensation import compensate, pipeline
+from flowtwin.compensation import compensate, readback
 from flowtwin.compensation.ahead import WriteAhead
+from flowtwin.compensation.draft import Draft
+from flowtwin.compensation.emit import draft_text
 from flowtwin.errors import GcodeError
+from flowtwin.gcode.reader import ReadOptions
 
 from .test_emit import checksummed_draft
 
@@ -95,11 +98,39 @@ def test_a_layout_refused_ahead_raises_and_writes_nothing(tmp_path: Path) -> Non
 def test_the_pipeline_stores_the_file_before_it_returns(example: Path, tmp_path: Path,
                                                         monkeypatch: pytest.MonkeyPatch
                                                         ) -> None:
-    """A read-back that fails still leaves the file stored, as the serial write did."""
+    """A read-back that fails (on the worker) still leaves the file stored and raises in
+    the caller, as the serial write did."""
     def broken(*_args: object, **_kw: object) -> None:
         raise GcodeError("read-back refused", source=str(tmp_path / "out.gcode"))
 
-    monkeypatch.setattr(pipeline, "iter_move_chunks", broken)
+    monkeypatch.setattr(readback, "iter_move_chunks", broken)
     with pytest.raises(GcodeError, match="read-back refused"):
         compensate(example, tmp_path / "out.gcode", advance=True, slip=True)
     assert (tmp_path / "out.gcode").stat().st_size > 0
+
+
+def test_the_workers_read_back_is_the_callers(example: Path, tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """The worker reads the text back while the draft is simulated: the same moves and the
+    same verdict as reading that text in the caller, for the pipeline's last draft."""
+    kept: list[tuple[Draft, object, ReadOptions]] = []
+    start = WriteAhead.start
+
+    def keep(self: WriteAhead, draft: Draft, layout: object) -> None:
+        kept.append((draft, layout, self._options))  # type: ignore[arg-type]
+        start(self, draft, layout)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(WriteAhead, "start", keep)
+    compensate(example, tmp_path / "out.gcode", advance=True, slip=True)
+    draft, layout, options = kept[-1]
+    assert options is not None  # the pipeline hands the worker its reader's options
+    with WriteAhead(options) as ahead:
+        ahead.start(draft, layout)  # type: ignore[arg-type]
+        pending = ahead.take(draft, layout)  # type: ignore[arg-type]
+        assert pending is not None
+        text = pending.text()
+        assert text is not None
+        worker = pending.checked()
+    caller = readback.read_back(draft_text(draft, layout), layout, options)  # type: ignore[arg-type]
+    assert worker == caller and worker is not None
+    assert worker.moves == len(draft) and worker.same

@@ -1,15 +1,15 @@
 """The written file's bytes made in a second thread while the main thread simulates its
-draft and reads it back.
+draft.
 
 The last stage of a run knows the draft it will hand on before it simulates it (the slip's
 last round: its simulation only decides whether the round is kept). The text that draft is
 written as (:func:`flowtwin.compensation.emit.draft_text`, a kernel that lets other
-threads run) and the bytes stored (:func:`~flowtwin.compensation.emit.store_text`: zlib
-for a gzip original, which lets other threads run too) are then made by a worker thread
-meanwhile, on the second core; the main thread reads the text back while it is compressed.
-They are used only when the stage hands on that very draft and layout, so the file is the
-same bytes as when made afterwards; a check that refuses the layout raises where the
-serial write would (:meth:`Pending.text`).
+threads run), its read-back (:func:`flowtwin.compensation.readback.read_back`) and the
+bytes stored (:func:`~flowtwin.compensation.emit.store_text`) are then made by a worker
+thread meanwhile, on the second core. They are used only when the stage hands on that very
+draft and layout, so the file is the same bytes as when made afterwards; a check that
+refuses the layout raises where the serial write would (:meth:`Pending.text`), and a text
+that cannot be read back raises where the serial read-back would (:meth:`Pending.checked`).
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.emit import Layout, draft_text, store_text
+from flowtwin.compensation.readback import ReadBack, read_back
+from flowtwin.gcode.reader import ReadOptions
 
 __all__ = ["Pending", "WriteAhead"]
 
@@ -29,10 +31,13 @@ class Pending:
     (the original's own bytes when nothing changed, a binary G-code).
     """
 
-    def __init__(self, draft: Draft, layout: Layout) -> None:
+    def __init__(self, draft: Draft, layout: Layout, options: ReadOptions | None = None
+                 ) -> None:
         self.draft = draft
         self.layout = layout
+        self.options = options
         self._text: Future[bytes | None] = Future()
+        self._checked: Future[ReadBack | None] = Future()
         self.stored_future: Future[bytes | None] | None = None
 
     def make(self) -> bytes | None:
@@ -45,8 +50,16 @@ class Pending:
                 text = draft_text(self.draft, self.layout)
         except BaseException as exc:
             self._text.set_exception(exc)
+            self._checked.set_exception(exc)
             raise
         self._text.set_result(text)
+        if text is None or self.options is None:
+            self._checked.set_result(None)
+        else:
+            try:
+                self._checked.set_result(read_back(text, self.layout, self.options))
+            except Exception as exc:  # raised where the caller asks for it
+                self._checked.set_exception(exc)
         return None if text is None else store_text(self.draft, text)
 
     def text(self) -> bytes | None:
@@ -58,6 +71,16 @@ class Pending:
             The layout cannot be written (the check of :meth:`Draft.check`).
         """
         return self._text.result()
+
+    def checked(self) -> ReadBack | None:
+        """The text read back (after :meth:`text`; ``None`` without reader options).
+
+        Raises
+        ------
+        GcodeError
+            The text cannot be read back.
+        """
+        return self._checked.result()
 
     def stored(self) -> bytes | None:
         """The bytes to store, once made (after :meth:`text`)."""
@@ -71,7 +94,8 @@ class WriteAhead:
     Use as a context manager: leaving it lets a pending encoding go (its result unused).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, options: ReadOptions | None = None) -> None:
+        self._options = options  # the reader's options for the read-back (None: none)
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Pending | None = None
 
@@ -87,7 +111,7 @@ class WriteAhead:
         self.drop()
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flowtwin-write")
-        pending = Pending(draft, layout)
+        pending = Pending(draft, layout, self._options)
         pending.stored_future = self._pool.submit(pending.make)
         self._pending = pending
 

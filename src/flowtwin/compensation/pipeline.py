@@ -47,6 +47,7 @@ from flowtwin.compensation.metrics import Intent, flow_figures
 from flowtwin.compensation.original import read_original
 from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
 from flowtwin.compensation.pace import PaceOptions, PaceReport
+from flowtwin.compensation.readback import ReadBack, read_back
 from flowtwin.compensation.slip import SlipOptions
 from flowtwin.compensation.stages import (
     Current,
@@ -63,7 +64,7 @@ from flowtwin.compensation.stages import (
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
 from flowtwin.errors import DataError, GcodeError
 from flowtwin.gcode.moves import MoveTable
-from flowtwin.gcode.reader import iter_move_chunks, read_gcode
+from flowtwin.gcode.reader import read_gcode
 from flowtwin.planner.from_profile import read_options
 from flowtwin.planner.klipper_config import klipper_read_options, load_printer_cfg
 from flowtwin.profiles.machine import Machine, load_machine
@@ -178,23 +179,27 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     # simulated again only if the report's original_result is read
     setting, handed = _read(src, twin)
     record = _Record([], [])
-    with WriteAhead() as ahead:
+    with WriteAhead(setting.read_options) as ahead:
         current = _run_stages(setting, handed.pop(), stages, advance_passes, record, step,
                               ahead)
         step("write")
         pending = ahead.take(current.draft, current.layout)
         text = None if pending is None else pending.text()
         store: Callable[[], None] | None = None
+        checked: Callable[[], ReadBack | None] | None = None
         if pending is None or text is None:  # no bytes made ahead: written now
             layout = (current.draft.layout() if current.layout is None
                       else current.draft.check(current.layout))
             current.draft.render(dst, layout)
-        else:  # the text is read back and reported while the worker compresses it
+        else:  # the worker read the text back; the report is made while it compresses
             layout = pending.layout
             store = _storer(current.draft, dst, pending)
+            checked = pending.checked
         step("simulate result")
         try:
-            after = _written(setting, current, layout, dst, text=text, flush=store)
+            back = checked() if checked is not None else None
+            after = _written(setting, current, layout, dst, text=text if back is None else None,
+                             flush=store, checked=back)
             del text
             report = _report(setting, current.draft, after, record, src, dst,
                              lines_rewritten=layout.lines_rewritten,
@@ -238,51 +243,33 @@ def _read(src: Path, twin: Twin) -> tuple[Setting, list[Current]]:
 
 
 def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
-             text: bytes | None = None, flush: Callable[[], None] | None = None
-             ) -> SimulationResult:
+             text: bytes | None = None, flush: Callable[[], None] | None = None,
+             checked: ReadBack | None = None) -> SimulationResult:
     """The twin's simulation of the written file.
 
-    The file is read back (or ``text``, its G-code text, being stored by ``flush``), a
-    chunk at a time; where its moves are the draft's table bit for bit (always, but for relative
-    coordinates after a rewritten line), the draft's simulation is the file's, else the
-    file is simulated as read.
+    The file is read back (or ``text``, its G-code text, being stored by ``flush``; or
+    ``checked``, that text already read back by the write-ahead worker), a chunk at a
+    time (:func:`~flowtwin.compensation.readback.read_back`); where its moves are the
+    draft's table bit for bit (always, but for relative coordinates after a rewritten
+    line), the draft's simulation is the file's, else the file is simulated as read.
 
     Raises
     ------
     GcodeError
         The written file does not read back as the pieces written.
     """
-    mine = layout.rows
-    n = 0
-    same = True
-    last = None
-    for chunk in iter_move_chunks(dst if text is None else text, options=setting.read_options,
-                                  chunk_bytes=_READ_BACK_CHUNK_BYTES):
-        mv, k = chunk.moves, len(chunk)
-        same = same and n + k <= len(mine) and all(
-            np.array_equal(mv[name], mine[name][n:n + k]) for name in _READ_BACK_COLUMNS)
-        n += k
-        last = chunk
+    back = checked if checked is not None else read_back(
+        dst if text is None else text, layout, setting.read_options)
     del text
-    if n != len(current.draft):
+    if back.moves != len(current.draft):
         raise GcodeError("the rewritten file does not read back as the pieces written "
-                         f"({n} moves, {len(current.draft)} pieces)", source=dst,
+                         f"({back.moves} moves, {len(current.draft)} pieces)", source=dst,
                          allowed="a reader/writer round trip that keeps every piece")
-    if same and last is not None and np.array_equal(
-            np.asarray(last.layer_z, dtype=np.float64),
-            np.asarray(layout.layer_z, dtype=np.float64), equal_nan=True):
+    if back.same:
         return current.sim
-    del last
     if flush is not None:  # (simulate the file as stored and named)
         flush()
     return setting.twin.simulate_table(read_gcode(dst, options=setting.read_options))
-
-
-#: The move columns the read-back compares with the draft's table.
-_READ_BACK_COLUMNS = ("x", "y", "z", "e", "de", "feed_mm_s", "kind", "layer", "tool", "flow",
-                      "feature", "line")
-#: Text read back per chunk: the check holds one chunk's rows at a time, not the file's.
-_READ_BACK_CHUNK_BYTES = 1 << 20
 
 
 def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_passes: int,
