@@ -1,4 +1,5 @@
-"""Shared fixtures of the compensation tests: the built-in example print, in both E modes."""
+"""Shared fixtures of the compensation tests: the built-in example print, in both E modes;
+a compiled step checked against its numpy original through a whole compensation."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import re
 from collections.abc import Callable
 from decimal import Decimal
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -99,3 +102,27 @@ def thin_gcode(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("thin") / "thin.gcode"
     thin_transition_gcode(path)
     return path
+
+
+#: The corpus print whose compensation passes the kernel checks run through.
+CHECK_PRINT = "prusaslicer_2.8.1_minicube_small.gcode"
+
+
+def sizes_through_compensation(monkeypatch: pytest.MonkeyPatch, module: ModuleType, name: str,
+                               assert_same: Callable[[tuple[Any, ...]], object],
+                               corpus_dir: Path, tmp_path: Path) -> list[int]:
+    """Compensate :data:`CHECK_PRINT` (advance and slip) with ``module.name`` checked by
+    ``assert_same`` on every call's arguments; the first argument's size of each call."""
+    from flowtwin.compensation import compensate
+
+    kernel = getattr(module, name)
+    sizes: list[int] = []
+
+    def checked(*args: Any) -> Any:
+        assert_same(args)
+        sizes.append(int(args[0].size))
+        return kernel(*args)
+
+    monkeypatch.setattr(module, name, checked)
+    compensate(corpus_dir / CHECK_PRINT, tmp_path / CHECK_PRINT, advance=True, slip=True)
+    return sizes

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from flowtwin.compensation._grid_kernel import MAX_ROWS, _numpy_sum, split_lines
+from flowtwin.compensation.original import split_line
 from flowtwin.gcode.reader import read_gcode
 
 
@@ -18,13 +19,7 @@ def _numpy_split(de: Any, first: Any, counts: Any, line_grid: Any, out: Any) -> 
     """The loop as the original file's reader ran it (every line of several rows)."""
     for k in np.flatnonzero(counts != 1).tolist():
         a, b = int(first[k]), int(first[k] + counts[k])
-        w = de[a:b]
-        s = float(np.sum(w))
-        cum = (np.cumsum(w) / s * line_grid[k] if s != 0.0
-               else np.linspace(line_grid[k] / w.size, line_grid[k], w.size))
-        pos = np.rint(cum).astype(np.int64)
-        pos[-1] = line_grid[k]
-        out[a:b] = np.diff(np.concatenate(([0], pos)))
+        out[a:b] = split_line(de[a:b], int(line_grid[k]))
 
 
 def _assert_same(de: Any, first: Any, counts: Any, line_grid: Any) -> int:

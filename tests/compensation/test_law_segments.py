@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.compensation import advance, compensate
+from flowtwin.compensation import advance
 from flowtwin.compensation._law_kernel import run_segments, segment_integrals
+
+from .conftest import sizes_through_compensation
 
 
 def _numpy_segments(t0: Any, ta: Any, tc: Any, td: Any, sv: Any, cv: Any, ev: Any, g: Any,
@@ -70,13 +72,6 @@ def test_edge_cases_and_random_rows() -> None:
 @pytest.mark.corpus
 def test_the_passes_of_a_slicer_file(corpus_dir: Path, tmp_path: Path,
                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    sizes: list[int] = []
-
-    def checked(*args: Any) -> Any:
-        sizes.append(_assert_same(args))
-        return run_segments(*args)
-
-    monkeypatch.setattr(advance, "run_segments", checked)
-    name = "prusaslicer_2.8.1_minicube_small.gcode"
-    compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
+    sizes = sizes_through_compensation(monkeypatch, advance, "run_segments", _assert_same,
+                                       corpus_dir, tmp_path)
     assert sizes and max(sizes) > 1000

@@ -9,8 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.compensation import compensate, refine
+from flowtwin.compensation import refine
 from flowtwin.compensation._refine_kernel import model_columns
+
+from .conftest import sizes_through_compensation
 
 
 def _numpy_columns(seg_piece: Any, owner: Any, var_of_piece: Any, piece_ratio: Any, g: Any,
@@ -73,14 +75,6 @@ def test_edge_cases() -> None:
 @pytest.mark.corpus
 def test_the_models_of_a_slicer_file(corpus_dir: Path, tmp_path: Path,
                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    sizes: list[int] = []
-
-    def checked(*args: Any) -> Any:
-        _assert_same(args)
-        sizes.append(int(args[0].size))
-        return model_columns(*args)
-
-    monkeypatch.setattr(refine, "model_columns", checked)
-    name = "prusaslicer_2.8.1_minicube_small.gcode"
-    compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
+    sizes = sizes_through_compensation(monkeypatch, refine, "model_columns", _assert_same,
+                                       corpus_dir, tmp_path)
     assert sizes and max(sizes) > 1000

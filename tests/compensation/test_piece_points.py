@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.compensation import bake, compensate
+from flowtwin.compensation import bake
 from flowtwin.compensation.pieces import piece_points
+
+from .conftest import sizes_through_compensation
 
 
 def _numpy_points(row: Any, s1: Any, row_length: Any, offsets: Any, start: Any,
@@ -54,14 +56,6 @@ def test_edge_cases() -> None:
 @pytest.mark.corpus
 def test_the_passes_of_a_slicer_file(corpus_dir: Path, tmp_path: Path,
                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    sizes: list[int] = []
-
-    def checked(*args: Any) -> Any:
-        _assert_same(args)
-        sizes.append(int(args[0].size))
-        return piece_points(*args)
-
-    monkeypatch.setattr(bake, "piece_points", checked)
-    name = "prusaslicer_2.8.1_minicube_small.gcode"
-    compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
+    sizes = sizes_through_compensation(monkeypatch, bake, "piece_points", _assert_same,
+                                       corpus_dir, tmp_path)
     assert sizes and max(sizes) > 1000

@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from flowtwin.compensation import advance, compensate
+from flowtwin.compensation import advance
 from flowtwin.compensation._track_kernel import run_pieces
+
+from .conftest import sizes_through_compensation
 
 
 def _numpy(piece_run: Any, row: Any, s0: Any, s1: Any, rate: Any, adv: Any, row_run: Any,
@@ -89,14 +91,6 @@ def test_edge_cases() -> None:
 @pytest.mark.corpus
 def test_the_passes_of_a_slicer_file(corpus_dir: Path, tmp_path: Path,
                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    sizes: list[int] = []
-
-    def checked(*args: Any) -> Any:
-        _assert_same(args)
-        sizes.append(int(args[0].size))
-        return run_pieces(*args)
-
-    monkeypatch.setattr(advance, "run_pieces", checked)
-    name = "prusaslicer_2.8.1_minicube_small.gcode"
-    compensate(corpus_dir / name, tmp_path / name, advance=True, slip=True)
+    sizes = sizes_through_compensation(monkeypatch, advance, "run_pieces", _assert_same,
+                                       corpus_dir, tmp_path)
     assert len(sizes) >= 2 and max(sizes) > 1000

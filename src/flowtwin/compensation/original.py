@@ -30,7 +30,7 @@ from flowtwin.gcode._columns import fill_columns
 from flowtwin.gcode.inputs import open_source
 from flowtwin.gcode.moves import MoveKind, MoveTable
 
-__all__ = ["MAX_E_DECIMALS", "MIN_E_DECIMALS", "OriginalFile", "read_original"]
+__all__ = ["MAX_E_DECIMALS", "MIN_E_DECIMALS", "OriginalFile", "read_original", "split_line"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -287,14 +287,20 @@ def _e_grid(table: MoveTable, e_sets: list[tuple[int, float]], name: str
         # arcs: split over the chords (the few the kernel leaves, here)
         for k in split_lines(de, first, counts, line_grid, out).tolist():
             a, b = int(first[k]), int(first[k] + counts[k])
-            w = de[a:b]
-            s = float(np.sum(w))
-            cum = (np.cumsum(w) / s * line_grid[k] if s != 0.0
-                   else np.linspace(line_grid[k] / w.size, line_grid[k], w.size))
-            pos = np.rint(cum).astype(np.int64)
-            pos[-1] = line_grid[k]
-            out[a:b] = np.diff(np.concatenate(([0], pos)))
+            out[a:b] = split_line(de[a:b], int(line_grid[k]))
     return decimals, out
+
+
+def split_line(de: npt.NDArray[np.float64], total: int) -> IntArray:
+    """A line's E on the grid (``total`` steps) split over its rows in proportion to their
+    ``de`` (evenly when they sum to zero), each row's share the difference of the rounded
+    running totals, so the shares add up to ``total`` exactly; shape ``(rows,)``."""
+    s = float(np.sum(de))
+    cum = (np.cumsum(de) / s * total if s != 0.0
+           else np.linspace(total / de.size, total, de.size))
+    pos = np.rint(cum).astype(np.int64)
+    pos[-1] = total
+    return np.diff(np.concatenate(([0], pos)))
 
 
 def _e_coordinates(table: MoveTable, row_e: IntArray, e_sets: list[tuple[int, float]],
