@@ -134,9 +134,11 @@ def main(argv: list[str] | None = None) -> None:
     terminated: list[int] = []
 
     def interrupt(signum: int, frame: FrameType | None) -> None:
-        if _in_native_callback(frame):
-            # an exception raised in a ctypes callback is printed and dropped by ctypes,
-            # and the run would go on: take the signal again once the callback is left
+        if _unsafe_to_raise(frame):
+            # raised there, the exception would be dropped (a ctypes callback, a
+            # finalizer) or would leave a lock held for good (between a lock's acquire and
+            # its ``with`` body): another thread needing it would then hang, and so would
+            # the exit that waits for that thread. Take the signal again once out of there.
             _resend_soon(signum)
             return
         if signum == signal.SIGTERM:  # unwind like Ctrl-C: outputs are dropped whole
@@ -255,25 +257,38 @@ def _resume_collection() -> None:
 
 
 #: Python functions that C code calls back through ctypes while numba compiles or loads a
-#: kernel (llvmlite's object cache): (file name ending, function name).
+#: kernel (llvmlite's object cache): (file name ending, function name). An exception
+#: raised in them is printed and dropped by ctypes, and the run would go on.
 _NATIVE_CALLBACKS = (("executionengine.py", "_raw_object_cache_notify"),
                      ("executionengine.py", "_raw_object_cache_getbuffer"))
+#: Modules whose locks run Python code between the lock's acquire and the ``with`` body
+#: (and before its release): llvmlite's lock around every LLVM call, whose callbacks are
+#: numba's events, and numba's compiler lock. An exception raised there leaves the lock
+#: held by the main thread, and a worker thread that loads a kernel then waits for ever.
+_LOCK_MODULES = ("llvmlite/binding/ffi.py", "numba/core/compiler_lock.py",
+                 "numba/core/event.py")
 
 
-def _in_native_callback(frame: FrameType | None) -> bool:
-    """Whether ``frame`` runs inside one of :data:`_NATIVE_CALLBACKS`."""
+def _unsafe_to_raise(frame: FrameType | None) -> bool:
+    """Whether ``frame`` runs where an exception must not be raised: inside one of
+    :data:`_NATIVE_CALLBACKS`, one of :data:`_LOCK_MODULES`, or a finalizer (``__del__``:
+    Python drops what it raises)."""
     while frame is not None:
         code = frame.f_code
-        if any(code.co_name == name and code.co_filename.endswith(file)
-               for file, name in _NATIVE_CALLBACKS):
+        name, file = code.co_name, code.co_filename.replace(os.sep, "/")
+        if name == "__del__" or any(file.endswith(m) for m in _LOCK_MODULES) or any(
+                name == cb and file.endswith(f) for f, cb in _NATIVE_CALLBACKS):
             return True
         frame = frame.f_back
     return False
 
 
 def _resend_soon(signum: int) -> None:
-    """Send ``signum`` to this process again in 10 ms (from a daemon thread)."""
-    timer = threading.Timer(0.01, os.kill, (os.getpid(), signum))
+    """Send ``signum`` to the main thread again in 10 ms (from a daemon thread): to the
+    main thread itself, so that a wait it is in (for a worker, say) is interrupted."""
+    main_id = threading.main_thread().ident
+    assert main_id is not None
+    timer = threading.Timer(0.01, signal.pthread_kill, (main_id, signum))
     timer.daemon = True
     timer.start()
 
