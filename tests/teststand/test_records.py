@@ -85,6 +85,9 @@ GOOD = "3,80,1,0,0.00,1.0,0.5,80\n3,80,1,0,0.02,1.0,0.6,80\n"
     ("3,0,1,0,0.00,1.0,0.5,80\n", 2, "pinch_force_set_n", "out of range"),
     ("3,80,1,x,0.00,1.0,0.5,80\n", 2, "repeat", "not a repeat number"),
     ("3,80,1,-1,0.00,1.0,0.5,80\n", 2, "repeat", "not a repeat number"),
+    # a control character str.strip would take away (found by the fuzz test below)
+    ("3,80,1,0\x1f,0.00,1.0,0.5,80\n", 2, "repeat", "not a repeat number"),
+    ("3\x1f,80,1,0,0.00,1.0,0.5,80\n", 2, "roller_id", "invalid roller id"),
     ("ro ller,80,1,0,0.00,1.0,0.5,80\n", 2, "roller_id", "invalid roller id"),
     (GOOD + "3,80,1,0,0.02,1.0,0.6,80\n", 4, "t_s", "time does not increase"),
     (GOOD + "3,80,1,0,0.04,1.0,0.6\n", 4, "-", "wrong number of fields"),

@@ -17,7 +17,7 @@ import signal
 import sys
 import threading
 from types import FrameType
-from typing import TYPE_CHECKING, Annotated, NoReturn, Protocol, cast
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn, Protocol, cast
 
 import typer
 
@@ -145,39 +145,48 @@ def main(argv: list[str] | None = None) -> None:
             terminated.append(signum)
         raise KeyboardInterrupt
 
+    previous: dict[int, Any] = {}
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, interrupt)
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, interrupt)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            signal.signal(signal.SIGINT, interrupt)  # Python's Ctrl-C, callback-safe
+            # Python's Ctrl-C, callback-safe
+            previous[signal.SIGINT] = signal.signal(signal.SIGINT, interrupt)
     try:
-        # standalone_mode=False returns typer.Exit codes instead of exiting with them
-        code = app(args=argv, standalone_mode=False)
-    except FlowtwinError as exc:
-        _err().print(f"[bold red]error:[/] {_escape(str(exc))}", markup=True, soft_wrap=True)
-        sys.exit(EXIT_USER_ERROR)
-    except OSError as exc:
-        if exc.filename is None:  # not about a file the user named: a bug, reported below
+        try:
+            # standalone_mode=False returns typer.Exit codes instead of exiting with them
+            code = app(args=argv, standalone_mode=False)
+        except FlowtwinError as exc:
+            _err().print(f"[bold red]error:[/] {_escape(str(exc))}", markup=True, soft_wrap=True)
+            sys.exit(EXIT_USER_ERROR)
+        except OSError as exc:
+            if exc.filename is None:  # not about a file the user named: a bug, below
+                _internal_error(exc)
+            message = _escape(str(file_access_error(exc, writing=None)))
+            _err().print(f"[bold red]error:[/] {message}", markup=True, soft_wrap=True)
+            sys.exit(EXIT_USER_ERROR)
+        except KeyboardInterrupt:
+            _interrupted(terminated)
+        except SystemExit:
+            raise
+        except Exception as exc:  # last line of defence for the user
+            kind = _click_kind(exc)
+            if kind == "ClickException":  # a usage error: typer's message, exit 2
+                usage = cast(_ClickError, exc)
+                usage.show()
+                sys.exit(usage.exit_code)
+            if kind == "Abort":  # click's Ctrl-C (or SIGTERM, through the handler)
+                _interrupted(terminated)
             _internal_error(exc)
-        _err().print(f"[bold red]error:[/] {_escape(str(file_access_error(exc, writing=None)))}",
-                     markup=True, soft_wrap=True)
-        sys.exit(EXIT_USER_ERROR)
-    except KeyboardInterrupt:
-        _interrupted(terminated)
-    except SystemExit:
-        raise
-    except Exception as exc:  # last line of defence for the user
-        kind = _click_kind(exc)
-        if kind == "ClickException":  # a usage error: typer's message, exit 2
-            usage = cast(_ClickError, exc)
-            usage.show()
-            sys.exit(usage.exit_code)
-        if kind == "Abort":  # click's form of Ctrl-C (or of SIGTERM, through the handler)
-            _interrupted(terminated)
-        _internal_error(exc)
-    else:
-        if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C or our SIGTERM)
-            _interrupted(terminated)
-        sys.exit(code if isinstance(code, int) else 0)
+        else:
+            if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C, our SIGTERM)
+                _interrupted(terminated)
+            sys.exit(code if isinstance(code, int) else 0)
+    finally:
+        # the command is over, its outputs written or dropped whole: a signal from now on
+        # would only interrupt the exit (its handlers, the wait for a writer thread), where
+        # the exception is printed and dropped; the process's own handling takes it
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 #: Seconds from the start of a ``flowtwin`` process without automatic garbage collection.

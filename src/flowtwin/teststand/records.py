@@ -325,17 +325,19 @@ def read_records_csv(path: str | os.PathLike[str]) -> tuple[Record, ...]:
         raise DataError("the file has a header but no data rows", source=source,
                         line=header_line, allowed="one row per sample")
 
-    roller = [t.strip() for t in cols["roller_id"]]
+    # blanks only: str.strip would also take control characters such as \x1f away
+    roller = [t.strip(" \t\r") for t in cols["roller_id"]]
     for text, line in zip(roller, lines, strict=True):
         if _ROLLER_RE.fullmatch(text) is None:
             raise _bad(source, line, "roller_id", text, "invalid roller id",
                        "1-64 characters of A-Z a-z 0-9 . _ + -")
     repeat: list[int] = []
     for rep_text, line in zip(cols["repeat"], lines, strict=True):
-        if _INT_RE.fullmatch(rep_text.strip()) is None:
+        rep = rep_text.strip(" \t\r")
+        if _INT_RE.fullmatch(rep) is None:
             raise _bad(source, line, "repeat", rep_text, "not a repeat number",
                        "an integer 0 <= repeat <= 999999999")
-        repeat.append(int(rep_text))
+        repeat.append(int(rep))
     values = {name: _check_numbers(cols[name], lines, spec, source)
               for name, spec in _NUMERIC.items()}
     return _split_records(source, lines, roller, repeat, values)
