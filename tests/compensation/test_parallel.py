@@ -84,7 +84,7 @@ def test_a_layout_refused_ahead_raises_and_writes_nothing(tmp_path: Path) -> Non
     """A check that fails in the worker raises in the caller, as the serial write does."""
     new = checksummed_draft(tmp_path)
     layout = new.layout(check=False)
-    with WriteAhead() as ahead:
+    with WriteAhead(ReadOptions()) as ahead:
         ahead.start(new, layout)
         assert ahead.take(new, new.layout(check=False)) is None  # another layout
         ahead.start(new, layout)

@@ -19,7 +19,7 @@ import numpy.typing as npt
 
 from flowtwin._jit import njit
 
-__all__ = ["accumulate_runs", "f2_values", "last_at_or_before", "run_segments", "search_right",
+__all__ = ["accumulate_runs", "f2_values", "last_at_or_before", "run_segments",
            "segment_at", "segment_integrals"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -126,73 +126,6 @@ def last_at_or_before(starts: FloatArray, t: FloatArray) -> IntArray:
         while j < n and starts[j] <= t[i]:
             j += 1
         out[i] = j - 1
-    return out
-
-
-@njit(cache=True, nogil=True)
-def search_right(arr: FloatArray, t: FloatArray) -> IntArray:
-    """``numpy.searchsorted(arr, t, side="right")`` for ascending ``t``, also where ``arr``
-    is out of order by a rounding here and there (the segments' start times); an empty
-    array when ``t`` is not ascending or either holds a NaN (the caller searches then).
-
-    A binary search stops where ``arr[i − 1] ≤ t < arr[i]`` for the first time it looks;
-    such a *crossing* is unique unless ``t`` lies in ``[arr[p], arr[p − 1])`` for some
-    ``p`` where ``arr`` steps down (a crossing back up needs one). Where it is unique it is
-    the first, which a merged walk finds; elsewhere numpy's own search is repeated,
-    probe for probe, from the state the previous query left (numpy's ``binsearch``: the
-    lower index kept from the previous answer when the key did not decrease).
-    """
-    n = arr.shape[0]
-    q = t.shape[0]
-    for i in range(n):
-        if np.isnan(arr[i]):
-            return np.zeros(0, dtype=np.int64)
-    for i in range(q):
-        if np.isnan(t[i]) or (i > 0 and t[i] < t[i - 1]):
-            return np.zeros(0, dtype=np.int64)
-    # the windows [arr[p], arr[p − 1]) where arr steps down, by their lower end
-    n_win = 0
-    for p in range(1, n):
-        if arr[p] < arr[p - 1]:
-            n_win += 1
-    win_lo = np.empty(n_win)
-    win_hi = np.empty(n_win)
-    w = 0
-    for p in range(1, n):
-        if arr[p] < arr[p - 1]:
-            win_lo[w] = arr[p]
-            win_hi[w] = arr[p - 1]
-            w += 1
-    order = np.argsort(win_lo, kind="mergesort")
-    win_lo = win_lo[order]
-    win_hi = win_hi[order]
-    out = np.empty(q, dtype=np.int64)
-    j = 0  # first index with arr[j] > t (the walk)
-    w = 0  # windows starting at or below t
-    reach = -np.inf  # highest upper end of those
-    result = 0  # numpy's state: the previous answer and key
-    last = t[0] if q else 0.0
-    for i in range(q):
-        key = t[i]
-        while j < n and arr[j] <= key:
-            j += 1
-        while w < n_win and win_lo[w] <= key:
-            reach = max(reach, win_hi[w])
-            w += 1
-        if key < reach:  # more than one crossing: numpy's probes decide
-            lo = result if last <= key else 0
-            hi = n if last <= key else min(result + 1, n)
-            while lo < hi:
-                mid = lo + ((hi - lo) >> 1)
-                if arr[mid] <= key:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            result = lo
-        else:
-            result = j
-        out[i] = result
-        last = key
     return out
 
 

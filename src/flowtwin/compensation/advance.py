@@ -44,7 +44,6 @@ from flowtwin.compensation._law_kernel import (
     f2_values,
     last_at_or_before,
     run_segments,
-    search_right,
     segment_at,
     segment_integrals,
 )
@@ -240,11 +239,8 @@ def smoothed_advance_term(timeline: Timeline, rows: IntArray, rate: FloatArray,
         """``F₂`` at ``t`` within each query's run (0 before the run)."""
         if in_order and np.all(t[1:] >= t[:-1]):
             k = last_at_or_before(starts, t)
-        else:  # a rounding can put a start an ulp late: numpy's search, done faster
-            k = search_right(starts, t)
-            if k.size != t.size:
-                k = np.searchsorted(starts, t, side="right").astype(np.int64)
-            k -= 1
+        else:  # (a rounding can put a start an ulp late)
+            k = (np.searchsorted(starts, t, side="right") - 1).astype(np.int64)
         k, u, inside, after = segment_at(starts, durs, lo, hi, t, k)
         return f2_values(k, u, inside, inside ** 3, after, f1, f2, a0, slope, f1_len)
 

@@ -31,13 +31,12 @@ class Pending:
     (the original's own bytes when nothing changed, a binary G-code).
     """
 
-    def __init__(self, draft: Draft, layout: Layout, options: ReadOptions | None = None
-                 ) -> None:
+    def __init__(self, draft: Draft, layout: Layout, options: ReadOptions) -> None:
         self.draft = draft
         self.layout = layout
         self.options = options
         self._text: Future[bytes | None] = Future()
-        self._checked: Future[ReadBack | None] = Future()
+        self._checked: Future[ReadBack] = Future()
         self.stored_future: Future[bytes | None] | None = None
 
     def make(self) -> bytes | None:
@@ -53,14 +52,13 @@ class Pending:
             self._checked.set_exception(exc)
             raise
         self._text.set_result(text)
-        if text is None or self.options is None:
-            self._checked.set_result(None)
-        else:
-            try:
-                self._checked.set_result(read_back(text, self.layout, self.options))
-            except Exception as exc:  # raised where the caller asks for it
-                self._checked.set_exception(exc)
-        return None if text is None else store_text(self.draft, text)
+        if text is None:  # nothing to read back: the caller writes the file itself
+            return None
+        try:
+            self._checked.set_result(read_back(text, self.layout, self.options))
+        except Exception as exc:  # raised where the caller asks for it
+            self._checked.set_exception(exc)
+        return store_text(self.draft, text)
 
     def text(self) -> bytes | None:
         """The G-code text, once made.
@@ -72,8 +70,8 @@ class Pending:
         """
         return self._text.result()
 
-    def checked(self) -> ReadBack | None:
-        """The text read back (after :meth:`text`; ``None`` without reader options).
+    def checked(self) -> ReadBack:
+        """The text read back (once :meth:`text` gave a text).
 
         Raises
         ------
@@ -94,8 +92,8 @@ class WriteAhead:
     Use as a context manager: leaving it lets a pending encoding go (its result unused).
     """
 
-    def __init__(self, options: ReadOptions | None = None) -> None:
-        self._options = options  # the reader's options for the read-back (None: none)
+    def __init__(self, options: ReadOptions) -> None:
+        self._options = options  # the reader's options, for the read-back
         self._pool: ThreadPoolExecutor | None = None
         self._pending: Pending | None = None
 

@@ -40,7 +40,6 @@ import numpy.typing as npt
 from flowtwin.compensation.advance import AdvanceOptions
 from flowtwin.compensation.ahead import Pending, WriteAhead
 from flowtwin.compensation.draft import Draft
-from flowtwin.compensation.emit import Layout
 from flowtwin.compensation.guard import GuardOptions
 from flowtwin.compensation.limits import extruder_limits
 from flowtwin.compensation.metrics import Intent, flow_figures
@@ -184,23 +183,19 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                               ahead)
         step("write")
         pending = ahead.take(current.draft, current.layout)
-        text = None if pending is None else pending.text()
         store: Callable[[], None] | None = None
-        checked: Callable[[], ReadBack | None] | None = None
-        if pending is None or text is None:  # no bytes made ahead: written now
+        if pending is None or pending.text() is None:  # no bytes made ahead: written now
             layout = (current.draft.layout() if current.layout is None
                       else current.draft.check(current.layout))
             current.draft.render(dst, layout)
+            read: Callable[[], ReadBack] = partial(read_back, dst, layout, setting.read_options)
         else:  # the worker read the text back; the report is made while it compresses
             layout = pending.layout
             store = _storer(current.draft, dst, pending)
-            checked = pending.checked
+            read = pending.checked
         step("simulate result")
         try:
-            back = checked() if checked is not None else None
-            after = _written(setting, current, layout, dst, text=text if back is None else None,
-                             flush=store, checked=back)
-            del text
+            after = _written(setting, current, dst, read, flush=store)
             report = _report(setting, current.draft, after, record, src, dst,
                              lines_rewritten=layout.lines_rewritten,
                              baked_advance=stages.advance is not None, seconds=0.0,
@@ -242,25 +237,22 @@ def _read(src: Path, twin: Twin) -> tuple[Setting, list[Current]]:
                    options), [Current(draft, original, from_file=True)]
 
 
-def _written(setting: Setting, current: Current, layout: Layout, dst: Path, *,
-             text: bytes | None = None, flush: Callable[[], None] | None = None,
-             checked: ReadBack | None = None) -> SimulationResult:
+def _written(setting: Setting, current: Current, dst: Path, read: Callable[[], ReadBack], *,
+             flush: Callable[[], None] | None = None) -> SimulationResult:
     """The twin's simulation of the written file.
 
-    The file is read back (or ``text``, its G-code text, being stored by ``flush``; or
-    ``checked``, that text already read back by the write-ahead worker), a chunk at a
-    time (:func:`~flowtwin.compensation.readback.read_back`); where its moves are the
-    draft's table bit for bit (always, but for relative coordinates after a rewritten
-    line), the draft's simulation is the file's, else the file is simulated as read.
+    ``read`` gives the file read back (:func:`~flowtwin.compensation.readback.read_back`:
+    the stored file, or its text while ``flush`` stores it, read back by the write-ahead
+    worker); where its moves are the draft's table bit for bit (always, but for relative
+    coordinates after a rewritten line), the draft's simulation is the file's, else the
+    file is simulated as read.
 
     Raises
     ------
     GcodeError
         The written file does not read back as the pieces written.
     """
-    back = checked if checked is not None else read_back(
-        dst if text is None else text, layout, setting.read_options)
-    del text
+    back = read()
     if back.moves != len(current.draft):
         raise GcodeError("the rewritten file does not read back as the pieces written "
                          f"({back.moves} moves, {len(current.draft)} pieces)", source=dst,
