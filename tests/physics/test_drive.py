@@ -18,6 +18,7 @@ from flowtwin.physics.drive import (
     slip_gradient,
     slip_gradient_velocity,
     slip_velocity,
+    steady_slip_at_intended_feed,
     steady_state_slip,
 )
 from flowtwin.physics.seed_tables import ROLLERS
@@ -147,6 +148,21 @@ def test_steady_state_slip_is_fixed_point_of_eq6() -> None:
     assert_allclose(k_p + g * f0 * (1.0 - s), s, rtol=1e-13)
     assert_allclose(steady_state_slip(0.0, 0.01, k_p=0.005), 0.005)
     assert float(steady_state_slip(1e9, 0.01)) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_slip_at_the_intended_feed_is_eq6_at_the_nominal_force() -> None:
+    rng = np.random.default_rng(11)
+    f0 = rng.uniform(0.0, 80.0, 50)
+    g = rng.uniform(0.001, 0.02, 50)
+    k_p = rng.uniform(0.0, 0.02, 50)
+    s = steady_state_slip(f0, g, k_p=k_p)
+    s_star = steady_slip_at_intended_feed(s, k_p=k_p)
+    # the feed raised by 1/(1 - s*) delivers the intended feed: the force is F0 again and
+    # Eq. 6 at F0 gives s*
+    assert_allclose(s_star, k_p + g * f0, rtol=1e-12)
+    assert_allclose(steady_slip_at_intended_feed(0.0, k_p=0.01), 0.0)
+    with pytest.raises(DataError, match="slip"):
+        steady_slip_at_intended_feed([0.1, 1.0])
 
 
 def test_eq2_feed_velocity() -> None:

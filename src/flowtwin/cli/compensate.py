@@ -66,7 +66,9 @@ def render_report(report: CompensationReport) -> None:
         ["", "before", "after", "better"], rows))
     notes = [f"lines rewritten: {report.lines_rewritten:,}"]
     if "slip" in report.transformations:
-        notes.append(f"slip feed-forward added {report.added_volume_mm3:.2f} mm³")
+        notes.append(f"slip feed-forward added {report.added_volume_mm3:.2f} mm³ "
+                     f"({report.slip_rounds} round{'s' if report.slip_rounds != 1 else ''}, "
+                     f"{100 * report.slip_change:.3f} % of the flow from its fixed point)")
     if "pace" in report.transformations:
         notes.append(f"pacing slowed {len(report.paced_moves)} moves "
                      f"(+{report.pace_time_cost_s:.1f} s)")

@@ -144,6 +144,10 @@ class CompensationReport:
         Total E written in the G-code (before M221), mm of filament.
     added_volume_mm3
         Volume the slip feed-forward added (mm³ of melt; 0 without it).
+    slip_rounds, slip_change
+        Rounds the slip feed-forward simulated (0 without it) and how far its last round
+        is from the fixed point (:func:`~flowtwin.compensation.slip.slip_change`, a share
+        of the printing flow).
     slowed_moves
         Source lines the grinding guard slowed.
     guard_time_cost_s
@@ -196,6 +200,8 @@ class CompensationReport:
     commanded_e_after_mm: float
     limits: ExtruderLimits
     added_volume_mm3: float = 0.0
+    slip_rounds: int = 0
+    slip_change: float = 0.0
     slowed_moves: tuple[int, ...] = ()
     guard_time_cost_s: float = 0.0
     grinding_moves_before: int = 0
@@ -261,6 +267,8 @@ class CompensationReport:
             "commanded_e_before_mm": self.commanded_e_before_mm,
             "commanded_e_after_mm": self.commanded_e_after_mm,
             "added_volume_mm3": self.added_volume_mm3,
+            "slip_rounds": self.slip_rounds,
+            "slip_change": self.slip_change,
             "slowed_moves": len(self.slowed_moves),
             "slowed_lines": list(self.slowed_moves[:1000]),
             "guard_time_cost_s": self.guard_time_cost_s,

@@ -111,6 +111,8 @@ class _Record:
     pace: PaceReport | None = None
     pace_cost_s: float = 0.0
     added_grid: int = 0
+    slip_rounds: int = 0
+    slip_change: float = 0.0
 
 
 def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[str], *,
@@ -314,6 +316,7 @@ def _run_stages(setting: Setting, current: Current, stages: _Stages, advance_pas
         if slipped.applied:
             record.names.append("slip")
             record.added_grid = slipped.added_grid
+        record.slip_rounds, record.slip_change = slipped.rounds, slipped.change
     return current
 
 
@@ -359,6 +362,7 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
         limits=setting.limits,
         added_volume_mm3=float(record.added_grid * e_unit * m.filament.area_mm2
                                * (float(np.mean(flow[pr])) if np.any(pr) else 1.0)),
+        slip_rounds=record.slip_rounds, slip_change=float(record.slip_change),
         slowed_moves=slowed, guard_time_cost_s=float(record.guard_cost_s),
         grinding_moves_before=summary0.grinding_moves,
         grinding_moves_after=summary1.grinding_moves,

@@ -43,6 +43,7 @@ __all__ = [
     "slip_gradient",
     "slip_gradient_velocity",
     "slip_velocity",
+    "steady_slip_at_intended_feed",
     "steady_state_slip",
 ]
 
@@ -293,6 +294,46 @@ def steady_state_slip(nominal_feed_force_n: npt.ArrayLike,
     g_f0 = require_nonnegative("slip_gradient_per_n", slip_gradient_per_n) * \
         require_nonnegative("nominal_feed_force_n", nominal_feed_force_n)
     return (require_finite("k_p", k_p) + g_f0) / (1.0 + g_f0)
+
+
+def steady_slip_at_intended_feed(slip: npt.ArrayLike, *,
+                                 k_p: npt.ArrayLike = 0.0) -> FloatArray:
+    """Steady slip once the feed is raised so that the drive delivers the intended feed.
+
+    At the intended feed the drive slips by ``s`` (:func:`steady_state_slip`), so it
+    delivers ``(1 − s)`` of it and the force is ``F_0·(1 − s)``. Commanding
+    ``1/(1 − s*)`` of the feed delivers the intended feed again, the force is back at
+    ``F_0``, and [000 Eq. 6] gives ``s* = k_p + s'·F_0``. With
+    ``s'·F_0 = (s − k_p)/(1 − s)`` from the steady slip,
+
+    ``s* = s·(1 − k_p)/(1 − s)``:
+
+    the fixed point of the slip feed-forward ``E' = E/(1 − s(E'))`` [000 §6] from the slip
+    predicted at the uncorrected feed (pressure ∝ flow, docs/spec.md §3.3–3.4).
+
+    Parameters
+    ----------
+    slip
+        Steady slip ``s`` at the intended feed, fraction in ``[0, 1)``, any shape.
+    k_p
+        Offset of Eq. 6, fraction, broadcast.
+
+    Returns
+    -------
+    ndarray
+        ``s*``, fraction, broadcast shape (0 where ``s`` is 0).
+
+    Raises
+    ------
+    DataError
+        A slip outside ``[0, 1)`` or not finite.
+    """
+    s = as_float_array(slip)
+    if not np.all((s >= 0.0) & (s < 1.0)):
+        bad = s[~((s >= 0.0) & (s < 1.0))].flat[0]
+        raise DataError("slip out of range", field="slip", value=float(bad),
+                        allowed="0 <= s < 1")
+    return np.asarray(s * (1.0 - require_finite("k_p", k_p)) / (1.0 - s))
 
 
 def feed_velocity_mm_s(print_speed_mm_s: npt.ArrayLike, bead_area_mm2: npt.ArrayLike,
