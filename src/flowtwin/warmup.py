@@ -8,7 +8,7 @@ command does not. It plans and simulates a small generated print the ways the co
 Klipper and Marlin planners, whole-table and streamed, the default set-up (Marlin-style
 advance) and a Klipper printer with smoothed pressure advance; and it compensates it as
 ``flowtwin compensate --advance --slip`` does (the refinement's interior point and the
-writer: ~15 s more to compile, else a user's first ``compensate`` pays it).
+writer: ~15 s more to compile, else a user's first ``compensate`` pays it), and paced.
 
 The package's modules are byte-compiled too (:func:`compile_bytecode`): Python writes
 ``__pycache__`` on first import, except where ``PYTHONDONTWRITEBYTECODE`` is set (some
@@ -56,6 +56,7 @@ def warm_up() -> float:
     compensate it (advance and slip); return the seconds it took (compilation, or loading
     from the cache when it is warm)."""
     from flowtwin.compensation import compensate
+    from flowtwin.compensation.pace import PaceOptions
     from flowtwin.gcode.generator import PrintSpec, write_print
     from flowtwin.planner.plan_file import plan_gcode
     from flowtwin.planner.plan_stream import plan_stream
@@ -83,6 +84,10 @@ def warm_up() -> float:
             simulate_stream(path, klipper_config=cfg_or_none, section_moves=1000,
                             chunk_bytes=16 * 1024).summary()
         compensate(path, Path(tmp) / "compensated.gcode", advance=True, slip=True)
+        # the pacing everywhere: its staircases are cut on this small print (near the
+        # spots alone there would be none to pace)
+        compensate(path, Path(tmp) / "paced.gcode", advance=True,
+                   pace=PaceOptions(spots=False))
     return time.perf_counter() - t0
 
 

@@ -331,7 +331,7 @@ def test_a_refused_slip_leaves_the_advanced_file_as_it_was(
     the advanced draft's simulation go while it simulated its own drafts and simulates it
     again: the written file and its figures are those of the advance alone, bit for bit.
     (Here the feed-forward is made to double every printing piece's E.)"""
-    from flowtwin.compensation import stages
+    from flowtwin.compensation import slip_stage
     from flowtwin.compensation.slip import slip_feedforward
 
     def doubled(draft, base_e, printing, slip, options):  # type: ignore[no-untyped-def]
@@ -341,7 +341,7 @@ def test_a_refused_slip_leaves_the_advanced_file_as_it_was(
         return out.with_e(e)
 
     alone = compensate(example, tmp_path / "advance.gcode", advance=True)
-    monkeypatch.setattr(stages, "slip_feedforward", doubled)
+    monkeypatch.setattr(slip_stage, "slip_feedforward", doubled)
     refused = compensate(example, tmp_path / "refused.gcode", advance=True, slip=True)
     assert "slip" not in refused.transformations
     assert any("slip feed-forward raised" in w for w in refused.warnings)

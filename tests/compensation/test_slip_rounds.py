@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flowtwin.compensation import SlipOptions, compensate
-from flowtwin.compensation import stages as stages_module
+from flowtwin.compensation import slip_stage as stages_module
 from flowtwin.compensation.slip import slip_change
 from flowtwin.errors import ProfileError
 

@@ -31,7 +31,7 @@ from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.simulation import SimulationResult, SimulationSummary
 from flowtwin.simulation.windowed import windowed_flow
 
-__all__ = ["FlowFigures", "Intent", "extruding_moves", "flow_figures", "window_peak"]
+__all__ = ["FlowFigures", "Intent", "extruding_moves", "flow_figures", "flow_score", "window_peak"]
 
 IntArray = npt.NDArray[np.int64]
 FloatArray = npt.NDArray[np.float64]
@@ -237,3 +237,13 @@ def window_peak(path_mm: npt.NDArray[np.float64], commanded_mm3: npt.NDArray[np.
     """
     return windowed_flow(path_mm, commanded_mm3, delivered_mm3, printed, window_mm=window_mm,
                          spots=0).peak_over
+
+
+def flow_score(before: FlowFigures, after: FlowFigures) -> float:
+    """The larger of two ratios, after over before, of the RMS flow error and of the
+    windowed peak over-extrusion (the smaller the better; a ratio whose ``before`` is 0
+    counts 0; ``after`` must have the windowed peak)."""
+    rms = after.rms_flow_error / before.rms_flow_error if before.rms_flow_error > 0 else 0.0
+    peak = before.peak_overextrusion_window
+    win = max(after.peak_overextrusion_window, 0.0) / peak if peak > 0 else 0.0
+    return max(rms, win)

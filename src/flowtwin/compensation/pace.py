@@ -50,6 +50,13 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.compensation._pace_kernel import (
+    end_bounds,
+    lay_out_paced,
+    staircases,
+    start_bounds,
+    window_max,
+)
 from flowtwin.compensation.column import carried_flows, feed_after
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.envelopes import SAME as _SAME
@@ -236,22 +243,9 @@ def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: fl
                 ) -> FloatArray:
     """Largest ``a`` of the pieces within ``window_mm`` of path before the end of each
     piece, inside its run (``nxt[i]``: piece ``i`` continues into ``i + 1``)."""
-    out = np.asarray(a, dtype=np.float64).copy()
-    a_l = out.tolist()
-    len_l = np.asarray(length, dtype=np.float64).tolist()
-    nxt_l = np.asarray(nxt, dtype=bool).tolist()
-    for i in range(len(a_l)):
-        if not nxt_l[i]:
-            continue
-        best = a_l[i]
-        walked = len_l[i]
-        j = i - 1
-        while j >= 0 and walked < window_mm and nxt_l[j]:
-            best = max(best, a_l[j])
-            walked += len_l[j]
-            j -= 1
-        out[i] = best
-    return out
+    return window_max(np.ascontiguousarray(a, dtype=np.float64),
+                      np.ascontiguousarray(length, dtype=np.float64),
+                      np.ascontiguousarray(nxt, dtype=np.bool_), float(window_mm))
 
 
 def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArray,
@@ -305,10 +299,10 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     length = np.sqrt(np.sum(seg * seg, axis=1))
     pr = np.asarray(printing, dtype=bool) & (length > 0)
     a = np.where(pr, np.asarray(cross_section_mm2, dtype=np.float64), 0.0)
-    k = np.asarray(lag_k_s, dtype=np.float64)
-    sv = np.asarray(start_v_mm_s, dtype=np.float64)
-    cv = np.asarray(cruise_v_mm_s, dtype=np.float64)
-    ev = np.asarray(end_v_mm_s, dtype=np.float64)
+    k = np.ascontiguousarray(lag_k_s, dtype=np.float64)
+    sv = np.ascontiguousarray(start_v_mm_s, dtype=np.float64)
+    cv = np.ascontiguousarray(cruise_v_mm_s, dtype=np.float64)
+    ev = np.ascontiguousarray(end_v_mm_s, dtype=np.float64)
     m = options.margin
     # junction i -> i+1 inside a run
     nxt = np.zeros(n, dtype=bool)
@@ -351,39 +345,11 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     # shorter than gap_lags·K (no relief over it) the bound is carried in flow: the outflow
     # may decay by exp(m·gap/K) between the end of a run and the paced top flow of the next
     g = np.where(pr, m * fall / np.where(k > 0, k, np.inf), 0.0)
-    end_bound = np.full(n, np.inf)
-    bound = math.inf
-    g_l = g.tolist()
-    len_l = length.tolist()
-    anc_l = anchor.tolist()
-    pr_l = pr.tolist()
-    nxt_l = nxt.tolist()
-    allowed_l = allowed.tolist()
-    a_l = a.tolist()
-    k_l = k.tolist()
-    cv_l = cv.tolist()
-    ts_l = np.asarray(t_start_s, dtype=np.float64).tolist()
-    te_l = np.asarray(t_end_s, dtype=np.float64).tolist()
-    next_start = -1  # first piece of the next run
-    next_flow = math.inf  # its paced top flow, mm³/s
-    gaps = 0
-    for i in range(n - 1, -1, -1):
-        if not pr_l[i]:
-            bound = math.inf
-            continue
-        b = min(bound if nxt_l[i] else math.inf, anc_l[i])
-        if not nxt_l[i] and next_start >= 0 and options.gap_lags > 0 and allowed_l[i]:
-            gap = ts_l[next_start] - te_l[i]
-            if gap < options.gap_lags * k_l[i] and math.isfinite(next_flow):
-                carried = next_flow * math.exp(m * max(gap, 0.0) / k_l[i]) / a_l[i]
-                if carried < b and carried < cv_l[i]:
-                    b = carried
-                    gaps += 1
-        end_bound[i] = b
-        bound = b + g_l[i] * len_l[i] if math.isfinite(b) else math.inf
-        if i == 0 or not pr_l[i - 1]:  # a run starts here
-            next_start = i
-            next_flow = a_l[i] * min(cv_l[i], bound)
+    ts = np.ascontiguousarray(t_start_s, dtype=np.float64)
+    te = np.ascontiguousarray(t_end_s, dtype=np.float64)
+    end_bound, gaps = end_bounds(pr, nxt, np.ascontiguousarray(anchor, dtype=np.float64),
+                                 np.ascontiguousarray(allowed), g, length, a, k, cv, ts, te,
+                                 float(options.gap_lags), float(m))
     report.gap_junctions = gaps
     # forward pass: the rise envelope's speed at the start of every piece
     start_bound = np.full(n, np.inf)
@@ -411,20 +377,8 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         v0 = np.where(start_ok, np.maximum(sv, v_carry),
                       np.where(rising & allowed, np.minimum(sv, cap_rise), np.inf))
         report.rise_starts = int(np.count_nonzero(np.isfinite(v0) & (v0 < cv)))
-        acc_l = acc.tolist()
-        v0_l = v0.tolist()
-        carry = math.inf
-        for i in range(n):
-            if not pr_l[i]:
-                carry = math.inf
-                continue
-            b = min(carry, v0_l[i])
-            start_bound[i] = b
-            if math.isfinite(b):
-                end = math.sqrt(b * b + 2.0 * acc_l[i] * len_l[i])
-                carry = end if end < cv_l[i] else math.inf
-            else:
-                carry = math.inf
+        start_bound = start_bounds(pr, np.ascontiguousarray(v0, dtype=np.float64),
+                                   np.ascontiguousarray(acc, dtype=np.float64), length, cv)
     # pieces to cut
     floor = np.maximum(options.min_speed_mm_s, options.max_slowdown * cv)
     over = pr & (cv > floor * (1.0 + _SAME)) & ((end_bound < cv * (1.0 - _SAME))
@@ -432,52 +386,31 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
     pieces = np.flatnonzero(over)
     if pieces.size == 0:
         return draft, report
-    new_counts = np.ones(n, dtype=np.int64)
-    sub_ends: dict[int, list[float]] = {}
-    sub_v: dict[int, list[float]] = {}
-    floored = 0
-    for i in pieces.tolist():
-        ends, speeds = staircase(
-            len_l[i], float(cv[i]), end_v_mm_s=float(end_bound[i]),
-            end_slope_1_s=float(g[i]) if g[i] > 0 else math.inf,
-            start_v_mm_s=float(start_bound[i]),
-            start_accel_mm_s2=float(acc[i]) if math.isfinite(acc[i]) else math.inf,
-            step_ratio=options.step_ratio, min_piece_mm=options.min_piece_mm,
-            floor_mm_s=float(floor[i]))
-        if all(v >= cv[i] * (1.0 - _SAME) for v in speeds):
-            continue
-        share = np.rint(int(draft.e_grid[i]) * np.asarray(ends) / len_l[i])
-        if np.any(np.diff(np.concatenate(([0.0], share))) <= 0):
-            continue  # a sub-piece would print nothing: it would become a travel
-        floored += sum(1 for v in speeds if v <= floor[i] * (1.0 + _SAME))
-        sub_ends[i] = ends
-        sub_v[i] = speeds
-        new_counts[i] = len(ends)
-    report.floored_pieces = floored
-    if not sub_ends:
+    # the squares the staircase's definition takes with ``**`` (the C library's pow)
+    cv_sq = np.array([v ** 2 for v in cv[pieces].tolist()])
+    start_sq = np.array([v ** 2 for v in start_bound[pieces].tolist()])
+    kept, counts, sub_ends, sub_v, floored = staircases(
+        pieces, length, cv, cv_sq, end_bound, g, start_bound, start_sq, acc,
+        np.ascontiguousarray(floor, dtype=np.float64),
+        np.ascontiguousarray(draft.e_grid, dtype=np.int64), float(options.step_ratio),
+        float(options.min_piece_mm), _SAME)
+    report.floored_pieces = int(floored)
+    if kept.size == 0:
         return draft, report
+    new_counts = np.ones(n, dtype=np.int64)
+    new_counts[kept] = counts
     piece = np.repeat(np.arange(n, dtype=np.int64), new_counts)
     offsets = np.concatenate(([0], np.cumsum(new_counts)))
     xyz = draft.xyz_mm[piece].copy()
     e = draft.e_grid[piece].copy()
     feed = draft.piece_feed_mm_min[piece].copy()
-    sf = np.asarray(speed_factor, dtype=np.float64)
-    for i, ends in sub_ends.items():
-        o = int(offsets[i])
-        frac = np.asarray(ends) / len_l[i]
-        frac[-1] = 1.0
-        xyz[o:o + frac.size] = start[i] + frac[:, None] * seg[i]
-        xyz[o + frac.size - 1] = draft.xyz_mm[i]
-        total = int(draft.e_grid[i])
-        cum = np.rint(total * frac).astype(np.int64)
-        cum[-1] = total
-        e[o:o + frac.size] = np.diff(np.concatenate(([0], cum)))
-        old = float(draft.piece_feed_mm_min[i])
-        for jj, v in enumerate(sub_v[i]):
-            if v >= cv[i] * (1.0 - _SAME):
-                continue  # not paced: the line's (or the piece's own) feed
-            f = math.floor(60e3 * v / float(sf[i])) / 1e3  # never above v
-            feed[o + jj] = min(f, old) if math.isfinite(old) else f
+    lay_out_paced(kept, counts, sub_ends, sub_v, offsets, length,
+                  np.ascontiguousarray(start, dtype=np.float64),
+                  np.ascontiguousarray(seg, dtype=np.float64),
+                  np.ascontiguousarray(draft.xyz_mm, dtype=np.float64),
+                  np.ascontiguousarray(draft.e_grid, dtype=np.int64),
+                  np.ascontiguousarray(draft.piece_feed_mm_min, dtype=np.float64), cv,
+                  np.ascontiguousarray(speed_factor, dtype=np.float64), _SAME, xyz, e, feed)
     report.pieces_added = int(offsets[-1] - n)
-    report.paced_rows = np.unique(draft.row[np.fromiter(sub_ends.keys(), dtype=np.int64)])
+    report.paced_rows = np.unique(draft.row[kept])
     return draft.split(piece, xyz, e, feed), report

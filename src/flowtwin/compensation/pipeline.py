@@ -48,16 +48,15 @@ from flowtwin.compensation.outcome import AdvancePassSummary, CompensationReport
 from flowtwin.compensation.pace import PaceOptions, PaceReport
 from flowtwin.compensation.readback import ReadBack, read_back
 from flowtwin.compensation.slip import SlipOptions
+from flowtwin.compensation.slip_stage import SlipStart, slip_stage
 from flowtwin.compensation.stages import (
     Current,
     Setting,
-    SlipStart,
     Twin,
     advance_stage,
     guard_stage,
     pace_stage,
     printing_pieces,
-    slip_stage,
     trajectory_stage,
 )
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport
