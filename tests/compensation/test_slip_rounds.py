@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -58,35 +59,54 @@ def test_rounds_that_do_not_converge_keep_the_best_score_and_say_so(
         example: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     reports = [compensate(example, tmp_path / f"r{k}.gcode", advance=True,
                           slip=SlipOptions(iterations=k, tolerance=0.0)) for k in (1, 2, 3)]
-    scores = [stages_module.flow_score(r.before, r.after) for r in reports]
-    assert len(set(scores)) == 3  # three different drafts
-    kept = 1 + scores.index(min(scores))
+    rms = [r.after.rms_flow_error for r in reports]
+    assert len(set(rms)) == 3  # three different drafts
+    kept = 1 + rms.index(min(rms))
     monkeypatch.setattr(stages_module, "slip_change", lambda *a: 0.5)  # never converges
+    real = stages_module.flow_figures
+    seen = 0
+
+    def rounds_without_a_window_peak(*a, **k):  # type: ignore[no-untyped-def]
+        nonlocal seen
+        seen += 1  # the first call measures the draft the stage starts from
+        f = real(*a, **k)
+        return f if seen == 1 else replace(f, peak_overextrusion_window=0.0)
+
+    monkeypatch.setattr(stages_module, "flow_figures", rounds_without_a_window_peak)
     out = tmp_path / "kept.gcode"
     report = compensate(example, out, advance=True, slip=SlipOptions(iterations=3))
     assert report.slip_rounds == 3
     assert "slip" in report.transformations
-    assert report.after.rms_flow_error == reports[kept - 1].after.rms_flow_error
+    # with no windowed peak, the score orders the rounds by their RMS flow error
+    assert report.after.rms_flow_error == rms[kept - 1]
     assert out.read_bytes() == (tmp_path / f"r{kept}.gcode").read_bytes()
     assert any("did not reach its fixed point in 3 rounds" in w and f"round {kept}" in w
                for w in report.warnings)
 
 
-def test_rounds_that_do_not_converge_are_refused_when_they_score_worse(
+def test_rounds_that_do_not_converge_are_refused_when_a_figure_rises(
         example: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from flowtwin.compensation import metrics
+
     plain = compensate(example, tmp_path / "adv.gcode", advance=True)
     monkeypatch.setattr(stages_module, "slip_change", lambda *a: 0.5)  # never converges
-    real_score = stages_module.flow_score
+    real = metrics.flow_figures
     calls = []
 
-    def worse_after_the_start(before, after):  # type: ignore[no-untyped-def]
-        calls.append(1)
-        return real_score(before, after) + (0.0 if len(calls) == 1 else 1.0)
+    def worse_window_after_the_start(*a, **k):  # type: ignore[no-untyped-def]
+        f = real(*a, **k)
+        if k.get("window_mm") is not None:
+            calls.append(1)
+            if len(calls) > 1:  # every round: a windowed peak above the start's
+                f = replace(f, peak_overextrusion_window=f.peak_overextrusion_window + 1.0)
+        return f
 
-    monkeypatch.setattr(stages_module, "flow_score", worse_after_the_start)
+    monkeypatch.setattr(stages_module, "flow_figures", worse_window_after_the_start)
     out = tmp_path / "refused.gcode"
     report = compensate(example, out, advance=True, slip=SlipOptions(iterations=2))
+    assert len(calls) == 3  # the start and two rounds
     assert "slip" not in report.transformations
-    assert any("windowed peak" in w and "not used" in w for w in report.warnings)
+    assert any("windowed peak over-extrusion" in w and "not used" in w
+               for w in report.warnings)
     assert out.read_bytes() == (tmp_path / "adv.gcode").read_bytes()
     assert report.after.rms_flow_error == plain.after.rms_flow_error

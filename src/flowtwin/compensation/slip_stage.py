@@ -49,23 +49,23 @@ class SlipStart:
     """What the slip stage reads of the draft it starts from (:meth:`of`), so that the
     draft's simulation can be let go while the slip's drafts are simulated: the draft,
     its printing pieces, its twin's RMS flow error and predicted slip per piece, and its
-    :func:`flow_score`."""
+    windowed peak over-extrusion over one nozzle diameter."""
 
     draft: Draft
     printing: BoolArray
     rms: float
     slip: FloatArray
-    score: float = 0.0
+    window_peak: float = 0.0
 
     @classmethod
     def of(cls, setting: Setting, current: Current) -> SlipStart:
-        """The figures of ``current`` (``score``: :func:`flow_score`)."""
+        """The figures of ``current``."""
         draft, sim = current.draft, current.sim
         f = flow_figures(setting.original, sim, draft.row,
                          window_mm=float(setting.twin.machine.hotend.nozzle_diameter_mm))
         return cls(draft, printing_pieces(sim, draft), f.rms_flow_error,
                    np.array(sim.dynamics.moves["slip"], dtype=np.float64),
-                   flow_score(setting.original.before, f))
+                   f.peak_overextrusion_window)
 
 
 def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
@@ -77,9 +77,10 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
 
     The last round is kept when it meets the tolerance (or the tolerance is 0); when no
     round does (near grinding the rounds need not converge: that is warned of), the one
-    with the lowest :func:`flow_score`. Refused when the round kept raises the twin's RMS flow
-    error above the draft's it started from, or, when no round met the tolerance, its
-    score above that draft's. A draft that is kept but was
+    with the lowest :func:`~flowtwin.compensation.metrics.flow_score`. Refused when the
+    round kept raises the twin's RMS flow error above the draft's it started from, or,
+    when no round met the tolerance, its windowed peak over-extrusion (a correction that
+    is not at its fixed point must better both figures). A draft that is kept but was
     not the last simulated is simulated again (its simulation was let go), as is the
     starting draft when refused. ``ahead`` is told each round's draft and layout before
     they are simulated (the outcome hands the kept one on unless refused)."""
@@ -94,8 +95,9 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
     rounds = 0
     change = math.inf
     window = float(setting.twin.machine.hotend.nozzle_diameter_mm)
-    # (score, RMS, round, change, draft) of the best round that missed the tolerance
-    best: tuple[float, float, int, float, Draft] | None = None
+    # (score, RMS, windowed peak, round, change, draft) of the best round that missed
+    # the tolerance
+    best: tuple[float, float, float, int, float, Draft] | None = None
     while rounds < options.iterations and change > options.tolerance:
         draft = slip_feedforward(draft, base, printing, slip, options)
         sim = layout = None  # the last round's simulation is not held through the next one
@@ -111,9 +113,10 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
         slip = predicted
         if change > options.tolerance:  # (another round, or none converged)
             f = flow_figures(setting.original, sim, draft.row, window_mm=window)
-            judged = (flow_score(setting.original.before, f), f.rms_flow_error)
-            if best is None or judged[0] < best[0]:
-                best = (judged[0], judged[1], rounds, change, draft)
+            score = flow_score(setting.original.before, f)
+            if best is None or score < best[0]:
+                best = (score, f.rms_flow_error, f.peak_overextrusion_window, rounds, change,
+                        draft)
     del slip
     if sim is None:  # no round (iterations is at least 1)
         raise DataError("the slip feed-forward needs at least one round",
@@ -121,26 +124,26 @@ def slip_stage(setting: Setting, start: SlipStart, options: SlipOptions, *,
     warnings: list[str] = []
     converged = change <= options.tolerance or options.tolerance == 0.0
     if converged:  # the last round is kept
-        best = (0.0, flow_figures(setting.original, sim, draft.row).rms_flow_error, rounds,
-                change, draft)
+        best = (0.0, flow_figures(setting.original, sim, draft.row).rms_flow_error, 0.0,
+                rounds, change, draft)
     assert best is not None  # (set by every round that missed the tolerance, or above)
-    kept_score, rms1, kept_round, kept_change, kept = best
+    _score, rms1, window1, kept_round, kept_change, kept = best
     if not converged:
         warnings.append(
             f"the slip feed-forward did not reach its fixed point in {rounds} rounds (the "
             f"slip predicted for the last one is {100 * change:.2f} % of the flow off the "
             f"slip it corrected for; the drive is near grinding, try --guard): of the "
             f"rounds, round {kept_round} has the lowest flow error")
-    if rms1 > rms0 or (not converged and kept_score > start.score):
+    # (a negative windowed peak is no over-extrusion: under-extruded everywhere)
+    if rms1 > rms0 or (not converged and max(window1, 0.0) > max(start.window_peak, 0.0)):
         del sim, layout
         layout = start.draft.layout(check=False)
         again = Current(start.draft, setting.twin.simulate_draft(start.draft, layout=layout),
                         layout)
         raised = (f"the twin's RMS flow error (to {100 * rms1:.2f} % from {100 * rms0:.2f} %"
                   if rms1 > rms0 else
-                  f"the larger of the twin's RMS flow error and windowed peak "
-                  f"over-extrusion over the original's (to {kept_score:.3g} from "
-                  f"{start.score:.3g}")
+                  f"the twin's windowed peak over-extrusion (to {100 * window1:.2f} % from "
+                  f"{100 * max(start.window_peak, 0.0):.2f} %")
         return SlipOutcome(again, 0, False, (
             f"the slip feed-forward raised {raised}; the drive is near grinding, try "
             "--guard): it is not used",), rounds, kept_change)
