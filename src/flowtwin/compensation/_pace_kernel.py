@@ -133,20 +133,24 @@ def staircases(pieces: IntArray, length: FloatArray, cv: FloatArray, cv_sq: Floa
     distances and speeds (concatenated in that order) and the sub-pieces at the floor.
     """
     m = pieces.shape[0]
-    # room for every piece's cuts: the two ends, each envelope's levels and its top
+    # room for the cuts: the two ends, each envelope's levels and its top (per piece, and
+    # for all of them)
     room = 0
+    total_room = 0
     for p in range(m):
         i = pieces[p]
         big = cv[i] * (1.0 - same)
-        room = max(room, 2 + _levels(end_bound[i], floor[i], big, step_ratio) + 1
-                   + _levels(start_bound[i], floor[i], big, step_ratio) + 1)
+        r = (2 + _levels(end_bound[i], floor[i], big, step_ratio) + 1
+             + _levels(start_bound[i], floor[i], big, step_ratio) + 1)
+        room = max(room, r)
+        total_room += r
     cuts = np.empty(room)
     ends = np.empty(room)
     speeds = np.empty(room)
     kept = np.empty(m, dtype=np.int64)
     counts = np.empty(m, dtype=np.int64)
-    all_ends = np.empty(m * room)
-    all_v = np.empty(m * room)
+    all_ends = np.empty(total_room)
+    all_v = np.empty(total_room)
     n_kept = 0
     n_out = 0
     floored = 0

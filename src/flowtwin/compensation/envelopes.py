@@ -121,6 +121,10 @@ def staircase(length_mm: float, v_plan_mm_s: float, *, end_v_mm_s: float, end_sl
     speed levels ``v·step_ratioᵏ``, so neighbouring feeds differ by about ``step_ratio``;
     sub-pieces shorter than ``min_piece_mm`` are merged into the slower neighbour.
 
+    This is the definition; the pacing runs the compiled
+    :func:`flowtwin.compensation._pace_kernel.staircases`, held to it to the bit
+    (``tests/compensation/test_pace_kernel.py``).
+
     Parameters
     ----------
     length_mm
