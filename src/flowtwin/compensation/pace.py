@@ -50,13 +50,6 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation._pace_kernel import (
-    end_bounds,
-    lay_out_paced,
-    staircases,
-    start_bounds,
-    window_max,
-)
 from flowtwin.compensation.column import carried_flows, feed_after
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.envelopes import SAME as _SAME
@@ -243,6 +236,8 @@ def _window_max(a: FloatArray, length: FloatArray, nxt: BoolArray, window_mm: fl
                 ) -> FloatArray:
     """Largest ``a`` of the pieces within ``window_mm`` of path before the end of each
     piece, inside its run (``nxt[i]``: piece ``i`` continues into ``i + 1``)."""
+    from flowtwin.compensation._pace_kernel import window_max  # (loaded when pacing)
+
     return window_max(np.ascontiguousarray(a, dtype=np.float64),
                       np.ascontiguousarray(length, dtype=np.float64),
                       np.ascontiguousarray(nxt, dtype=np.bool_), float(window_mm))
@@ -293,6 +288,13 @@ def pace_feeds(draft: Draft, *, printing: BoolArray, cross_section_mm2: FloatArr
         The paced draft (same pieces where nothing is paced; E per sub-piece in proportion
         to its length, exactly on the E grid) and the report.
     """
+    from flowtwin.compensation._pace_kernel import (  # (loaded when pacing)
+        end_bounds,
+        lay_out_paced,
+        staircases,
+        start_bounds,
+    )
+
     n = len(draft)
     start = draft.start_xyz()
     seg = draft.xyz_mm - start
