@@ -63,6 +63,12 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    on the wrong blur: 1.10–1.13 px with any one left out, against 1.23 px), its
    48-frame version +0.1 px. A clip from such a codec whose blur and limb shapes rest
    on fewer than :data:`MIN_GROUPS_INTER` groups is refused.
+6. **A frame's width from its neighbours.** What is left after 1–5 differs from frame
+   to frame by more than the filament does between frames a few apart: the codec's
+   quantizer changes with a frame's place in its group of pictures (on renderer 2 the
+   frames beyond 0.5 px sat beside the key frames). Every width kept is replaced by the
+   local line through its clip's widths over :data:`~flowtwin.vision.width_series.WINDOW_FRAMES`
+   frames (:mod:`flowtwin.vision.width_series`).
 """
 
 from __future__ import annotations
@@ -79,6 +85,7 @@ from flowtwin.vision.roi import Roi
 from flowtwin.vision.silhouette import Silhouette, clip_model, interior_ripple
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
+from flowtwin.vision.width_series import local_line, neighbour_frames
 
 __all__ = ["BLUR_FRAMES", "MIN_GROUPS_INTER", "RIPPLE_MAX", "ROUGH_MAX_PX", "ROUGH_PX",
            "ROUGH_RATIO", "TOOTH_REACH_MM", "ClipWidth", "contact_rows", "is_clean"]
@@ -393,7 +400,9 @@ class ClipWidth:
             for row in range(len(rows.width)):
                 if not rows.flags[row] & skipped:
                     _refuse_row(rows, row)
-        return note
+            return note
+        _follow_neighbours(rows, self.roi.h)
+        return None
 
     def rough_edges(self) -> str | None:
         """Why the edges are not a clean silhouette over the clip (None if they are)."""
@@ -477,6 +486,30 @@ class ClipWidth:
                     f"{center[1]:.0f}), contact radius {r_c:.0f} px): the teeth cover the "
                     "filament's edge there; place the before ROI above or below it")
         return None
+
+
+def _follow_neighbours(rows: RowLog, roi_height_px: int) -> None:
+    """Every frame's width the local line through its neighbours' (module docstring, 6;
+    :func:`~flowtwin.vision.width_series.local_line`), its edges moved symmetrically
+    about their own centre to it.
+
+    The window holds at most :data:`~flowtwin.vision.width_series.WINDOW_FRAMES` frames
+    and no more than the filament travels through the ROI's height (the length the ROI
+    already averages the width over), at the clip's fast speed (the 95th percentile of
+    the filament's steps); without a filament speed, no window.
+    """
+    width = np.asarray(rows.width, dtype=np.float64)
+    if not np.isfinite(width).any():
+        return
+    window = neighbour_frames(rows.t, rows.fil, rows.fil_span, roi_height_px)
+    if window < 3:
+        return
+    centre = 0.5 * (np.asarray(rows.left, dtype=np.float64)
+                    + np.asarray(rows.right, dtype=np.float64))
+    line = local_line(width, window)
+    rows.width[:] = line.tolist()
+    rows.left[:] = (centre - 0.5 * line).tolist()
+    rows.right[:] = (centre + 0.5 * line).tolist()
 
 
 def _tolerance(width_px: float) -> float:
