@@ -110,10 +110,11 @@ ROUGH_MAX_PX = 1.5
 #: Largest ripple of the filament's interior beside an edge (the median over the frame
 #: groups' means, :func:`~flowtwin.vision.silhouette.interior_ripple`), as a fraction
 #: of the edge's contrast, for which the silhouette is taken to be resolved from its
-#: texture (module docstring, 4): 0.2–1.4 % on renderer 2's clips without strong stripes
-#: and on the real clip of [003]; 3.2–7.2 % on the two striped seeds, whose edges read
-#: 0.24–0.57 px off.
-RIPPLE_MAX = 0.025
+#: texture (module docstring, 4). Renderer 2, seeds 1-8 and 11-20, 90 frames: the clips
+#: that read within 0.5 px in every frame ripple by 0.2-1.5 % (the real clip of [003]:
+#: 0.4-1.4 %); 2.0 % reads 0.25 px off in the median, 2.2-2.3 % 0.2-0.9 px (seeds 16
+#: and 19, 130 frames beyond 0.5 px), and the strongly striped 3.3-7.2 %.
+RIPPLE_MAX = 0.018
 #: Fewest frame groups (:class:`FrameGroups`) whose means may set the clip's blur and
 #: limb shapes when the recording was coded by an inter-frame codec (module docstring,
 #: 5): 6 groups, 48 frames at 8 per group.
