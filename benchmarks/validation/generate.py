@@ -1,6 +1,6 @@
 """Make the validation prints: OpenSCAD models → STL → G-code by Debian's slicers.
 
-    python -m benchmarks.validation.generate [--split dev|check] [--out DIR]
+    python -m benchmarks.validation.generate [--split dev|check|check2] [--out DIR]
 
 Needs ``openscad``, ``prusa-slicer``, ``slic3r``, ``CuraEngine`` and the ``cura`` package's
 definitions (``apt-get install -y prusa-slicer slic3r cura-engine cura openscad``). Writes,
@@ -269,7 +269,7 @@ def generate(split: str | None = None, out: Path = OUT) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=["dev", "check"])
+    parser.add_argument("--split", choices=["dev", "check", "check2"])
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     generate(args.split, args.out)

@@ -1,6 +1,8 @@
 """The validation prints: what is sliced, by which slicer, with which settings, for which
 printer — and whether a print belongs to the *dev* set (may be looked at while developing)
-or to the *check* set (run only to report, never tuned on).
+or to a *check* set (run only to report, never tuned on): ``check`` since session 5,
+``check2`` (four more models: a thin-walled clip, a knurled knob, an arch, a perforated
+plate) since session 12.
 
 Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
@@ -31,7 +33,7 @@ class Print:
     name
         File stem.
     split
-        ``"dev"`` or ``"check"``.
+        ``"dev"``, ``"check"`` or ``"check2"``.
     model
         OpenSCAD model in ``models/`` (without ``.scad``).
     slicer
@@ -104,4 +106,17 @@ PRINTS: tuple[Print, ...] = (
     _p("check", "bracket", "slic3r", 0.12, 40, 55, 600, False, "marlin-mk25"),
     _p("check", "tower", "cura", 0.25, 200, 300, 4000, False, "klipper", 300, 5),
     _p("check", "dome", "cura", 0.18, 90, 140, 2500, True, "marlin-generic"),
+    # ---- check2 (session 12): new models and settings, chosen before any was run --------
+    _p("check2", "clip", "prusa-classic", 0.2, 60, 100, 1500, True, "klipper", 200, 5),
+    _p("check2", "knob", "cura", 0.15, 40, 60, 800, False, "marlin-mk25"),
+    _p("check2", "arch", "slic3r", 0.25, 100, 150, 2500, True, "marlin-generic"),
+    _p("check2", "plate", "prusa-arachne", 0.3, 150, 220, 4000, False, "klipper", 300, 5),
+    _p("check2", "clip", "cura", 0.12, 80, 120, 2000, False, "klipper", 250, 5),
+    _p("check2", "knob", "prusa-arachne", 0.25, 120, 180, 3000, True, "marlin-generic"),
+    _p("check2", "arch", "prusa-classic", 0.1, 45, 70, 700, False, "marlin-mk25"),
+    _p("check2", "plate", "slic3r", 0.2, 50, 80, 1000, True, "klipper", 150, 5),
+    _p("check2", "clip", "slic3r", 0.3, 180, 260, 5000, False, "marlin-generic"),
+    _p("check2", "knob", "prusa-classic", 0.2, 200, 300, 4000, True, "klipper", 300, 5),
+    _p("check2", "arch", "cura", 0.2, 150, 250, 3000, True, "klipper", 300, 8),
+    _p("check2", "plate", "cura", 0.25, 60, 90, 1200, False, "marlin-mk25"),
 )

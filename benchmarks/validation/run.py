@@ -1,6 +1,6 @@
 """Compensate the validation prints and report the spread of the improvement.
 
-    python -m benchmarks.validation.run --split dev|check [--pace [--everywhere]
+    python -m benchmarks.validation.run --split dev|check|check2 [--pace [--everywhere]
                                         [--pull-ratio R] [--spots ERROR]
                                         [--budget PCT | --no-budget]] [--slip]
                                         [--only SUBSTR]
@@ -143,7 +143,7 @@ def summarise(rows: list[dict[str, object]]) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=["dev", "check"], required=True)
+    parser.add_argument("--split", choices=["dev", "check", "check2"], required=True)
     parser.add_argument("--pace", action="store_true")
     parser.add_argument("--slip", action="store_true")
     parser.add_argument("--everywhere", action="store_true",
