@@ -68,6 +68,23 @@ def _before(spec: RigSpec, y: int, h: int) -> Roi:
     return Roi("before", int(xl - 20), y, int(2 * spec.radius_px + 40), h)
 
 
+def _rig_config(spec: RigSpec, before: Roi) -> VisionConfig:
+    """The gear face, ``before`` and an after ROI below the gear, scale and axis known."""
+    cx, cy = spec.gear_center_px
+    xl = spec.filament_x_px - spec.radius_px
+    return VisionConfig(rois=RoiSet(Roi("gear", int(cx - 60), int(cy - 100), 120, 200), before,
+                                    Roi("after", int(xl + 20), 330,
+                                        int(2 * spec.radius_px - 40), 140)),
+                        mm_per_px=spec.mm_per_px, diameter_mm=spec.filament_diameter_mm,
+                        gear_center_px=(cx, cy), gear_radius_mm=spec.drive_radius_mm)
+
+
+def _true_px(cam: RigCamera, spec: RigSpec, frames: list, before: Roi) -> np.ndarray:
+    """The true mean width of ``before``'s rows in every frame, px."""
+    return np.array([cam.true_width_mm(f.t_s, slice(before.y, before.y1))
+                     for f in frames]) / spec.mm_per_px
+
+
 def test_a_before_roi_in_the_gears_contact_zone_is_refused(
         rig_clip: tuple[RigSpec, Path]) -> None:
     """With the gear axis known, rows where the teeth reach the filament's edge are
@@ -165,17 +182,10 @@ def test_a_striped_filament_is_refused_not_read_confidently_wrong(
         frames = render_clip(spec, drive, 48)
         path = write_mpeg4(frames, tmp_path / f"t{texture}.avi", spec.fps)
         cam = RigCamera(spec, drive)
-        cx, cy = spec.gear_center_px
-        xl = spec.filament_x_px - spec.radius_px
-        face = Roi("gear", int(cx - 60), int(cy - 100), 120, 200)
-        after = Roi("after", int(xl + 20), 330, int(2 * spec.radius_px - 40), 140)
         for y, h in ((20, 100), (130, 40)):
             before = _before(spec, y, h)
-            cfg = VisionConfig(rois=RoiSet(face, before, after), mm_per_px=spec.mm_per_px,
-                               diameter_mm=spec.filament_diameter_mm,
-                               gear_center_px=(cx, cy), gear_radius_mm=spec.drive_radius_mm)
-            true = np.array([cam.true_width_mm(f.t_s, slice(before.y, before.y1))
-                             for f in frames]) / spec.mm_per_px
+            cfg = _rig_config(spec, before)
+            true = _true_px(cam, spec, frames, before)
             results[texture, y] = (measure(path, cfg), true)
             if texture and y == 130:
                 monkeypatch.setattr(clip_width, "RIPPLE_MAX", 1.0)
@@ -207,18 +217,9 @@ def test_a_weakly_striped_filament_is_refused_at_the_sessions_12_threshold(
         spec = RigSpec(seed=16, texture=texture)
         frames = render_clip(spec, drive, 48)
         path = write_mpeg4(frames, tmp_path / f"s16_{texture}.avi", spec.fps)
-        cam = RigCamera(spec, drive)
-        cx, cy = spec.gear_center_px
-        xl = spec.filament_x_px - spec.radius_px
         before = _before(spec, 130, 40)
-        cfg = VisionConfig(rois=RoiSet(Roi("gear", int(cx - 60), int(cy - 100), 120, 200),
-                                       before, Roi("after", int(xl + 20), 330,
-                                                   int(2 * spec.radius_px - 40), 140)),
-                           mm_per_px=spec.mm_per_px, diameter_mm=spec.filament_diameter_mm,
-                           gear_center_px=(cx, cy), gear_radius_mm=spec.drive_radius_mm)
-        true = np.array([cam.true_width_mm(f.t_s, slice(before.y, before.y1))
-                         for f in frames]) / spec.mm_per_px
-        runs[texture] = (path, cfg, true)
+        runs[texture] = (path, _rig_config(spec, before),
+                         _true_px(RigCamera(spec, drive), spec, frames, before))
     path, cfg, true = runs[1.0]
     s = measure(path, cfg).summary
     assert s.width_valid_frames == 0 and "striped" in (s.width_note or "")
