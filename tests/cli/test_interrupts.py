@@ -125,6 +125,20 @@ main(["plan", sys.argv[1]])
 """
 
 
+def _default_ctrl_c() -> None:
+    """In the probe's process before it starts: Ctrl-C's default disposition. A shell
+    starts a background job (``make test &``) with SIGINT ignored, its children inherit
+    that, and Python then installs no Ctrl-C handler: the probe's SIGINT would be
+    ignored, as it is for flowtwin there (the terminal sends it no Ctrl-C either)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _run_probe(probe: str, src: Path, sig: signal.Signals) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", probe, str(src), str(int(sig))],
+                          capture_output=True, timeout=300, check=False,
+                          preexec_fn=_default_ctrl_c)
+
+
 @pytest.mark.parametrize(("sig", "status", "word"),
                          [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
                           (signal.SIGINT, 130, b"interrupted")], ids=["term", "ctrl-c"])
@@ -135,9 +149,29 @@ def test_a_signal_inside_a_native_callback_is_taken_after_it(
     # once the callback has returned, and exits 143 (130 for Ctrl-C) without a traceback
     src = tmp_path / "print.gcode"
     write_print(src, PrintSpec(layers=2))
-    proc = subprocess.run([sys.executable, "-c", CALLBACK_PROBE, str(src), str(int(sig))],
-                          capture_output=True, timeout=300, check=False)
+    proc = _run_probe(CALLBACK_PROBE, src, sig)
     assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
         proc.stderr.decode()[-2000:]
     assert proc.returncode == status, proc.stderr.decode()[-2000:]
     assert word in proc.stderr
+
+
+@pytest.mark.parametrize(("sig", "status", "word"),
+                         [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
+                          (signal.SIGINT, 130, b"interrupted")], ids=["term", "ctrl-c"])
+def test_a_signal_put_off_is_taken_even_if_the_command_ends_first(
+        tmp_path: Path, sig: signal.Signals, status: int, word: bytes) -> None:
+    # the signal comes back 10 ms after the callback; a command that ends before it does
+    # must still exit 130 / 143 (on the previous code: exit 0, the signal lost). Here the
+    # signal is never sent again: only the end can take it.
+    src = tmp_path / "print.gcode"
+    write_print(src, PrintSpec(layers=2))
+    never = ("import threading, flowtwin.cli.main as cli\n"
+             "cli._resend_soon = lambda signum: threading.Timer(3600, lambda: None)\n")
+    probe = CALLBACK_PROBE.replace("main([", never + "main([")
+    proc = _run_probe(probe, src, sig)
+    assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
+        proc.stderr.decode()[-2000:]
+    assert proc.returncode == status, proc.stderr.decode()[-2000:]
+    assert word in proc.stderr
+    assert proc.stdout.startswith(b"Plan")      # the command ran to its end first

@@ -132,6 +132,9 @@ def main(argv: list[str] | None = None) -> None:
     """Run the CLI; user errors exit 2 with a message, internal errors exit 3; Ctrl-C exits
     130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
     terminated: list[int] = []
+    # signals put off (below) and not taken yet, with the timers that send them again
+    deferred: list[int] = []
+    timers: list[threading.Timer] = []
 
     def interrupt(signum: int, frame: FrameType | None) -> None:
         if _unsafe_to_raise(frame):
@@ -139,8 +142,10 @@ def main(argv: list[str] | None = None) -> None:
             # finalizer) or would leave a lock held for good (between a lock's acquire and
             # its ``with`` body): another thread needing it would then hang, and so would
             # the exit that waits for that thread. Take the signal again once out of there.
-            _resend_soon(signum)
+            deferred.append(signum)
+            timers.append(_resend_soon(signum))
             return
+        deferred.clear()
         if signum == signal.SIGTERM:  # unwind like Ctrl-C: outputs are dropped whole
             terminated.append(signum)
         raise KeyboardInterrupt
@@ -180,11 +185,19 @@ def main(argv: list[str] | None = None) -> None:
         else:
             if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C, our SIGTERM)
                 _interrupted(terminated)
+            if deferred:
+                # a signal put off near the end was not sent again before the command
+                # ended: it is taken now (the outputs are complete, the exit says so)
+                terminated.extend(sig for sig in deferred if sig == signal.SIGTERM)
+                _interrupted(terminated)
             sys.exit(code if isinstance(code, int) else 0)
     finally:
         # the command is over, its outputs written or dropped whole: a signal from now on
         # would only interrupt the exit (its handlers, the wait for a writer thread), where
-        # the exception is printed and dropped; the process's own handling takes it
+        # the exception is printed and dropped; the process's own handling takes it. A
+        # signal put off is not sent again (it was taken above).
+        for timer in timers:
+            timer.cancel()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
@@ -292,14 +305,16 @@ def _unsafe_to_raise(frame: FrameType | None) -> bool:
     return False
 
 
-def _resend_soon(signum: int) -> None:
+def _resend_soon(signum: int) -> threading.Timer:
     """Send ``signum`` to the main thread again in 10 ms (from a daemon thread): to the
-    main thread itself, so that a wait it is in (for a worker, say) is interrupted."""
+    main thread itself, so that a wait it is in (for a worker, say) is interrupted.
+    Returns the timer (cancel it to send nothing)."""
     main_id = threading.main_thread().ident
     assert main_id is not None
     timer = threading.Timer(0.01, signal.pthread_kill, (main_id, signum))
     timer.daemon = True
     timer.start()
+    return timer
 
 
 def _err() -> Console:
