@@ -111,6 +111,7 @@ def test_width_through_the_pipeline_agrees_across_rois() -> None:
         s = res.summary
         assert s.width_note is None and s.width_valid_frames >= 280, (x, y, w, h)
         assert 1.2 <= s.width_blur_px <= 1.7
+        assert s.width_window_frames == 13        # nothing moves: the longest window
         px = res.series.width_px[np.isfinite(res.series.width_px)]
         medians.append(float(np.median(px)))
         assert float(np.max(np.abs(px - np.median(px)))) <= 1.0

@@ -84,7 +84,8 @@ def keyframe_clip(tmp_path_factory: pytest.TempPathFactory
     return spec, path, true / spec.mm_per_px, roi
 
 
-def _errors(spec: RigSpec, path: Path, true_px: np.ndarray, roi: Roi) -> np.ndarray:
+def _errors(spec: RigSpec, path: Path, true_px: np.ndarray, roi: Roi
+            ) -> tuple[np.ndarray, int]:
     cx, cy = spec.gear_center_px
     xl = spec.filament_x_px - spec.radius_px
     xr = spec.filament_x_px + spec.radius_px
@@ -92,11 +93,15 @@ def _errors(spec: RigSpec, path: Path, true_px: np.ndarray, roi: Roi) -> np.ndar
                                    Roi("after", int(xl + 20), 330, int(xr - xl - 40), 140)),
                        mm_per_px=spec.mm_per_px, diameter_mm=spec.filament_diameter_mm,
                        gear_center_px=spec.gear_center_px, gear_radius_mm=spec.drive_radius_mm)
-    return np.asarray(measure(path, cfg).series.width_mm) / spec.mm_per_px - true_px
+    res = measure(path, cfg)
+    return (np.asarray(res.series.width_mm) / spec.mm_per_px - true_px,
+            res.summary.width_window_frames)
 
 
 def test_frames_beside_the_key_frames_are_within_half_a_pixel(keyframe_clip) -> None:
-    err = _errors(*keyframe_clip)
+    err, window = _errors(*keyframe_clip)
+    # 40 rows at up to ~5.2 px of filament a frame (2.8 mm/s, 17.5 um/px, 30 fps): 7 frames
+    assert window == 7
     assert np.isfinite(err[1:]).all()
     assert np.max(np.abs(err[np.isfinite(err)])) <= 0.5
 
@@ -104,5 +109,6 @@ def test_frames_beside_the_key_frames_are_within_half_a_pixel(keyframe_clip) -> 
 def test_each_frame_alone_reads_beyond_half_a_pixel_there(keyframe_clip, monkeypatch) -> None:
     # the same clip with no window: the frames' own readings (what the test above guards)
     monkeypatch.setattr(clip_width, "neighbour_frames", lambda *a, **k: 1)
-    err = _errors(*keyframe_clip)
+    err, window = _errors(*keyframe_clip)
+    assert window == 1
     assert np.sum(np.abs(err[np.isfinite(err)]) > 0.5) >= 2

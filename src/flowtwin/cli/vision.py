@@ -143,7 +143,9 @@ def measure_cmd(
                      f"{s.gear_speed_mm_s:.4f} mm/s ({s.gear_mode}, {s.gear_state})")
         width_text = ("refused in every frame (see the warning)" if s.width_note else
                       f"{s.width_mm:.4f} ± {s.width_std_mm:.4f} mm "
-                      f"({s.width_valid_frames} of {s.frames} frames)")
+                      f"({s.width_valid_frames} of {s.frames} frames"
+                      + (f"; each from a line through {s.width_window_frames} frames"
+                         if s.width_window_frames > 1 else "") + ")")
         rows = [
             ("gear speed", gear_text),
             ("gear axis", axis),

@@ -231,6 +231,8 @@ class ClipWidth:
     codec: str | None = None
     blur_px: float | None = None
     mix: tuple[float, float] | None = None
+    #: Frames in the local line the widths were taken from (set by :meth:`finish`; 1: none).
+    window_frames: int = 1
     _strip: npt.NDArray[np.uint8] | None = None
     _reference: tuple[float | None, tuple[int, ...]] | None = None
     _groups: FrameGroups = field(default_factory=FrameGroups)
@@ -402,7 +404,7 @@ class ClipWidth:
                 if not rows.flags[row] & skipped:
                     _refuse_row(rows, row)
             return note
-        _follow_neighbours(rows, self.roi.h)
+        self.window_frames = _follow_neighbours(rows, self.roi.h)
         return None
 
     def rough_edges(self) -> str | None:
@@ -489,7 +491,7 @@ class ClipWidth:
         return None
 
 
-def _follow_neighbours(rows: RowLog, roi_height_px: int) -> None:
+def _follow_neighbours(rows: RowLog, roi_height_px: int) -> int:
     """Every frame's width the local line through its neighbours' (module docstring, 6;
     :func:`~flowtwin.vision.width_series.local_line`), its edges moved symmetrically
     about their own centre to it.
@@ -497,20 +499,22 @@ def _follow_neighbours(rows: RowLog, roi_height_px: int) -> None:
     The window holds at most :data:`~flowtwin.vision.width_series.WINDOW_FRAMES` frames
     and no more than the filament travels through the ROI's height (the length the ROI
     already averages the width over), at the clip's fast speed (the 95th percentile of
-    the filament's steps); without a filament speed, no window.
+    the filament's steps); without a filament speed, no window. Returns the window's
+    frames (1: none).
     """
     width = np.asarray(rows.width, dtype=np.float64)
     if not np.isfinite(width).any():
-        return
+        return 1
     window = neighbour_frames(rows.t, rows.fil, rows.fil_span, roi_height_px)
     if window < 3:
-        return
+        return 1
     centre = 0.5 * (np.asarray(rows.left, dtype=np.float64)
                     + np.asarray(rows.right, dtype=np.float64))
     line = local_line(width, window)
     rows.width[:] = line.tolist()
     rows.left[:] = (centre - 0.5 * line).tolist()
     rows.right[:] = (centre + 0.5 * line).tolist()
+    return window
 
 
 def _tolerance(width_px: float) -> float:

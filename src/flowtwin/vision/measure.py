@@ -231,7 +231,8 @@ class Pipeline:
             raise VisionError("the source delivered no frames", source=self.info.description)
         width_note = self.widths.finish(self.rows, self.gear.center_px, self.config.mm_per_px)
         return finish(self.rows, self.config, self.info, elapsed_s, self.gear,
-                      width_note=width_note, blur_px=self.widths.blur_px)
+                      width_note=width_note, blur_px=self.widths.blur_px,
+                      width_window_frames=self.widths.window_frames)
 
 
 def measure_frames(frames: Iterable[Frame], config: VisionConfig, *,

@@ -236,6 +236,9 @@ class VisionSummary:
         not a clean silhouette, or a ``before`` ROI in the gear's contact zone.
     width_blur_px
         The edges' blur σ fitted over the clip (optics and pixel), px (NaN if no edges).
+    width_window_frames
+        Frames in the local line each width is taken from
+        (:mod:`flowtwin.vision.width_series`; 1: every frame's width is its own reading).
     """
 
     gear_speed_mm_s: float
@@ -284,6 +287,7 @@ class VisionSummary:
     width_note: str | None = None
     width_blur_px: float = math.nan
     gear_note: str | None = None
+    width_window_frames: int = 1
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary (NaN becomes None)."""

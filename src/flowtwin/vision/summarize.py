@@ -31,7 +31,7 @@ listed in ``VisionSummary.warnings`` (the CLI prints them and fails with ``--str
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -155,8 +155,8 @@ def _gear_speed(rows: RowLog, config: VisionConfig, gear: GearSetup, k_cal: floa
 
 
 def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: float,
-           gear: GearSetup, *, width_note: str | None = None, blur_px: float | None = None
-           ) -> VisionResult:
+           gear: GearSetup, *, width_note: str | None = None, blur_px: float | None = None,
+           width_window_frames: int = 1) -> VisionResult:
     """Turn the rows of the pipeline loop into a :class:`VisionResult`.
 
     Parameters
@@ -175,6 +175,8 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
         Why every width of the clip was refused (:mod:`flowtwin.vision.clip_width`).
     blur_px
         The clip's edge blur, px (None if no edges were found).
+    width_window_frames
+        Frames in the local line each width was taken from (1: none).
 
     Returns
     -------
@@ -249,7 +251,7 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
                        k_cal=k_cal, scale_source=scale_source, gear_mode=gear_mode,
                        radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s,
                        width_note=width_note, blur_px=blur_px, gear_note=gear_note)
-    return VisionResult(series, summary)
+    return VisionResult(series, replace(summary, width_window_frames=width_window_frames))
 
 
 def _refuse_tangential_fallback(gear_v: F64, span: F64, flags: npt.NDArray[np.int64],
