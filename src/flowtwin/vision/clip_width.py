@@ -67,8 +67,9 @@ fits their silhouettes (:mod:`flowtwin.vision.silhouette`). Over the recording:
    to frame by more than the filament does between frames a few apart: the codec's
    quantizer changes with a frame's place in its group of pictures (on renderer 2 the
    frames beyond 0.5 px sat beside the key frames). Every width kept is replaced by the
-   local line through its clip's widths over :data:`~flowtwin.vision.width_series.WINDOW_FRAMES`
-   frames (:mod:`flowtwin.vision.width_series`).
+   local line through its clip's widths over up to
+   :data:`~flowtwin.vision.width_series.WINDOW_FRAMES` frames, no more than the filament
+   travels through the ROI's height (:mod:`flowtwin.vision.width_series`).
 """
 
 from __future__ import annotations

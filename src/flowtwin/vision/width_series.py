@@ -13,13 +13,16 @@ and departed from the local trend of their ±6 neighbours by 0.19–0.41 px
 (docs/vision.md, "Measured accuracy").
 
 Each frame's width is therefore the value at that frame of the least-squares line
-through the widths of the :data:`WINDOW_FRAMES` frames centred on it (the window is
+through the widths of up to :data:`WINDOW_FRAMES` frames centred on it (the window is
 shifted inwards at the clip's ends, and refused frames are left out of it). A line, not
-a mean, so that a diameter that changes steadily is followed without lag; the window
-spans a group of pictures of the common MPEG-4 settings (12 frames), so that the
-quantizer's cycle averages out. The bias it leaves on a diameter varying as a sine of
-period ``P`` frames is ``1 − sinc``-like, about ``(2π/P)² · 14 / 2`` of the amplitude:
-0.08 of it at ``P`` = 60 frames (renderer 2: a 6 mm wave at 3 mm/s), 0.008 at 200.
+a mean, so that a diameter that changes steadily is followed without lag; the full
+window spans a group of pictures of the common MPEG-4 settings (12 frames), so that the
+quantizer's cycle averages out. The window never spans more filament travel than the
+ROI's height (:func:`neighbour_frames`): at 15 mm/s through a 100-row ROI at 20 µm/px it
+is 5 frames. The bias a full window leaves on a diameter varying as a sine of period
+``P`` frames is ``1 − (1/L)·Σ cos(2πk/P)``, about ``(2π/P)² · 14 / 2`` of the
+amplitude: 0.08 of it at ``P`` = 60 frames (renderer 2: a 6 mm wave at 3 mm/s), 0.007
+at 200.
 """
 
 from __future__ import annotations
