@@ -35,6 +35,10 @@ def test_clean_edges_and_rough_ones() -> None:
     assert is_clean((0.44, 0.35)) and is_clean((0.67, 0.55)) and is_clean((0.95, 0.75))
     assert not is_clean((0.63, 0.18)) and not is_clean((1.1, 0.19))
     assert not is_clean((1.6, 0.8)) and not is_clean((2.3, 1.0))
+    # session 12: renderer 2's seed 35 rows 130-170 under MPEG-4 (1.0 / 0.3 px lossless)
+    # is refused; the real clip's clean ROIs, the roughest by ratio and by value, are not
+    assert not is_clean((0.52, 0.14))
+    assert is_clean((0.43, 0.30)) and is_clean((0.34, 0.48)) and is_clean((0.45, 0.41))
 
 
 def test_frame_groups_average_consecutive_frames_whose_edges_stay_put() -> None:
