@@ -133,45 +133,45 @@ def _default_ctrl_c() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _run_probe(probe: str, src: Path, sig: signal.Signals) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", probe, str(src), str(int(sig))],
+def _taken(probe: str, tmp_path: Path, sig: signal.Signals, status: int, word: bytes
+           ) -> subprocess.CompletedProcess:
+    """Run ``probe`` on a small print with ``sig``; it must exit ``status`` saying
+    ``word``, without a traceback or a dropped exception."""
+    src = tmp_path / "print.gcode"
+    write_print(src, PrintSpec(layers=2))
+    proc = subprocess.run([sys.executable, "-c", probe, str(src), str(int(sig))],
                           capture_output=True, timeout=300, check=False,
                           preexec_fn=_default_ctrl_c)
+    assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
+        proc.stderr.decode()[-2000:]
+    assert proc.returncode == status, proc.stderr.decode()[-2000:]
+    assert word in proc.stderr
+    return proc
 
 
-@pytest.mark.parametrize(("sig", "status", "word"),
-                         [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
-                          (signal.SIGINT, 130, b"interrupted")], ids=["term", "ctrl-c"])
+SIGNALS = pytest.mark.parametrize(("sig", "status", "word"),
+                                  [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
+                                   (signal.SIGINT, 130, b"interrupted")],
+                                  ids=["term", "ctrl-c"])
+
+
+@SIGNALS
 def test_a_signal_inside_a_native_callback_is_taken_after_it(
         tmp_path: Path, sig: signal.Signals, status: int, word: bytes) -> None:
     # an exception raised in a ctypes callback is printed ("Exception ignored ...") and
     # dropped, and the command would run to its end: flowtwin takes the signal again
     # once the callback has returned, and exits 143 (130 for Ctrl-C) without a traceback
-    src = tmp_path / "print.gcode"
-    write_print(src, PrintSpec(layers=2))
-    proc = _run_probe(CALLBACK_PROBE, src, sig)
-    assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
-        proc.stderr.decode()[-2000:]
-    assert proc.returncode == status, proc.stderr.decode()[-2000:]
-    assert word in proc.stderr
+    _taken(CALLBACK_PROBE, tmp_path, sig, status, word)
 
 
-@pytest.mark.parametrize(("sig", "status", "word"),
-                         [(signal.SIGTERM, 128 + signal.SIGTERM, b"terminated"),
-                          (signal.SIGINT, 130, b"interrupted")], ids=["term", "ctrl-c"])
+@SIGNALS
 def test_a_signal_put_off_is_taken_even_if_the_command_ends_first(
         tmp_path: Path, sig: signal.Signals, status: int, word: bytes) -> None:
     # the signal comes back 10 ms after the callback; a command that ends before it does
     # must still exit 130 / 143 (on the previous code: exit 0, the signal lost). Here the
     # signal is never sent again: only the end can take it.
-    src = tmp_path / "print.gcode"
-    write_print(src, PrintSpec(layers=2))
     never = ("import threading, flowtwin.cli.main as cli\n"
              "cli._resend_soon = lambda signum: threading.Timer(3600, lambda: None)\n")
-    probe = CALLBACK_PROBE.replace("main([", never + "main([")
-    proc = _run_probe(probe, src, sig)
-    assert b"Traceback" not in proc.stderr and b"Exception ignored" not in proc.stderr, \
-        proc.stderr.decode()[-2000:]
-    assert proc.returncode == status, proc.stderr.decode()[-2000:]
-    assert word in proc.stderr
+    proc = _taken(CALLBACK_PROBE.replace("main([", never + "main(["), tmp_path, sig,
+                  status, word)
     assert proc.stdout.startswith(b"Plan")      # the command ran to its end first
