@@ -132,20 +132,35 @@ def main(argv: list[str] | None = None) -> None:
     """Run the CLI; user errors exit 2 with a message, internal errors exit 3; Ctrl-C exits
     130 and ``SIGTERM`` 143, leaving no partial output (atomic writes unwind)."""
     terminated: list[int] = []
-    # signals put off (below) and not taken yet, with the timers that send them again
+    # signals put off (below) and not taken yet; the timers that send them again; and
+    # whether the command is over (from then on a signal is only recorded, and the exit
+    # path decides: it never raises in the middle of the error message or the exit)
     deferred: list[int] = []
     timers: list[threading.Timer] = []
+    over: list[bool] = []
+
+    def settle() -> None:
+        """The command is over: no put-off signal is sent again."""
+        over.append(True)
+        for timer in timers:
+            timer.cancel()
 
     def interrupt(signum: int, frame: FrameType | None) -> None:
+        if over:
+            deferred.append(signum)
+            return
         if _unsafe_to_raise(frame):
             # raised there, the exception would be dropped (a ctypes callback, a
             # finalizer) or would leave a lock held for good (between a lock's acquire and
             # its ``with`` body): another thread needing it would then hang, and so would
             # the exit that waits for that thread. Take the signal again once out of there.
             deferred.append(signum)
+            timers[:] = [timer for timer in timers if timer.is_alive()]
             timers.append(_resend_soon(signum))
             return
         deferred.clear()
+        for timer in timers:  # taken now: what was put off is not sent again
+            timer.cancel()
         if signum == signal.SIGTERM:  # unwind like Ctrl-C: outputs are dropped whole
             terminated.append(signum)
         raise KeyboardInterrupt
@@ -161,19 +176,24 @@ def main(argv: list[str] | None = None) -> None:
             # standalone_mode=False returns typer.Exit codes instead of exiting with them
             code = app(args=argv, standalone_mode=False)
         except FlowtwinError as exc:
+            settle()
             _err().print(f"[bold red]error:[/] {_escape(str(exc))}", markup=True, soft_wrap=True)
             sys.exit(EXIT_USER_ERROR)
         except OSError as exc:
+            settle()
             if exc.filename is None:  # not about a file the user named: a bug, below
                 _internal_error(exc)
             message = _escape(str(file_access_error(exc, writing=None)))
             _err().print(f"[bold red]error:[/] {message}", markup=True, soft_wrap=True)
             sys.exit(EXIT_USER_ERROR)
         except KeyboardInterrupt:
+            settle()
             _interrupted(terminated)
         except SystemExit:
+            settle()
             raise
         except Exception as exc:  # last line of defence for the user
+            settle()
             kind = _click_kind(exc)
             if kind == "ClickException":  # a usage error: typer's message, exit 2
                 usage = cast(_ClickError, exc)
@@ -183,21 +203,21 @@ def main(argv: list[str] | None = None) -> None:
                 _interrupted(terminated)
             _internal_error(exc)
         else:
+            settle()
             if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C, our SIGTERM)
                 _interrupted(terminated)
             if deferred:
                 # a signal put off near the end was not sent again before the command
-                # ended: it is taken now (the outputs are complete, the exit says so)
+                # ended: it is taken now (the outputs are complete, the exit says so). A
+                # command that failed keeps its error's exit status instead.
                 terminated.extend(sig for sig in deferred if sig == signal.SIGTERM)
                 _interrupted(terminated)
             sys.exit(code if isinstance(code, int) else 0)
     finally:
         # the command is over, its outputs written or dropped whole: a signal from now on
         # would only interrupt the exit (its handlers, the wait for a writer thread), where
-        # the exception is printed and dropped; the process's own handling takes it. A
-        # signal put off is not sent again (it was taken above).
-        for timer in timers:
-            timer.cancel()
+        # the exception is printed and dropped; the process's own handling takes it
+        settle()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
