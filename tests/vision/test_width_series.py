@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from flowtwin.vision import Roi, RoiSet, VisionConfig, clip_width, measure
+from flowtwin.vision.readings import Quality
+from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width_series import WINDOW_FRAMES, local_line, neighbour_frames
 
 from .realcam import DriveProfile, RigCamera, RigSpec, render_clip, write_mpeg4
@@ -64,6 +66,44 @@ def test_the_window_spans_no_more_travel_than_the_roi() -> None:
     assert neighbour_frames(t, np.full(30, 25.0), span, 100.0) == 5
     assert neighbour_frames(t, np.full(30, -25.0), span, 110.0) == 5       # odd
     assert neighbour_frames(t, np.full(30, 60.0), span, 100.0) == 1
+
+
+def test_no_valid_capture_interval_means_no_window() -> None:
+    step, span = np.full(5, 2.0), np.full(5, 1 / 30.0)
+    t_nan = np.array([0.0, np.nan, np.nan, np.nan, np.nan])
+    assert neighbour_frames(t_nan, step, span, 100.0) == 1
+    assert neighbour_frames(np.zeros(5), step, span, 100.0) == 1          # no interval
+    t_gap = np.array([0.0, np.nan, 2 / 30, 3 / 30, 4 / 30])
+    assert neighbour_frames(t_gap, step, span, 100.0) == WINDOW_FRAMES    # finite ones
+
+
+def _rows(widths: list[float], tilt_rad: float) -> RowLog:
+    """Rows of a tilted filament: edges as columns, 1/cos(tilt) wider than the width."""
+    rows = RowLog.empty()
+    for i, w in enumerate(widths):
+        sep = w / np.cos(tilt_rad)
+        rows.add(i, i / 30.0, 1 / 30.0, Quality(0), None, (2.0, 1 / 30.0, 10, 0.1),
+                 (w, 400.0 - 0.5 * sep, 400.0 + 0.5 * sep))
+    return rows
+
+
+def test_the_edges_keep_their_tilt_and_the_window_is_what_was_fitted() -> None:
+    # a constant width: the line changes nothing, so neither do the edges (at 5° the
+    # columns are 0.5 px further apart than the width; found by review: the edges had
+    # been put at the width, moving each 0.27 px inwards)
+    tilt = np.radians(5.0)
+    rows = _rows([140.0] * 30, tilt)
+    before = (list(rows.left), list(rows.right))
+    assert clip_width._follow_neighbours(rows, 100) == WINDOW_FRAMES
+    np.testing.assert_allclose(rows.left, before[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rows.right, before[1], rtol=0, atol=1e-9)
+    # a short clip: its 8 frames are the window; 2 measured frames: none
+    assert clip_width._follow_neighbours(_rows([140.0] * 8, tilt), 100) == 8
+    few = _rows([140.0] * 8, tilt)
+    for i in range(2, 8):
+        few.width[i] = few.left[i] = few.right[i] = np.nan
+    assert clip_width._follow_neighbours(few, 100) == 1
+    assert few.width[:2] == [140.0, 140.0]
 
 
 @pytest.fixture(scope="module")

@@ -89,7 +89,7 @@ from flowtwin.vision.roi import Roi
 from flowtwin.vision.silhouette import Silhouette, clip_model, interior_ripple
 from flowtwin.vision.summarize import RowLog
 from flowtwin.vision.width import EdgeMeasurement, measure_width_px, refit_widths
-from flowtwin.vision.width_series import local_line, neighbour_frames
+from flowtwin.vision.width_series import MIN_FRAMES, local_line, neighbour_frames
 
 __all__ = ["BLUR_FRAMES", "MIN_GROUPS_INTER", "RIPPLE_MAX", "ROUGH_MAX_PX", "ROUGH_PX",
            "ROUGH_RATIO", "TOOTH_REACH_MM", "ClipWidth", "contact_rows", "is_clean"]
@@ -122,7 +122,7 @@ ROUGH_MAX_PX = 1.5
 #: texture (module docstring, 4). Renderer 2, seeds 1-8 and 11-20, 90 frames: the clips
 #: that read within 0.5 px in every frame ripple by 0.2-1.5 % (the real clip of [003]:
 #: 0.4-1.4 %); 2.0 % reads 0.25 px off in the median, 2.2-2.3 % 0.2-0.9 px (seeds 16
-#: and 19, 130 frames beyond 0.5 px), and the strongly striped 3.3-7.2 %.
+#: and 19, 130 frames beyond 0.5 px), and the strongly striped 3.25-7.2 %.
 RIPPLE_MAX = 0.018
 #: Fewest frame groups (:class:`FrameGroups`) whose means may set the clip's blur and
 #: limb shapes when the recording was coded by an inter-frame codec (module docstring,
@@ -504,27 +504,32 @@ class ClipWidth:
 def _follow_neighbours(rows: RowLog, roi_height_px: int) -> int:
     """Every frame's width the local line through its neighbours' (module docstring, 6;
     :func:`~flowtwin.vision.width_series.local_line`), its edges moved symmetrically
-    about their own centre to it.
+    about their own centre by the same factor as its width (the edges are columns, the
+    width is across the tilted filament).
 
     The window holds at most :data:`~flowtwin.vision.width_series.WINDOW_FRAMES` frames
-    and no more than the filament travels through the ROI's height (the length the ROI
-    already averages the width over), at the clip's fast speed (the 95th percentile of
-    the filament's steps); without a filament speed, no window. Returns the window's
-    frames (1: none).
+    and spans no more than the filament travels through the ROI's height (the length the
+    ROI already averages the width over) at the clip's fast speed (the 95th percentile of
+    the filament's steps); without a filament speed, no window. Returns the frames the
+    lines were fitted over (1: none).
     """
     width = np.asarray(rows.width, dtype=np.float64)
-    if not np.isfinite(width).any():
+    measured = int(np.count_nonzero(np.isfinite(width)))
+    if measured < MIN_FRAMES:
         return 1
     window = neighbour_frames(rows.t, rows.fil, rows.fil_span, roi_height_px)
     if window < 3:
         return 1
-    centre = 0.5 * (np.asarray(rows.left, dtype=np.float64)
-                    + np.asarray(rows.right, dtype=np.float64))
+    left = np.asarray(rows.left, dtype=np.float64)
+    right = np.asarray(rows.right, dtype=np.float64)
+    centre, half = 0.5 * (left + right), 0.5 * (right - left)
     line = local_line(width, window)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        half = half * (line / width)
     rows.width[:] = line.tolist()
-    rows.left[:] = (centre - 0.5 * line).tolist()
-    rows.right[:] = (centre + 0.5 * line).tolist()
-    return window
+    rows.left[:] = (centre - half).tolist()
+    rows.right[:] = (centre + half).tolist()
+    return min(window, measured)
 
 
 def _tolerance(width_px: float) -> float:

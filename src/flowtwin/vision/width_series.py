@@ -17,12 +17,14 @@ through the widths of up to :data:`WINDOW_FRAMES` frames centred on it (the wind
 shifted inwards at the clip's ends, and refused frames are left out of it). A line, not
 a mean, so that a diameter that changes steadily is followed without lag; the full
 window spans a group of pictures of the common MPEG-4 settings (12 frames), so that the
-quantizer's cycle averages out. The window never spans more filament travel than the
-ROI's height (:func:`neighbour_frames`): at 15 mm/s through a 100-row ROI at 20 µm/px it
-is 5 frames. The bias a full window leaves on a diameter varying as a sine of period
-``P`` frames is ``1 − (1/L)·Σ cos(2πk/P)``, about ``(2π/P)² · 14 / 2`` of the
-amplitude: 0.08 of it at ``P`` = 60 frames (renderer 2: a 6 mm wave at 3 mm/s), 0.007
-at 200.
+quantizer's cycle averages out. The window spans no more filament travel than the
+ROI's height at the clip's fast speed (the 95th percentile of the measured steps,
+:func:`neighbour_frames`): at 15 mm/s through a 100-row ROI at 20 µm/px it is 5 frames.
+A clip mostly still with a few fast moves, or whose fast steps were not tracked, gets a
+longer window over those moves. The bias a full window leaves on a diameter varying
+as a sine of period ``P`` frames is ``1 − (1/L)·Σ cos(2πk/P)``, about
+``(2π/P)² · 14 / 2`` of the amplitude: 0.08 of it at ``P`` = 60 frames (renderer 2: a
+6 mm wave at 3 mm/s), 0.007 at 200.
 """
 
 from __future__ import annotations
@@ -97,7 +99,7 @@ def neighbour_frames(t_s: Sequence[float], step_px: Sequence[float],
     The window's frames must see nearly the same stretch of filament: it spans no more
     than ``reach_px`` of travel (a ``before`` ROI's height, the length its width is
     already an average over) at the clip's fast speed, the 95th percentile of the
-    filament's speed.
+    filament's measured speed (steps not measured do not count; nor do the few fastest).
 
     Parameters
     ----------
@@ -117,15 +119,17 @@ def neighbour_frames(t_s: Sequence[float], step_px: Sequence[float],
     -------
     int
         An odd number of frames, 1 to ``most``; 1 (no window) when the filament's speed
-        was not measured.
+        was not measured or the frames have no valid capture interval.
     """
     step = np.abs(np.asarray(step_px, dtype=np.float64))
     span = np.asarray(span_s, dtype=np.float64)
     t = np.asarray(t_s, dtype=np.float64)
     ok = np.isfinite(step) & np.isfinite(span) & (span > 0.0)
-    if not ok.any() or t.size < 2:
+    intervals = np.diff(t)
+    intervals = intervals[np.isfinite(intervals) & (intervals > 0.0)]
+    if not ok.any() or intervals.size == 0:
         return 1
-    period = float(np.median(np.diff(t)))
+    period = float(np.median(intervals))
     per_frame = float(np.percentile(step[ok] / span[ok], 95)) * period
     frames = most if per_frame <= reach_px / (most - 1) else int(reach_px // per_frame) + 1
     frames = min(frames, most)
