@@ -19,7 +19,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from benchmarks.validation.prints import PRINTS, Print
+from benchmarks.validation.prints import PRINTS, SPLITS, Print
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE / "models"
@@ -269,7 +269,7 @@ def generate(split: str | None = None, out: Path = OUT) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=["dev", "check", "check2"])
+    parser.add_argument("--split", choices=SPLITS)
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     generate(args.split, args.out)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["PRINTS", "Print"]
+__all__ = ["PRINTS", "SPLITS", "Print"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,3 +120,6 @@ PRINTS: tuple[Print, ...] = (
     _p("check2", "arch", "cura", 0.2, 150, 250, 3000, True, "klipper", 300, 8),
     _p("check2", "plate", "cura", 0.25, 60, 90, 1200, False, "marlin-mk25"),
 )
+
+#: The splits, in the order they were made.
+SPLITS: tuple[str, ...] = tuple(dict.fromkeys(p.split for p in PRINTS))

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from benchmarks.validation.generate import OUT, generate, machine_of
-from benchmarks.validation.prints import PRINTS, Print
+from benchmarks.validation.prints import PRINTS, SPLITS, Print
 
 if TYPE_CHECKING:
     from flowtwin.compensation import CompensationReport
@@ -143,7 +143,7 @@ def summarise(rows: list[dict[str, object]]) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=["dev", "check", "check2"], required=True)
+    parser.add_argument("--split", choices=SPLITS, required=True)
     parser.add_argument("--pace", action="store_true")
     parser.add_argument("--slip", action="store_true")
     parser.add_argument("--everywhere", action="store_true",

@@ -145,6 +145,15 @@ def main(argv: list[str] | None = None) -> None:
         for timer in timers:
             timer.cancel()
 
+    def command() -> Any:
+        """The command itself; once it returns or raises, it is over (:func:`settle`),
+        before any message is printed or exit taken."""
+        try:
+            # standalone_mode=False returns typer.Exit codes instead of exiting with them
+            return app(args=argv, standalone_mode=False)
+        finally:
+            settle()
+
     def interrupt(signum: int, frame: FrameType | None) -> None:
         if over:
             deferred.append(signum)
@@ -173,27 +182,21 @@ def main(argv: list[str] | None = None) -> None:
             previous[signal.SIGINT] = signal.signal(signal.SIGINT, interrupt)
     try:
         try:
-            # standalone_mode=False returns typer.Exit codes instead of exiting with them
-            code = app(args=argv, standalone_mode=False)
+            code = command()
         except FlowtwinError as exc:
-            settle()
             _err().print(f"[bold red]error:[/] {_escape(str(exc))}", markup=True, soft_wrap=True)
             sys.exit(EXIT_USER_ERROR)
         except OSError as exc:
-            settle()
             if exc.filename is None:  # not about a file the user named: a bug, below
                 _internal_error(exc)
             message = _escape(str(file_access_error(exc, writing=None)))
             _err().print(f"[bold red]error:[/] {message}", markup=True, soft_wrap=True)
             sys.exit(EXIT_USER_ERROR)
         except KeyboardInterrupt:
-            settle()
             _interrupted(terminated)
         except SystemExit:
-            settle()
             raise
         except Exception as exc:  # last line of defence for the user
-            settle()
             kind = _click_kind(exc)
             if kind == "ClickException":  # a usage error: typer's message, exit 2
                 usage = cast(_ClickError, exc)
@@ -203,7 +206,6 @@ def main(argv: list[str] | None = None) -> None:
                 _interrupted(terminated)
             _internal_error(exc)
         else:
-            settle()
             if code == 130:  # typer's answer to a KeyboardInterrupt (Ctrl-C, our SIGTERM)
                 _interrupted(terminated)
             if deferred:
@@ -217,7 +219,6 @@ def main(argv: list[str] | None = None) -> None:
         # the command is over, its outputs written or dropped whole: a signal from now on
         # would only interrupt the exit (its handlers, the wait for a writer thread), where
         # the exception is printed and dropped; the process's own handling takes it
-        settle()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 

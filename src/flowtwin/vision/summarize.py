@@ -31,7 +31,7 @@ listed in ``VisionSummary.warnings`` (the CLI prints them and fails with ``--str
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -250,8 +250,9 @@ def finish(rows: RowLog, config: VisionConfig, info: SourceInfo, elapsed_s: floa
                        fil_span=np.asarray(rows.fil_span), period=period, dropped=dropped,
                        k_cal=k_cal, scale_source=scale_source, gear_mode=gear_mode,
                        radius_mm=radius_mm, radius_source=radius_source, elapsed_s=elapsed_s,
-                       width_note=width_note, blur_px=blur_px, gear_note=gear_note)
-    return VisionResult(series, replace(summary, width_window_frames=width_window_frames))
+                       width_note=width_note, blur_px=blur_px, gear_note=gear_note,
+                       width_window_frames=width_window_frames)
+    return VisionResult(series, summary)
 
 
 def _refuse_tangential_fallback(gear_v: F64, span: F64, flags: npt.NDArray[np.int64],
@@ -313,7 +314,8 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
              gear_span: F64, fil_span: F64, period: float, dropped: int, k_cal: float,
              scale_source: str, gear_mode: str, radius_mm: float | None,
              radius_source: str | None, elapsed_s: float, width_note: str | None,
-             blur_px: float | None, gear_note: str | None) -> VisionSummary:
+             blur_px: float | None, gear_note: str | None,
+             width_window_frames: int) -> VisionSummary:
     p = config.tracking
     fl = s.flags
     g_ok = ((fl & int(GEAR_INVALID)) == 0) & np.isfinite(s.gear_speed_mm_s)
@@ -380,7 +382,7 @@ def _summary(s: VisionSeries, config: VisionConfig, info: SourceInfo, gear: Gear
         timestamp_source=info.timestamp_source, opencv_version=cv2.__version__,
         processing_fps=n / elapsed_s if elapsed_s > 0 else NAN,
         width_note=width_note, width_blur_px=NAN if blur_px is None else blur_px,
-        gear_note=gear_note)
+        gear_note=gear_note, width_window_frames=width_window_frames)
 
 
 def _count(fl: npt.NDArray[np.int64], flag: Quality) -> int:
