@@ -2,7 +2,8 @@
 printer — and whether a print belongs to the *dev* set (may be looked at while developing)
 or to a *check* set (run only to report, never tuned on): ``check`` since session 5,
 ``check2`` (four more models: a thin-walled clip, a knurled knob, an arch, a perforated
-plate) since session 12.
+plate) since session 12, ``check3`` (a J hook, a tapered cup, a lattice block, a hex nut)
+since session 13.
 
 Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
@@ -33,7 +34,7 @@ class Print:
     name
         File stem.
     split
-        ``"dev"``, ``"check"`` or ``"check2"``.
+        ``"dev"``, ``"check"``, ``"check2"`` or ``"check3"``.
     model
         OpenSCAD model in ``models/`` (without ``.scad``).
     slicer
@@ -119,6 +120,19 @@ PRINTS: tuple[Print, ...] = (
     _p("check2", "knob", "prusa-classic", 0.2, 200, 300, 4000, True, "klipper", 300, 5),
     _p("check2", "arch", "cura", 0.2, 150, 250, 3000, True, "klipper", 300, 8),
     _p("check2", "plate", "cura", 0.25, 60, 90, 1200, False, "marlin-mk25"),
+    # ---- check3 (session 13): new models and settings, chosen before any was run --------
+    _p("check3", "hook", "prusa-arachne", 0.2, 90, 140, 2000, True, "klipper", 250, 5),
+    _p("check3", "cup", "cura", 0.1, 40, 55, 600, False, "marlin-mk25"),
+    _p("check3", "lattice", "slic3r", 0.3, 120, 180, 3500, True, "klipper", 300, 6),
+    _p("check3", "nut", "prusa-classic", 0.15, 70, 110, 1500, False, "marlin-generic"),
+    _p("check3", "hook", "cura", 0.25, 160, 260, 4500, True, "klipper", 300, 5),
+    _p("check3", "cup", "prusa-classic", 0.3, 100, 150, 2500, True, "klipper", 250, 8),
+    _p("check3", "lattice", "prusa-arachne", 0.12, 50, 70, 900, False, "marlin-mk25"),
+    _p("check3", "nut", "slic3r", 0.2, 140, 220, 3000, False, "klipper", 300, 5),
+    _p("check3", "hook", "slic3r", 0.15, 45, 65, 800, False, "marlin-generic"),
+    _p("check3", "cup", "prusa-arachne", 0.25, 200, 300, 5000, False, "klipper", 300, 5),
+    _p("check3", "lattice", "cura", 0.2, 80, 120, 2000, True, "marlin-generic"),
+    _p("check3", "nut", "cura", 0.3, 60, 90, 1200, True, "klipper", 200, 4),
 )
 
 #: The splits, in the order they were made.
