@@ -69,6 +69,10 @@ class AdvanceLaw(StrEnum):
     SMOOTHED = "smoothed"   #: [001 Eq. 11] integrated, advance term smoothed
 
 
+#: A row is re-timed when its planned time changed by more than this share of it.
+RETIMED_ROW = 0.05
+
+
 @dataclass(frozen=True, slots=True)
 class AdvanceOptions:
     """How to bake the advance.
@@ -122,6 +126,13 @@ class AdvanceOptions:
         which E alone at ``min_flow_fraction`` cannot do. The refinement keeps the column
         from pulling away from the melt (``x ≥ 0`` after every such piece: no backflow),
         so this needs ``refine``; ``0``: never below ``min_flow_fraction``.
+    retime_share
+        A pass after the second is made only when the pass before it re-timed more than
+        this share of the printing time: the refinement's model is linear in E on the
+        timeline of the draft it starts from, and its ratio steps move the planner's
+        junction speeds (Klipper's extruder corner velocity most of all), so where the
+        result's plan left that timeline (rows whose planned time changed by more than
+        :data:`RETIMED_ROW` of it) the next pass models the new one. ``0``: every pass.
     """
 
     law: AdvanceLaw = AdvanceLaw.SMOOTHED
@@ -139,6 +150,7 @@ class AdvanceOptions:
     relief_min_lags: float = 0.5
     twin_gain: float = 0.5
     retract_ratio: float = 4.0
+    retime_share: float = 0.02
 
     @property
     def is_identity(self) -> bool:
@@ -163,6 +175,7 @@ class AdvanceOptions:
             "twin_gain": (self.twin_gain, 0.0 < self.twin_gain <= 1.0, "0 < g <= 1"),
             "retract_ratio": (self.retract_ratio, 0.0 <= self.retract_ratio <= 20.0,
                               "0 .. 20"),
+            "retime_share": (self.retime_share, 0.0 <= self.retime_share <= 1.0, "0 .. 1"),
         }
         if self.k_s is not None:
             checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")

@@ -79,6 +79,9 @@ class AdvancePassSummary:
         The pass aimed the model by the twin's correction.
     kept
         The pass's result was kept (it did not raise the twin's RMS).
+    retimed_share
+        Share of the printing time whose planned time the pass's result moved from the
+        timeline the pass modelled (rows changed by more than 5 %; ``nan``: not measured).
     """
 
     pieces: int
@@ -95,16 +98,17 @@ class AdvancePassSummary:
     kept: bool = True
     pull_pieces: int = 0
     pull_mm: float = 0.0
+    retimed_share: float = float("nan")
 
     @classmethod
     def of(cls, report: PassReport, *, rms_flow_error: float, twin_correction: bool,
-           kept: bool = True) -> AdvancePassSummary:
+           kept: bool = True, retimed_share: float = float("nan")) -> AdvancePassSummary:
         """The summary of a pass's :class:`~flowtwin.compensation.bake.PassReport`."""
         return cls(report.pieces, report.runs, dict(report.law_counts),
                    dict(report.refinement), report.relief_travels, report.relief_mm,
                    report.relief_retractions, report.relief_retraction_mm,
                    report.relief_precharge_mm, rms_flow_error, twin_correction, kept,
-                   report.pull_pieces, report.pull_mm)
+                   report.pull_pieces, report.pull_mm, retimed_share)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able values (``kept`` only when the pass was not kept)."""
@@ -115,7 +119,8 @@ class AdvancePassSummary:
             "relief_retraction_mm": self.relief_retraction_mm,
             "relief_precharge_mm": self.relief_precharge_mm,
             "pull_pieces": self.pull_pieces, "pull_mm": self.pull_mm,
-            "rms_flow_error": self.rms_flow_error, "twin_correction": self.twin_correction}
+            "rms_flow_error": self.rms_flow_error, "twin_correction": self.twin_correction,
+            "retimed_share": None if np.isnan(self.retimed_share) else self.retimed_share}
         if not self.kept:
             out["kept"] = False
         return out

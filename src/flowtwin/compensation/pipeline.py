@@ -122,7 +122,7 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
                guard: GuardOptions | bool | None = None,
                trajectory: TrajectoryOptions | bool | None = None,
                pace: PaceOptions | bool | None = None,
-               firmware_pressure_advance: bool | None = None, advance_passes: int = 2,
+               firmware_pressure_advance: bool | None = None, advance_passes: int = 3,
                progress: Progress | None = None) -> CompensationReport:
     """Compensate ``source`` for ``machine`` and write ``destination`` (atomically).
 
@@ -147,7 +147,10 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
         Simulate the firmware's own pressure advance; default: off when the advance is
         baked into the file (the firmware's must then be off), else on.
     advance_passes
-        Advance passes (1 or 2; the second corrects for the re-planned timing).
+        Most advance passes, 1 to 4. The second corrects for the re-planned timing and
+        by the twin; every later one is made only while the pass before it moved the
+        plan off the timeline it modelled
+        (:attr:`~flowtwin.compensation.advance.AdvanceOptions.retime_share`).
     progress
         Called with the name of each stage as it starts.
 
@@ -165,9 +168,9 @@ def compensate(source: str | os.PathLike[str], destination: str | os.PathLike[st
     stages = _Stages(_option(advance, AdvanceOptions), _option(slip, SlipOptions),
                      _option(guard, GuardOptions), _option(trajectory, TrajectoryOptions),
                      _option(pace, PaceOptions))
-    if advance_passes not in (1, 2, 3):
-        raise DataError("advance passes must be 1, 2 or 3", field="advance_passes",
-                        value=advance_passes, allowed="1, 2, 3")
+    if advance_passes not in (1, 2, 3, 4):
+        raise DataError("advance passes must be 1 to 4", field="advance_passes",
+                        value=advance_passes, allowed="1, 2, 3, 4")
     m = machine if isinstance(machine, Machine) else load_machine(machine or DEFAULT_MACHINE)
     pa = ((stages.advance is None) if firmware_pressure_advance is None
           else bool(firmware_pressure_advance))

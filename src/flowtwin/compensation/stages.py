@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
+from flowtwin.compensation.advance import RETIMED_ROW, AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import advance_pass
 from flowtwin.compensation.budget import largest_fitting
 from flowtwin.compensation.draft import Draft
@@ -413,9 +413,14 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
 
     Every pass after the first is tried with the twin's correction of the model, and
     again without it when that raised the twin's RMS flow error; a pass that raises it
-    all the same is dropped and ends the stage. The advance is computed and judged on
-    the file without the firmware's own advance. ``resume``: the outcome of one pass of
-    this stage on the same ``current`` (the pacing's trial); the stage goes on from it.
+    all the same is dropped and ends the stage. A pass after the second is made only
+    when the pass before it moved the plan off the timeline it modelled
+    (``options.retime_share``), and kept only when it raises neither the RMS flow error
+    nor the :func:`~flowtwin.compensation.metrics.flow_score` (the weaker of the
+    improvements of the RMS and of the windowed peak over-extrusion). The advance is
+    computed and judged on the file without the firmware's own advance. ``resume``: the
+    outcome of one pass of this stage on the same ``current`` (the pacing's trial); the
+    stage goes on from it.
     """
     twin = setting.twin
     first = current.draft
@@ -445,12 +450,21 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
             draft, cur = kept_draft, kept_sim
         else:  # the first pass raised the RMS: the stage ends there
             attempts = []
+    printing = extruding_moves(setting.original)
+    window = float(twin.machine.hotend.nozzle_diameter_mm)
+    kept_score: float | None = None  # flow_score of the kept draft, from pass 3 on
     for k, ilc in attempts:
         if k in done:
             continue
+        if k >= 2 and summaries and not summaries[-1].retimed_share > options.retime_share:
+            break  # the last pass kept to the timeline it modelled: nothing new to model
         if cur is None:  # (the kept draft's simulation was let go: simulate it again)
             cur = kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False,
                                                  layout=kept_layout)
+        if k >= 2 and kept_score is None:  # (cur, draft: the kept ones here)
+            kept_score = flow_score(setting.original.before, flow_figures(
+                setting.original, cur, draft.row, window_mm=window))
+        modelled = row_times(cur, draft)
         plan, lag_k_s = cur.plan, cur.parameters.params.lag_k_s
         state_max = _grinding_state(cur, setting)
         delivered = _delivered_grid(setting.original, cur, draft) if ilc else None
@@ -467,21 +481,31 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         del plan, lag_k_s, state_max, delivered
         lay = draft.layout(check=False)
         cur = twin.simulate_draft(draft, pressure_advance=False, layout=lay)
-        rms = flow_figures(setting.original, cur, draft.row).rms_flow_error
+        # a pass after the second (made because the plan moved) must not weaken the
+        # weaker of the two improvements, RMS and windowed peak (flow_score)
+        figures = flow_figures(setting.original, cur, draft.row,
+                               window_mm=window if k >= 2 else None)
+        rms = figures.rms_flow_error
+        score = (None if kept_score is None
+                 else flow_score(setting.original.before, figures))
         retry = ilc and rms > kept_rms
-        fail = not retry and not rms <= kept_rms
-        summaries.append(AdvancePassSummary.of(rep, rms_flow_error=rms, twin_correction=ilc,
-                                               kept=not (retry or fail)))
+        fail = not retry and not pass_kept(rms, kept_rms, score, kept_score)
+        summaries.append(AdvancePassSummary.of(
+            rep, rms_flow_error=rms, twin_correction=ilc, kept=not (retry or fail),
+            retimed_share=retimed_share(modelled, row_times(cur, draft), printing)))
         if retry:  # the same pass again, without the correction
             draft, cur, lay = kept_draft, kept_sim, kept_layout
             continue
         done.add(k)
         if fail:
-            warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
-                            f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
-                            "its result is not used")
+            if k < 2:  # (a later pass is a trial: its summary says it was not kept)
+                warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
+                                f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
+                                "its result is not used")
             break
         kept_draft, kept_sim, kept_rms, kept_layout = draft, cur, rms, lay
+        if score is not None:
+            kept_score = score
     applied = kept_draft is not first
     if kept_sim is None:
         if kept_layout is None:
@@ -491,6 +515,38 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
            else twin.simulate_draft(kept_draft, layout=kept_layout))
     return AdvanceOutcome(Current(kept_draft, sim, kept_layout), tuple(summaries), applied,
                           tuple(warnings))
+
+
+def pass_kept(rms: float, kept_rms: float, score: float | None,
+              kept_score: float | None) -> bool:
+    """Whether an advance pass's result replaces the kept draft: it must not raise the
+    twin's RMS flow error and, for a pass after the second (scores given), not its
+    :func:`~flowtwin.compensation.metrics.flow_score` either (the weaker of the two
+    improvements, RMS and windowed peak: a later pass must not trade one for the other
+    below it). ``nan`` is never kept."""
+    if not rms <= kept_rms:
+        return False
+    return score is None or kept_score is None or bool(score <= kept_score)
+
+
+def row_times(sim: SimulationResult, draft: Draft) -> npt.NDArray[np.float64]:
+    """Planned time of every original row in ``sim`` (the simulation of ``draft``), s,
+    shape ``(draft.n_rows,)``."""
+    times = np.asarray(sim.dynamics.moves["duration_s"], dtype=np.float64)
+    return np.asarray(np.bincount(draft.row, weights=times, minlength=draft.n_rows),
+                      dtype=np.float64)
+
+
+def retimed_share(before_s: npt.NDArray[np.float64], after_s: npt.NDArray[np.float64],
+                  rows: npt.NDArray[np.bool_]) -> float:
+    """Share of the time of ``rows`` (planned as ``before_s``, s) that lies in rows whose
+    planned time changed by more than :data:`RETIMED_ROW` of it in ``after_s``; 0 when
+    they take no time."""
+    b, a = before_s[rows], after_s[rows]
+    total = float(np.sum(b))
+    if not total > 0.0:
+        return 0.0
+    return float(np.sum(b[np.abs(a - b) > RETIMED_ROW * b])) / total
 
 
 def _grinding_state(sim: SimulationResult, setting: Setting) -> npt.NDArray[np.float64]:

@@ -1,0 +1,119 @@
+"""How many advance passes are made, and which are kept.
+
+The refinement models the lag on the timeline of the draft it starts from; its ratio
+steps move the planner's junction speeds (Klipper's extruder corner velocity), so a pass
+after the second is made only when the pass before it re-timed more than
+``AdvanceOptions.retime_share`` of the printing time, and kept only when it raises neither
+the RMS flow error nor the weaker of the improvements of the RMS and of the windowed peak
+(``flow_score``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtwin.compensation import AdvanceOptions, CompensationReport, compensate
+from flowtwin.compensation.metrics import flow_score
+from flowtwin.compensation.stages import pass_kept, retimed_share
+from flowtwin.errors import DataError, ProfileError
+from flowtwin.gcode.generator import PrintSpec, write_print
+
+KLIPPER_CFG = Path(__file__).resolve().parents[1] / "data" / "klipper" / "A.cfg"
+#: a Klipper printer with a Volcano hot end (the validation prints' set-up)
+SETUP = """\
+kind = "setup"
+name = "test-klipper-volcano"
+description = "Klipper printer, E3D Volcano 0.4 mm, PLA at 215 C"
+printer = "generic-klipper"
+drive = "hobb-goblin-80n"
+hotend = "e3d-volcano-0.4"
+material = "pla-4043d"
+filament = "pla-4043d-1.75"
+temperature_c = 215.0
+"""
+
+
+def test_retimed_share_is_the_time_of_the_rows_that_moved() -> None:
+    before = np.array([1.0, 1.0, 2.0, 0.0, 4.0])
+    after = np.array([1.04, 1.2, 1.0, 0.0, 9.0])
+    rows = np.array([True, True, True, True, False])
+    # rows 1 (+20 %) and 2 (−50 %) moved by more than 5 %; row 0 (+4 %) did not; row 4
+    # is not a printing row
+    assert retimed_share(before, after, rows) == pytest.approx(3.0 / 4.0, abs=0.0)
+    assert retimed_share(before, before, rows) == 0.0
+    assert retimed_share(np.zeros(3), np.ones(3), np.ones(3, dtype=bool)) == 0.0
+
+
+@pytest.fixture(scope="module")
+def fast_klipper(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A 72-gon print at 250/300 mm/s on a Klipper printer (3000 mm/s², corner velocity
+    5 mm/s): the advance's ratio steps move its junctions."""
+    d = tmp_path_factory.mktemp("passes")
+    src = d / "fast.gcode"
+    write_print(src, PrintSpec(layers=2, perimeter_speed_mm_s=250.0,
+                               infill_speed_mm_s=300.0, use_arcs=False))
+    setup = d / "setup.toml"
+    setup.write_text(SETUP)
+    return src, setup
+
+
+def _run(fast_klipper: tuple[Path, Path], tmp_path: Path, *, passes: int,
+         retime_share: float) -> CompensationReport:
+    src, setup = fast_klipper
+    return compensate(src, tmp_path / "out.gcode", machine=setup,
+                      klipper_config=KLIPPER_CFG,
+                      advance=replace(AdvanceOptions(), retime_share=retime_share),
+                      advance_passes=passes)
+
+
+def test_a_later_pass_is_made_only_while_the_plan_moves(fast_klipper: tuple[Path, Path],
+                                                        tmp_path: Path) -> None:
+    never = _run(fast_klipper, tmp_path, passes=4, retime_share=1.0)
+    assert len(never.advance) == 2
+    always = _run(fast_klipper, tmp_path, passes=3, retime_share=0.0)
+    assert len(always.advance) >= 3
+    # the first two passes are the same either way, and the share is measured each time
+    for a, b in zip(never.advance, always.advance[:2], strict=True):
+        assert a.rms_flow_error == b.rms_flow_error
+        assert 0.0 <= a.retimed_share <= 1.0
+    # the first pass cuts the moves at their phases: it re-times most of the print
+    assert never.advance[0].retimed_share > 0.5
+    default = _run(fast_klipper, tmp_path, passes=3, retime_share=0.02)
+    third = default.advance[1].retimed_share > 0.02
+    assert len(default.advance) == (3 if third else 2)
+
+
+def test_a_later_pass_must_weaken_neither_improvement() -> None:
+    # the RMS flow error must not rise, in every pass
+    assert pass_kept(0.05, 0.06, None, None)
+    assert not pass_kept(0.07, 0.06, None, None)
+    assert not pass_kept(math.nan, 0.06, None, None)
+    # after the second, the weaker improvement (flow_score: the larger after/before
+    # ratio) must not get weaker, even when the RMS falls
+    assert pass_kept(0.05, 0.06, 0.20, 0.20)
+    assert not pass_kept(0.05, 0.06, 0.21, 0.20)
+    assert not pass_kept(0.07, 0.06, 0.10, 0.20)
+
+
+def test_a_kept_later_pass_improves_the_weaker_figure(fast_klipper: tuple[Path, Path],
+                                                      tmp_path: Path) -> None:
+    two = _run(fast_klipper, tmp_path, passes=2, retime_share=0.0)
+    three = _run(fast_klipper, tmp_path, passes=3, retime_share=0.0)
+    assert three.advance[2].kept
+    # the file is the third pass's: a lower RMS and no weaker flow score than the second's
+    assert three.after.rms_flow_error == three.advance[2].rms_flow_error
+    assert three.after.rms_flow_error < two.after.rms_flow_error
+    assert flow_score(three.before, three.after) <= flow_score(two.before, two.after)
+    assert not any("pass 3" in w for w in three.warnings)
+
+
+def test_the_pass_count_and_the_share_are_checked() -> None:
+    with pytest.raises(DataError, match="1 to 4"):
+        compensate("nothing.gcode", "out.gcode", advance=True, advance_passes=5)
+    with pytest.raises(ProfileError, match="retime_share"):
+        AdvanceOptions(retime_share=1.5)
