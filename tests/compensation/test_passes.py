@@ -117,3 +117,22 @@ def test_the_pass_count_and_the_share_are_checked() -> None:
         compensate("nothing.gcode", "out.gcode", advance=True, advance_passes=5)
     with pytest.raises(ProfileError, match="retime_share"):
         AdvanceOptions(retime_share=1.5)
+
+
+def test_a_first_pass_that_raised_the_error_still_seeds_the_second(tmp_path: Path) -> None:
+    # the top layer of a tapered cup sliced by PrusaSlicer 2.5 (0.3 mm layers, 100/150
+    # mm/s) for a Klipper printer at 2500 mm/s² (tests/data/PROVENANCE.md, cup/): the
+    # first pass's ratio steps re-time ~20 % of the print and its result is worse than
+    # the file; the second pass models that plan and is better than the file
+    data = Path(__file__).resolve().parents[1] / "data" / "cup"
+    setup = tmp_path / "setup.toml"
+    setup.write_text(SETUP)
+    report = compensate(data / "cup_top_layer.gcode.gz", tmp_path / "out.gcode",
+                        machine=setup, klipper_config=data / "printer.cfg", advance=True)
+    first, second = report.advance[:2]
+    assert not first.kept and first.rms_flow_error > report.before.rms_flow_error
+    assert second.kept
+    assert report.after.rms_flow_error <= second.rms_flow_error
+    assert report.after.rms_flow_error < 0.7 * report.before.rms_flow_error
+    assert "advance" in report.transformations
+    assert not any("pass 1" in w for w in report.warnings)

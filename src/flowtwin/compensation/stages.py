@@ -453,6 +453,9 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     printing = extruding_moves(setting.original)
     window = float(twin.machine.hotend.nozzle_diameter_mm)
     kept_score: float | None = None  # flow_score of the kept draft, from pass 3 on
+    # a first pass that raised the RMS is still where the second starts: its ratio steps
+    # re-timed the plan, and the second models that plan (and corrects by the twin)
+    base: tuple[Draft, SimulationResult, Layout | None] | None = None
     for k, ilc in attempts:
         if k in done:
             continue
@@ -494,9 +497,12 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
             rep, rms_flow_error=rms, twin_correction=ilc, kept=not (retry or fail),
             retimed_share=retimed_share(modelled, row_times(cur, draft), printing)))
         if retry:  # the same pass again, without the correction
-            draft, cur, lay = kept_draft, kept_sim, kept_layout
+            draft, cur, lay = base or (kept_draft, kept_sim, kept_layout)
             continue
         done.add(k)
+        if fail and k == 0 and passes > 1:
+            base = (draft, cur, lay)
+            continue
         if fail:
             if k < 2:  # (a later pass is a trial: its summary says it was not kept)
                 warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
@@ -507,6 +513,12 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
         if score is not None:
             kept_score = score
     applied = kept_draft is not first
+    if base is not None and not applied:
+        warnings.insert(0, f"advance pass 1 raised the twin's RMS flow error (to "
+                        f"{100 * summaries[0].rms_flow_error:.2f} % from {100 * kept_rms:.2f} "
+                        "%) and the second, which starts from it, did not make it better "
+                        "than the file: nothing is used")
+    del base
     if kept_sim is None:
         if kept_layout is None:
             kept_layout = kept_draft.layout(check=False)
