@@ -78,7 +78,8 @@ class AdvancePassSummary:
     twin_correction
         The pass aimed the model by the twin's correction.
     kept
-        The pass's result was kept (it did not raise the twin's RMS).
+        The pass's result was kept (it did not raise the twin's RMS flow error, nor, for
+        a pass after the second, the weaker of the RMS and windowed improvements).
     retimed_share
         Share of the printing time whose planned time the pass's result moved from the
         timeline the pass modelled (rows changed by more than 5 %; ``nan``: not measured).

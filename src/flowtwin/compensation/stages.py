@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.advance import RETIMED_ROW, AdvanceOptions, eligible_rows
+from flowtwin.compensation.advance import AdvanceOptions, eligible_rows
 from flowtwin.compensation.bake import advance_pass
 from flowtwin.compensation.budget import largest_fitting
 from flowtwin.compensation.draft import Draft
@@ -28,6 +28,7 @@ from flowtwin.compensation.metrics import Intent, extruding_moves, flow_figures,
 from flowtwin.compensation.original import OriginalFile
 from flowtwin.compensation.outcome import AdvancePassSummary
 from flowtwin.compensation.pace import PaceOptions, PaceReport, pace_feeds
+from flowtwin.compensation.passes import pass_kept, retimed_share, row_times
 from flowtwin.compensation.spots import SpotRanking, count_spots, rank_spots, spot_pieces
 from flowtwin.compensation.trajectory import TrajectoryOptions, TrajectoryReport, bend_paths
 from flowtwin.errors import DataError
@@ -413,8 +414,10 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
 
     Every pass after the first is tried with the twin's correction of the model, and
     again without it when that raised the twin's RMS flow error; a pass that raises it
-    all the same is dropped and ends the stage. A pass after the second is made only
-    when the pass before it moved the plan off the timeline it modelled
+    all the same is dropped and ends the stage — except the first: its ratio steps
+    re-time the plan most, so the second pass starts from its draft all the same, and
+    the stage keeps the best of the file and the passes. A pass after the second is made
+    only when the last kept pass moved the plan off the timeline it modelled
     (``options.retime_share``), and kept only when it raises neither the RMS flow error
     nor the :func:`~flowtwin.compensation.metrics.flow_score` (the weaker of the
     improvements of the RMS and of the windowed peak over-extrusion). The advance is
@@ -440,7 +443,10 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
     done: set[int] = set()
     summaries: list[AdvancePassSummary] = []
     warnings: list[str] = []
-    if resume is not None and resume.passes and not twin.pressure_advance:
+    # a trial first pass that raised the RMS is not resumed but made again, so that the
+    # second pass can start from it (below); with one pass the stage ends there
+    if (resume is not None and resume.passes and not twin.pressure_advance
+            and (resume.applied or passes == 1)):
         summaries, warnings = list(resume.passes), list(resume.warnings)
         done.add(0)
         if resume.applied:
@@ -448,19 +454,20 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
             kept_layout = lay = resume.current.layout
             kept_rms = summaries[-1].rms_flow_error
             draft, cur = kept_draft, kept_sim
-        else:  # the first pass raised the RMS: the stage ends there
+        else:
             attempts = []
     printing = extruding_moves(setting.original)
     window = float(twin.machine.hotend.nozzle_diameter_mm)
     kept_score: float | None = None  # flow_score of the kept draft, from pass 3 on
+    kept_share = summaries[-1].retimed_share if summaries else math.nan  # of the kept pass
     # a first pass that raised the RMS is still where the second starts: its ratio steps
     # re-timed the plan, and the second models that plan (and corrects by the twin)
     base: tuple[Draft, SimulationResult, Layout | None] | None = None
     for k, ilc in attempts:
         if k in done:
             continue
-        if k >= 2 and summaries and not summaries[-1].retimed_share > options.retime_share:
-            break  # the last pass kept to the timeline it modelled: nothing new to model
+        if k >= 2 and ilc and not kept_share > options.retime_share:
+            break  # the kept pass kept to the timeline it modelled: nothing new to model
         if cur is None:  # (the kept draft's simulation was let go: simulate it again)
             cur = kept_sim = twin.simulate_draft(kept_draft, pressure_advance=False,
                                                  layout=kept_layout)
@@ -493,9 +500,11 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
                  else flow_score(setting.original.before, figures))
         retry = ilc and rms > kept_rms
         fail = not retry and not pass_kept(rms, kept_rms, score, kept_score)
+        share = retimed_share(modelled, row_times(cur, draft), printing)
         summaries.append(AdvancePassSummary.of(
             rep, rms_flow_error=rms, twin_correction=ilc, kept=not (retry or fail),
-            retimed_share=retimed_share(modelled, row_times(cur, draft), printing)))
+            retimed_share=share))
+        del figures
         if retry:  # the same pass again, without the correction
             draft, cur, lay = base or (kept_draft, kept_sim, kept_layout)
             continue
@@ -504,12 +513,15 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
             base = (draft, cur, lay)
             continue
         if fail:
-            if k < 2:  # (a later pass is a trial: its summary says it was not kept)
+            # (a later pass is a trial: its summary says it was not kept; after a first
+            # pass that raised the RMS, one warning below says what both did)
+            if k < 2 and base is None:
                 warnings.append(f"advance pass {k + 1} raised the twin's RMS flow error "
                                 f"(to {100 * rms:.2f} % from {100 * kept_rms:.2f} %): "
                                 "its result is not used")
             break
         kept_draft, kept_sim, kept_rms, kept_layout = draft, cur, rms, lay
+        kept_share, base = share, None
         if score is not None:
             kept_score = score
     applied = kept_draft is not first
@@ -527,38 +539,6 @@ def advance_stage(setting: Setting, current: Current, options: AdvanceOptions, *
            else twin.simulate_draft(kept_draft, layout=kept_layout))
     return AdvanceOutcome(Current(kept_draft, sim, kept_layout), tuple(summaries), applied,
                           tuple(warnings))
-
-
-def pass_kept(rms: float, kept_rms: float, score: float | None,
-              kept_score: float | None) -> bool:
-    """Whether an advance pass's result replaces the kept draft: it must not raise the
-    twin's RMS flow error and, for a pass after the second (scores given), not its
-    :func:`~flowtwin.compensation.metrics.flow_score` either (the weaker of the two
-    improvements, RMS and windowed peak: a later pass must not trade one for the other
-    below it). ``nan`` is never kept."""
-    if not rms <= kept_rms:
-        return False
-    return score is None or kept_score is None or bool(score <= kept_score)
-
-
-def row_times(sim: SimulationResult, draft: Draft) -> npt.NDArray[np.float64]:
-    """Planned time of every original row in ``sim`` (the simulation of ``draft``), s,
-    shape ``(draft.n_rows,)``."""
-    times = np.asarray(sim.dynamics.moves["duration_s"], dtype=np.float64)
-    return np.asarray(np.bincount(draft.row, weights=times, minlength=draft.n_rows),
-                      dtype=np.float64)
-
-
-def retimed_share(before_s: npt.NDArray[np.float64], after_s: npt.NDArray[np.float64],
-                  rows: npt.NDArray[np.bool_]) -> float:
-    """Share of the time of ``rows`` (planned as ``before_s``, s) that lies in rows whose
-    planned time changed by more than :data:`RETIMED_ROW` of it in ``after_s``; 0 when
-    they take no time."""
-    b, a = before_s[rows], after_s[rows]
-    total = float(np.sum(b))
-    if not total > 0.0:
-        return 0.0
-    return float(np.sum(b[np.abs(a - b) > RETIMED_ROW * b])) / total
 
 
 def _grinding_state(sim: SimulationResult, setting: Setting) -> npt.NDArray[np.float64]:
