@@ -24,18 +24,9 @@ from flowtwin.errors import DataError, ProfileError
 from flowtwin.gcode.generator import PrintSpec, write_print
 
 KLIPPER_CFG = Path(__file__).resolve().parents[1] / "data" / "klipper" / "A.cfg"
+CUP = Path(__file__).resolve().parents[1] / "data" / "cup"
 #: a Klipper printer with a Volcano hot end (the validation prints' set-up)
-SETUP = """\
-kind = "setup"
-name = "test-klipper-volcano"
-description = "Klipper printer, E3D Volcano 0.4 mm, PLA at 215 C"
-printer = "generic-klipper"
-drive = "hobb-goblin-80n"
-hotend = "e3d-volcano-0.4"
-material = "pla-4043d"
-filament = "pla-4043d-1.75"
-temperature_c = 215.0
-"""
+SETUP = CUP / "klipper-volcano.toml"
 
 
 def test_retimed_share_is_the_time_of_the_rows_that_moved() -> None:
@@ -53,13 +44,10 @@ def test_retimed_share_is_the_time_of_the_rows_that_moved() -> None:
 def fast_klipper(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """A 72-gon print at 250/300 mm/s on a Klipper printer (3000 mm/s², corner velocity
     5 mm/s): the advance's ratio steps move its junctions."""
-    d = tmp_path_factory.mktemp("passes")
-    src = d / "fast.gcode"
+    src = tmp_path_factory.mktemp("passes") / "fast.gcode"
     write_print(src, PrintSpec(layers=2, perimeter_speed_mm_s=250.0,
                                infill_speed_mm_s=300.0, use_arcs=False))
-    setup = d / "setup.toml"
-    setup.write_text(SETUP)
-    return src, setup
+    return src, SETUP
 
 
 def _run(fast_klipper: tuple[Path, Path], tmp_path: Path, *, passes: int,
@@ -153,9 +141,7 @@ def test_a_first_pass_that_raised_the_error_still_seeds_the_second(tmp_path: Pat
     # mm/s) for a Klipper printer at 2500 mm/s² (tests/data/PROVENANCE.md, cup/): the
     # first pass's ratio steps re-time ~20 % of the print and its result is worse than
     # the file; the second pass models that plan and is better than the file
-    data = Path(__file__).resolve().parents[1] / "data" / "cup"
-    setup = tmp_path / "setup.toml"
-    setup.write_text(SETUP)
+    data, setup = CUP, SETUP
     report = compensate(data / "cup_top_layer.gcode.gz", tmp_path / "out.gcode",
                         machine=setup, klipper_config=data / "printer.cfg", advance=True)
     first, second = report.advance[:2]
