@@ -81,6 +81,22 @@ def test_tune_json_and_table_file(tmp_path: Path) -> None:
     assert len(rows) == 4 and all(len(r.split(",")) == 3 for r in rows)
 
 
+def test_relief_min_lags_relieves_shorter_travels(example: Path, tmp_path: Path) -> None:
+    def relieved(*extra: str) -> int:
+        res = runner.invoke(app(), ["compensate", str(example), "-o",
+                                    str(tmp_path / "out.gcode"), "--advance", "--json",
+                                    *extra])
+        assert res.exit_code == 0, res.output
+        return int(json.loads(res.stdout)["advance"][0]["relief_travels"])
+
+    default, shorter = relieved(), relieved("--relief-min-lags", "0.25")
+    assert default > 0 and shorter > default
+    res = runner.invoke(app(), ["compensate", str(example), "-o", str(tmp_path / "o.gcode"),
+                                "--advance", "--relief-min-lags", "-1"])
+    assert res.exit_code != 0
+    assert "relief_min_lags" in str(res.exception) and "0 .. 100" in str(res.exception)
+
+
 def test_bad_input_exits_with_the_error(tmp_path: Path) -> None:
     bad = tmp_path / "bad.gcode"
     bad.write_text("G1 X1 E0.1 F600\nG20\n")

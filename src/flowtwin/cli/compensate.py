@@ -146,6 +146,11 @@ def register(app: typer.Typer) -> None:
             "--refine/--no-refine", help="Refine the law with the twin's lag model.")] = True,
         relief: Annotated[bool, typer.Option(
             "--relief/--no-relief", help="Relieve the pressure over travels.")] = True,
+        relief_min_lags: Annotated[float, typer.Option(
+            "--relief-min-lags", metavar="LAGS",
+            help="Relieve travels lasting at least this many lag factors (0.25: stronger "
+                 "where slicers travel unretracted, slower on Klipper; "
+                 "docs/compensation.md).")] = 0.5,
         safety: Annotated[float, typer.Option(
             "--safety", help="Guard: allowed share of the maximum feed force.")] = 0.8,
         max_flow: Annotated[float | None, typer.Option(
@@ -170,7 +175,8 @@ def register(app: typer.Typer) -> None:
 
         adv = AdvanceOptions(law=AdvanceLaw(law), k_scale=k_scale,
                              refine=RefineOptions() if refine else None,
-                             relief=relief and refine) if advance else None
+                             relief=relief and refine,
+                             relief_min_lags=relief_min_lags) if advance else None
         report = compensate(
             gcode, output, machine=profile, klipper_config=klipper_config, advance=adv,
             slip=SlipOptions() if slip else None,

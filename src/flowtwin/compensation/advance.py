@@ -176,6 +176,8 @@ class AdvanceOptions:
             "retract_ratio": (self.retract_ratio, 0.0 <= self.retract_ratio <= 20.0,
                               "0 .. 20"),
             "retime_share": (self.retime_share, 0.0 <= self.retime_share <= 1.0, "0 .. 1"),
+            "relief_min_lags": (self.relief_min_lags, 0.0 <= self.relief_min_lags <= 100.0,
+                                "0 .. 100"),
         }
         if self.k_s is not None:
             checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")
