@@ -22,6 +22,7 @@ paced, left by the budget). Results go to ``out/results-SPLIT[-pace].json``.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import statistics
@@ -96,6 +97,31 @@ def run_print(p: Print, out: Path, *, pace: PaceOptions | None, slip: bool
     }
 
 
+#: Content hash of every slice the documented figures were measured on (session 13's
+#: tables): PrusaSlicer 2.5 does not write the same G-code twice, so a fresh slice may give
+#: other figures (docs/compensation.md, "The slices are not reproducible bit for bit").
+SLICES = Path(__file__).resolve().parent / "SLICES.tsv"
+
+
+def slice_hash(path: Path) -> str:
+    """SHA-256 of a G-code's lines that are not comments (a slicer's time stamp and
+    settings block do not count)."""
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for line in f:
+            if not line.lstrip().startswith(b";"):
+                h.update(line)
+    return h.hexdigest()
+
+
+def documented_slices() -> dict[str, str]:
+    """Print name → content hash of the slice the documented figures used."""
+    if not SLICES.exists():
+        return {}
+    rows = (ln.split("\t") for ln in SLICES.read_text().splitlines() if ln and ln[0] != "#")
+    return {name: digest for name, digest in rows}
+
+
 def volume_floor(report: CompensationReport) -> float:
     """The least RMS flow error a file delivering the volume ``report``'s result delivers
     can have: ``|Σ w·e| / Σ w`` over the extruding moves (``w`` the intended volume, ``e``
@@ -165,6 +191,13 @@ def main(argv: list[str] | None = None) -> int:
     if any(not (args.out / f"{p.name}.gcode").exists() for p in prints):
         generate(args.split, args.out)
     rows = []
+    known = documented_slices()
+    other = [p.name for p in prints
+             if p.name in known and slice_hash(args.out / f"{p.name}.gcode") != known[p.name]]
+    if other:
+        print(f"note: {len(other)} of {len(prints)} slices differ from the ones the documented "
+              f"figures were measured on ({SLICES.name}; PrusaSlicer 2.5 does not slice the "
+              "same twice): expect their figures to differ a little")
     print(f"{'print':<72} {'RMS before→after':>20} {'×':>6} {'peak/0.4mm':>20} {'×':>6} "
           f"{'time':>7} {'pace':>7} {'spots':>11} {'wall':>6}")
     for p in prints:
