@@ -310,16 +310,24 @@ _NATIVE_CALLBACKS = (("executionengine.py", "_raw_object_cache_notify"),
 #: held by the main thread, and a worker thread that loads a kernel then waits for ever.
 _LOCK_MODULES = ("llvmlite/binding/ffi.py", "numba/core/compiler_lock.py",
                  "numba/core/event.py")
+#: Python code that C code calls back into and whose exception it does not pass on: numba's
+#: unpickler of a cached kernel's constants, run by the dispatcher on a kernel's first call
+#: (an exception raised there made the call return a result with an exception set, a
+#: ``SystemError``, or crashed the process with SIGSEGV), and the import machinery (an
+#: extension module's initialisation turns it into an ``ImportError``).
+_CALLBACK_MODULES = ("numba/core/serialize.py", "<frozen importlib._bootstrap>",
+                     "<frozen importlib._bootstrap_external>")
 
 
 def _unsafe_to_raise(frame: FrameType | None) -> bool:
     """Whether ``frame`` runs where an exception must not be raised: inside one of
-    :data:`_NATIVE_CALLBACKS`, one of :data:`_LOCK_MODULES`, or a finalizer (``__del__``:
-    Python drops what it raises)."""
+    :data:`_NATIVE_CALLBACKS`, one of :data:`_LOCK_MODULES` or :data:`_CALLBACK_MODULES`,
+    or a finalizer (``__del__``: Python drops what it raises)."""
     while frame is not None:
         code = frame.f_code
         name, file = code.co_name, code.co_filename.replace(os.sep, "/")
         if name == "__del__" or any(file.endswith(m) for m in _LOCK_MODULES) or any(
+                file.endswith(m) for m in _CALLBACK_MODULES) or any(
                 name == cb and file.endswith(f) for f, cb in _NATIVE_CALLBACKS):
             return True
         frame = frame.f_back
