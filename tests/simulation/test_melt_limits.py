@@ -160,6 +160,13 @@ def test_a_move_feeding_more_than_a_spool_is_refused_with_its_line(tmp_path: Pat
         simulate(path, machine="tronvoll2019")
     path.write_text(f"M83\nG1 X10 Y10 F3000\nG1 E{MAX_MOVE_FILAMENT_MM:.0f} F6000\n")
     assert simulate(path, machine="tronvoll2019").summary().moves == 2
+    # what the move feeds counts, its E times the M221 flow in force (a fuzzed Bambu start
+    # G-code's "M221 S999999999" made its purge lines feed 150 km: 5 minutes of grinding
+    # in the integrator, fuzz seed 20261129)
+    path.write_text("M83\nM221 S999999999\nG1 X10 Y10 F3000\nG1 X240 E15 F6000\n")
+    with pytest.raises(DataError, match=r"huge.gcode:4 \[E\].*1\.5e\+08 mm of filament "
+                                        r"\(E 15 at M221 1e\+09 %\)"):
+        simulate(path, machine="tronvoll2019")
 
 
 def test_flow_flags_give_each_row_the_limit_of_its_own_temperature_and_height() -> None:

@@ -201,12 +201,18 @@ def _run_starts(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
 
 
 def _check_filament_per_move(table: MoveTable) -> None:
-    """Refuse a move that feeds or pulls back more than :data:`MAX_MOVE_FILAMENT_MM`."""
-    de = np.abs(np.asarray(table.moves["de"], dtype=np.float64))
-    big = np.flatnonzero(de > MAX_MOVE_FILAMENT_MM)
+    """Refuse a move that feeds or pulls back more than :data:`MAX_MOVE_FILAMENT_MM`: its E
+    times the ``M221`` flow in force (``M221 S999999999`` makes an ``E15`` purge feed
+    150 km, which the twin would otherwise grind through for minutes)."""
+    de = np.abs(np.asarray(table.moves["de"], dtype=np.float64)
+                * np.asarray(table.moves["flow"], dtype=np.float64))
+    big = np.flatnonzero(~(de <= MAX_MOVE_FILAMENT_MM))
     if big.size:
         i = int(big[0])
-        raise DataError(f"a move feeds {float(table.moves['de'][i]):.6g} mm of filament; "
+        flow = float(table.moves["flow"][i])
+        by = ("" if flow == 1.0
+              else f" (E {float(table.moves['de'][i]):.6g} at M221 {100 * flow:g} %)")
+        raise DataError(f"a move feeds {float(de[i]):.6g} mm of filament{by}; "
                         f"{big.size} move(s) beyond the limit", source=table.source,
                         line=int(table.moves["line"][i]), field="E", value=float(de[i]),
                         allowed=f"at most {MAX_MOVE_FILAMENT_MM:g} mm per move (100 m)")
