@@ -326,8 +326,7 @@ def _unsafe_to_raise(frame: FrameType | None) -> bool:
     while frame is not None:
         code = frame.f_code
         name, file = code.co_name, code.co_filename.replace(os.sep, "/")
-        if name == "__del__" or any(file.endswith(m) for m in _LOCK_MODULES) or any(
-                file.endswith(m) for m in _CALLBACK_MODULES) or any(
+        if name == "__del__" or file.endswith(_LOCK_MODULES + _CALLBACK_MODULES) or any(
                 name == cb and file.endswith(f) for f, cb in _NATIVE_CALLBACKS):
             return True
         frame = frame.f_back

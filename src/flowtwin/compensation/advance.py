@@ -69,10 +69,6 @@ class AdvanceLaw(StrEnum):
     SMOOTHED = "smoothed"   #: [001 Eq. 11] integrated, advance term smoothed
 
 
-#: A row is re-timed when its planned time changed by more than this share of it.
-RETIMED_ROW = 0.05
-
-
 @dataclass(frozen=True, slots=True)
 class AdvanceOptions:
     """How to bake the advance.
@@ -132,7 +128,8 @@ class AdvanceOptions:
         timeline of the draft it starts from, and its ratio steps move the planner's
         junction speeds (Klipper's extruder corner velocity most of all), so where the
         result's plan left that timeline (rows whose planned time changed by more than
-        :data:`RETIMED_ROW` of it) the next pass models the new one. ``0``: every pass.
+        :data:`~flowtwin.compensation.passes.RETIMED_ROW` of it) the next pass models
+        the new one. ``0``: every pass.
     """
 
     law: AdvanceLaw = AdvanceLaw.SMOOTHED

@@ -17,13 +17,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from flowtwin.compensation.advance import RETIMED_ROW
-
 if TYPE_CHECKING:
     from flowtwin.compensation.draft import Draft
     from flowtwin.simulation import SimulationResult
 
-__all__ = ["pass_kept", "retimed_share", "row_times"]
+__all__ = ["RETIMED_ROW", "pass_kept", "retimed_share", "row_times"]
+
+#: A row is re-timed when its planned time changed by more than this share of it.
+RETIMED_ROW = 0.05
 
 
 def pass_kept(rms: float, kept_rms: float, score: float | None,
@@ -88,8 +89,7 @@ def retimed_share(before_s: npt.NDArray[np.float64], after_s: npt.NDArray[np.flo
     -------
     float
         The share of ``before_s`` over ``rows`` that lies in rows whose time changed by
-        more than :data:`~flowtwin.compensation.advance.RETIMED_ROW` of it; 0 when the
-        rows take no time.
+        more than :data:`RETIMED_ROW` of it; 0 when the rows take no time.
     """
     b, a = before_s[rows], after_s[rows]
     total = float(np.sum(b))
