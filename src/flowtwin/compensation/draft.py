@@ -169,6 +169,13 @@ class Draft:
         piece_feed_mm_min
             Feed of every sub-piece (``nan``: its line's); default: the piece's.
         """
+        piece = np.asarray(piece, dtype=np.int64)
+        n_now = self.row.size
+        if piece.size and (np.any(np.diff(piece) < 0) or piece[0] != 0
+                           or piece[-1] != n_now - 1 or np.any(np.diff(piece) > 1)):
+            # the writer lays every line out from its pieces in order: a piece lost or out
+            # of order here would corrupt the output, so it is an internal error
+            raise RuntimeError("a draft's sub-pieces must cover every piece, in order")
         feed = (self.piece_feed_mm_min[piece] if piece_feed_mm_min is None
                 else np.asarray(piece_feed_mm_min, dtype=np.float64))
         return replace(self, row=self.row[piece], xyz_mm=np.asarray(xyz_mm, dtype=np.float64),
