@@ -151,6 +151,10 @@ def register(app: typer.Typer) -> None:
             help="Relieve travels lasting at least this many lag factors (0.25: stronger "
                  "where slicers travel unretracted, slower on Klipper; "
                  "docs/compensation.md).")] = 0.5,
+        relief_along: Annotated[bool, typer.Option(
+            "--relief-along/--relief-e-only",
+            help="On Klipper, retract and push back while the head travels (default) "
+                 "instead of in E-only moves the head stops for.")] = True,
         safety: Annotated[float, typer.Option(
             "--safety", help="Guard: allowed share of the maximum feed force.")] = 0.8,
         max_flow: Annotated[float | None, typer.Option(
@@ -176,7 +180,8 @@ def register(app: typer.Typer) -> None:
         adv = AdvanceOptions(law=AdvanceLaw(law), k_scale=k_scale,
                              refine=RefineOptions() if refine else None,
                              relief=relief and refine,
-                             relief_min_lags=relief_min_lags) if advance else None
+                             relief_min_lags=relief_min_lags,
+                             relief_along=relief_along) if advance else None
         report = compensate(
             gcode, output, machine=profile, klipper_config=klipper_config, advance=adv,
             slip=SlipOptions() if slip else None,

@@ -108,6 +108,11 @@ class AdvanceOptions:
         predicted compression (needs ``refine``; see :mod:`flowtwin.compensation.bake`).
     relief_min_lags
         Relieve only travels lasting at least this many lag factors ``K``.
+    relief_along
+        On Klipper, lay each relief's retraction and push-back along its travel's first
+        and last millimetres where they fit, instead of two E-only moves the head stands
+        still for (:func:`flowtwin.compensation.relief.insert_relief`); ``False``: E-only
+        moves everywhere (as on Marlin).
     twin_gain
         Learning gain of a later pass's twin correction: it aims the model at
         ``intent + g·(model − twin)`` (see :func:`flowtwin.compensation.bake.advance_pass`).
@@ -145,6 +150,7 @@ class AdvanceOptions:
     refine: RefineOptions | None = field(default_factory=RefineOptions)
     relief: bool = True
     relief_min_lags: float = 0.5
+    relief_along: bool = True
     twin_gain: float = 0.5
     retract_ratio: float = 4.0
     retime_share: float = 0.02

@@ -82,6 +82,9 @@ class PassReport:
         Travels given a pressure-relief retraction.
     relief_mm
         Total length retracted (and pushed back) by the reliefs, mm of filament.
+    relief_along
+        Reliefs laid along their travels (Klipper: the head moves while the filament
+        retracts and pushes back, :func:`flowtwin.compensation.relief.insert_relief`).
     relief_retractions
         Retracting travels whose push-back was shortened by the compression at the end of
         the run before, less the pre-charge (a later pass: slicer push-backs it changed).
@@ -104,6 +107,7 @@ class PassReport:
     refinement: dict[str, float] = field(default_factory=dict)
     relief_travels: int = 0
     relief_mm: float = 0.0
+    relief_along: int = 0
     relief_retractions: int = 0
     relief_retraction_mm: float = 0.0
     relief_precharge_mm: float = 0.0
@@ -180,7 +184,7 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     k_la = (np.full(n, options.k_s) if options.k_s is not None
             else options.k_scale * np.asarray(lag_k_s, dtype=np.float64))
     law = follow_law(pieces, timeline, elig, intent_row, cur_e, k_la, limits, options,
-                     e_unit_mm=e_unit_mm, xy_rows=(kind & MoveKind.XY) != 0,
+                     e_unit_mm=e_unit_mm, xy_rows=_junction_rows(kind, cur_e, draft, group),
                      pull_rows=None if split else cur_e < 0)
     report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
     e_run = law.e
@@ -277,7 +281,8 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
             delta = min(max(short - int(round(max(x, 0.0))) + int(round(y)),
                             1 - int(cur_e[back])), short)
             if delta:
-                pushed[back] = pushed.get(back, 0) + delta
+                for r, de in _push_shares(back, h, delta, cur_e, kind):
+                    pushed[r] = pushed.get(r, 0) + de
                 if draft.row_e[group[back]] > 0:  # the slicer's own push-back
                     report.relief_retractions += 1
                     report.relief_retraction_mm -= delta * e_unit_mm
@@ -309,12 +314,46 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     piece_of = pieces.row.copy()
     feed = draft.piece_feed_mm_min[piece_of].copy()
     if reliefs:
-        piece_of, xyz, e_piece, feed = insert_relief(reliefs, piece_of, xyz, e_piece, feed,
-                                                     start, end, limits)
+        piece_of, xyz, e_piece, feed, along = insert_relief(
+            reliefs, piece_of, xyz, e_piece, feed, start, end, limits,
+            along=(np.asarray(table.moves["feed_mm_s"], dtype=np.float64),
+                   np.asarray(timeline.phases["accel"], dtype=np.float64),
+                   ((kind & MoveKind.XY) != 0) & ((kind & MoveKind.TRAVEL) != 0)
+                   ) if options.relief_along else None,
+            e_unit_mm=e_unit_mm)
         report.relief_travels += len(reliefs)
+        report.relief_along += along
         report.relief_mm += sum(r for _a, _b, r, _back in reliefs) * e_unit_mm
     report.pieces = int(piece_of.size)
     return draft.split(piece_of, xyz, e_piece, feed), report
+
+
+def _junction_rows(kind: npt.NDArray[np.uint8], cur_e: IntArray, draft: Draft,
+                   group: IntArray) -> npt.NDArray[np.bool_]:
+    """Rows whose E ratio bounds the ratio of a run's first and last piece at the junction
+    between them: XY moves, except the pieces of a relief laid along a travel (E written
+    on a row the slicer wrote without; a later pass must not pin the run's ends to the
+    relief's steep ratio, which it crosses anyway where the head has slowed down)."""
+    xy = (kind & MoveKind.XY) != 0
+    return xy & ~((cur_e != 0) & (draft.row_e[group] == 0))
+
+
+def _push_shares(back: int, hold: int, delta: int, cur_e: IntArray,
+                 kind: npt.NDArray[np.uint8]) -> list[tuple[int, int]]:
+    """A change of a relief's push-back, as ``(row, E)``: all on an E-only push-back; on
+    one laid along the travel's end (rows with XY and positive E from the hold on, the
+    last being ``back``) in proportion to their E, so that its ratio stays even and
+    within the limit it was laid at (:func:`flowtwin.compensation.relief.insert_relief`)."""
+    if not kind[back] & MoveKind.XY:
+        return [(back, delta)]
+    rows = np.arange(hold + 1, back + 1)
+    rows = rows[(cur_e[rows] > 0) & ((kind[rows] & MoveKind.XY) != 0)]
+    have = cur_e[rows].astype(np.float64)
+    delta = max(delta, int(rows.size) - int(np.sum(have)))  # every piece keeps one unit
+    cum = np.rint(np.cumsum(have) * (delta / np.sum(have))).astype(np.int64)
+    cum[-1] = delta
+    share = np.diff(np.concatenate(([0], cum)))
+    return [(int(r), int(d)) for r, d in zip(rows, share, strict=True) if d]
 
 
 def _held_precharge(model: LagModel, ratios: FloatArray, first_vars: IntArray,

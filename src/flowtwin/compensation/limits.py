@@ -51,6 +51,10 @@ class ExtruderLimits:
     e_only_speed_mm_s
         Largest speed of a move of E alone (Klipper ``max_extrude_only_velocity``, Marlin
         M203 E), mm/s.
+    e_only_accel_mm_s2
+        Largest E acceleration of a move of E alone (Klipper ``max_extrude_only_accel``,
+        Marlin M201 E), mm/s². Klipper holds a retraction that also moves the head to
+        this and ``e_only_speed_mm_s``, divided by its ratio ``|E|/path``.
     """
 
     firmware: str
@@ -60,6 +64,7 @@ class ExtruderLimits:
     max_e_accel_mm_s2: float = math.inf
     tiny_e_mm: float = 0.0
     e_only_speed_mm_s: float = math.inf
+    e_only_accel_mm_s2: float = math.inf
 
     def as_dict(self) -> dict[str, object]:
         """Plain dict for reports (infinite values as ``None``)."""
@@ -87,10 +92,13 @@ def extruder_limits(settings: KlipperSettings | MarlinSettings) -> ExtruderLimit
         e_only = float(ex.max_extrude_only_velocity)
         if not math.isfinite(e_only):  # Klipper's derived default
             e_only = float(settings.max_velocity) * float(ex.max_extrude_ratio)
+        e_accel = float(ex.max_extrude_only_accel)
+        if not math.isfinite(e_accel):
+            e_accel = float(settings.max_accel) * float(ex.max_extrude_ratio)
         return ExtruderLimits("klipper", jump_mm_s=float(ex.instantaneous_corner_velocity),
                               max_ratio=float(ex.max_extrude_ratio),
                               tiny_e_mm=float(ex.nozzle_diameter * ex.max_extrude_ratio),
-                              e_only_speed_mm_s=e_only)
+                              e_only_speed_mm_s=e_only, e_only_accel_mm_s2=e_accel)
     amax_e = float(settings.max_acceleration_mm_s2[3])
     if settings.junction_deviation_mm is None:
         jump = float(settings.jerk_mm_s[3])
@@ -100,4 +108,5 @@ def extruder_limits(settings: KlipperSettings | MarlinSettings) -> ExtruderLimit
     return ExtruderLimits("marlin", jump_mm_s=jump,
                           max_e_speed_mm_s=float(settings.max_feedrate_mm_s[3]),
                           max_e_accel_mm_s2=amax_e,
-                          e_only_speed_mm_s=float(settings.max_feedrate_mm_s[3]))
+                          e_only_speed_mm_s=float(settings.max_feedrate_mm_s[3]),
+                          e_only_accel_mm_s2=amax_e)

@@ -66,6 +66,8 @@ class AdvancePassSummary:
         Figures of the refinement (empty without it).
     relief_travels, relief_mm
         Travels given a pressure-relief retraction, and the length retracted, mm.
+    relief_along
+        Of those, the reliefs laid along their travels (Klipper).
     relief_retractions, relief_retraction_mm
         Slicer retractions whose push-back was shortened, and the length taken off, mm.
     relief_precharge_mm
@@ -100,6 +102,7 @@ class AdvancePassSummary:
     pull_pieces: int = 0
     pull_mm: float = 0.0
     retimed_share: float = float("nan")
+    relief_along: int = 0
 
     @classmethod
     def of(cls, report: PassReport, *, rms_flow_error: float, twin_correction: bool,
@@ -109,14 +112,15 @@ class AdvancePassSummary:
                    dict(report.refinement), report.relief_travels, report.relief_mm,
                    report.relief_retractions, report.relief_retraction_mm,
                    report.relief_precharge_mm, rms_flow_error, twin_correction, kept,
-                   report.pull_pieces, report.pull_mm, retimed_share)
+                   report.pull_pieces, report.pull_mm, retimed_share, report.relief_along)
 
     def as_dict(self) -> dict[str, object]:
         """Plain JSON-able values (``kept`` only when the pass was not kept)."""
         out: dict[str, object] = {
             "pieces": self.pieces, "runs": self.runs, "law_clipping": dict(self.law_clipping),
             "refinement": dict(self.refinement), "relief_travels": self.relief_travels,
-            "relief_mm": self.relief_mm, "relief_retractions": self.relief_retractions,
+            "relief_mm": self.relief_mm, "relief_along": self.relief_along,
+            "relief_retractions": self.relief_retractions,
             "relief_retraction_mm": self.relief_retraction_mm,
             "relief_precharge_mm": self.relief_precharge_mm,
             "pull_pieces": self.pull_pieces, "pull_mm": self.pull_mm,

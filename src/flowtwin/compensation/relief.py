@@ -27,9 +27,11 @@ from flowtwin.gcode.moves import MoveKind
 from flowtwin.planner.timeline import Timeline
 
 __all__ = [
+    "ALONG_LIMIT",
     "MIN_RELIEF_MM",
     "RELIEF_MARGIN",
     "RELIEF_SPEED_MM_S",
+    "along_ratio",
     "first_free_pieces",
     "gaps",
     "insert_relief",
@@ -315,38 +317,175 @@ def first_free_pieces(next_rows: IntArray, pieces: Pieces,
 
 def insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
                    xyz: FloatArray, e_piece: IntArray, feed: FloatArray, start: FloatArray,
-                  end: FloatArray, limits: ExtruderLimits
-                  ) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """Insert an E-only retraction before each relieved interim's first travel and the
-    push-back after its last one."""
+                  end: FloatArray, limits: ExtruderLimits, *,
+                  along: tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]] | None = None,
+                  e_unit_mm: float = 0.0
+                  ) -> tuple[IntArray, FloatArray, IntArray, FloatArray, int]:
+    """Insert every relief's retraction where its interim starts and its push-back where
+    it ends.
+
+    On Klipper (``along`` given) both are laid along the interim's travels where they
+    fit, at the steepest ratio ``|E|/path`` that leaves the travel's own speed and
+    acceleration alone (:func:`along_ratio`): the retraction on the first millimetres of
+    the path, the push-back on the last. Klipper runs an E-only move at
+    ``max_extrude_only_accel`` (~800 mm/s² of filament by default) with the head standing
+    on both sides of it; a retraction that moves the head is held to the same limits
+    divided by its ratio (``kinematics/extruder.py`` ``check_move``), so it pulls the
+    filament back as fast while the head travels. The head still slows down where the
+    ratio steps (``v ≤ instantaneous_corner_velocity/|Δρ|``), but no longer stops twice
+    and waits for two E-only moves: measured on the dev Cura ring (Klipper, 3000 mm/s²),
+    the advance's print time +29.5 % → +23.9 % with the same flow error
+    (docs/compensation.md). Elsewhere (Marlin, whose E-only moves cost ~6 ms, or travels
+    too short) they are E-only moves at :data:`RELIEF_SPEED_MM_S`.
+
+    Parameters
+    ----------
+    reliefs
+        ``(first row, last row, retraction, push-back)`` per interim (grid units), in order.
+    piece_of, xyz, e_piece, feed
+        Row, end point (mm), E (grid units) and feed (mm/min) of every piece, shapes
+        ``(m,)`` and ``(m, 3)``.
+    start, end
+        Start and end point of every row, mm, shape ``(n, 3)``.
+    limits
+        The firmware's extruder limits.
+    along
+        Requested speed (mm/s) and planned acceleration (mm/s²) of every row, and which
+        rows are XY travels, shapes ``(n,)``; ``None``: E-only moves.
+    e_unit_mm
+        Size of one grid unit, mm (needed with ``along``).
+
+    Returns
+    -------
+    tuple
+        Row, end point, E and feed of the pieces with the reliefs, and how many reliefs
+        were laid along their travels.
+    """
     speed = min(RELIEF_SPEED_MM_S, 0.9 * limits.e_only_speed_mm_s)
     feed_mm_min = 60.0 * speed
     n = piece_of.size
     if n == 0 or not reliefs:
-        return piece_of, xyz, e_piece, feed
-    rows_b = np.array([a for a, _b, _r, _back in reliefs], dtype=np.int64)
-    amount_b = np.array([-r for _a, _b, r, _back in reliefs], dtype=np.int64)
-    after = [(b, back) for _a, b, _r, back in reliefs if back > 0]
-    rows_a = np.array([b for b, _back in after], dtype=np.int64)
-    amount_a = np.array([back for _b, back in after], dtype=np.int64)
-    first_of = np.searchsorted(piece_of, rows_b, side="left")   # before a row's first piece
-    after_last = np.searchsorted(piece_of, rows_a, side="right")  # after a row's last one
-    # at a shared position the push-back of the row before comes first
-    pos = np.concatenate((after_last * 2, first_of * 2 + 1))
-    order = np.argsort(pos, kind="stable")
-    at = np.concatenate((after_last, first_of))[order]
-    ins_row = np.concatenate((rows_a, rows_b))[order]
-    ins_pt = np.vstack((end[rows_a], start[rows_b]))[order] if at.size else xyz[:0]
-    ins_e = np.concatenate((amount_a, amount_b))[order]
-    # the original pieces move up by the insertions before them
-    total = n + at.size
-    new_idx = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
-    ins_idx = at + np.arange(at.size)
-    rows = np.empty(total, dtype=np.int64)
-    pts = np.empty((total, 3))
-    es = np.empty(total, dtype=np.int64)
-    fs = np.empty(total)
-    rows[new_idx], pts[new_idx], es[new_idx], fs[new_idx] = piece_of, xyz, e_piece, feed
-    rows[ins_idx], pts[ins_idx], es[ins_idx] = ins_row, ins_pt, ins_e
-    fs[ins_idx] = feed_mm_min
-    return rows, pts, es, fs
+        return piece_of, xyz, e_piece, feed, 0
+    arr = np.array(reliefs, dtype=np.int64).reshape(-1, 4)
+    row_a, row_b, ret, back = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
+    first_of = np.searchsorted(piece_of, row_a, side="left")
+    after_last = np.searchsorted(piece_of, row_b, side="right")
+    laid = np.zeros(arr.shape[0], dtype=bool)
+    # every output piece sorted by (original piece it comes before, order there,
+    # index within its block); the pieces a relief laid along replaces drop out
+    keep = np.ones(n, dtype=bool)
+    parts: list[tuple[IntArray, IntArray, IntArray, IntArray, FloatArray, IntArray,
+                      FloatArray]] = []
+    if along is not None and limits.firmware == "klipper" and e_unit_mm > 0:
+        for k in range(arr.shape[0]):
+            p0, p1 = int(first_of[k]), int(after_last[k])
+            lay = _lay_along(int(row_a[k]), int(row_b[k]), int(ret[k]), int(back[k]), p0,
+                             p1, piece_of, xyz, start, limits, along, e_unit_mm)
+            if lay is None:
+                continue
+            pts, es, of = lay
+            laid[k] = True
+            keep[p0:p1] = False
+            parts.append((np.full(of.size, p0), np.full(of.size, 2), np.arange(of.size),
+                          piece_of[p0 + of], pts, es, feed[p0 + of]))
+    e_only = ~laid
+    push = e_only & (back > 0)
+    m_push, m_ret = int(np.count_nonzero(push)), int(np.count_nonzero(e_only))
+    # E-only: at a shared place the push-back of the row before comes first
+    parts.append((after_last[push], np.zeros(m_push, dtype=np.int64),
+                  np.zeros(m_push, dtype=np.int64), row_b[push], end[row_b[push]],
+                  back[push], np.full(m_push, feed_mm_min)))
+    parts.append((first_of[e_only], np.ones(m_ret, dtype=np.int64),
+                  np.zeros(m_ret, dtype=np.int64), row_a[e_only], start[row_a[e_only]],
+                  -ret[e_only], np.full(m_ret, feed_mm_min)))
+    kept = np.flatnonzero(keep)
+    parts.append((kept, np.full(kept.size, 3), np.zeros(kept.size, dtype=np.int64),
+                  piece_of[kept], xyz[kept], e_piece[kept], feed[kept]))
+    at, key, sub, rows, pts, es, fs = (np.concatenate([pt[c] for pt in parts])
+                                       for c in range(7))
+    order = np.lexsort((sub, key, at))
+    return (rows[order].astype(np.int64), pts[order], es[order].astype(np.int64),
+            fs[order].astype(np.float64), int(np.count_nonzero(laid)))
+
+
+#: Share of Klipper's limits the ratio ``|E|/path`` of a relief laid along may use.
+ALONG_LIMIT = 0.9
+
+
+def along_ratio(speed_mm_s: FloatArray, accel_mm_s2: FloatArray,
+                limits: ExtruderLimits) -> FloatArray:
+    """Largest ratio ``|E|/path`` a relief laid along a travel may have on Klipper.
+
+    Klipper holds a move whose E runs backwards to ``max_extrude_only_velocity/|ρ|`` and
+    ``max_extrude_only_accel/|ρ|`` (``ρ`` = E per mm of path), and refuses a forward one
+    with ``ρ`` above ``max_extrude_cross_section``/filament area unless its E is tiny
+    (``kinematics/extruder.py`` ``check_move``). :data:`ALONG_LIMIT` times the smallest
+    of ``e_only_accel/a``, ``e_only_speed/v`` and that ratio keeps the travel's own speed
+    ``v`` and acceleration ``a`` and is accepted.
+
+    Parameters
+    ----------
+    speed_mm_s, accel_mm_s2
+        Requested speed and planned acceleration of the travels, any shape.
+    limits
+        Klipper's extruder limits.
+
+    Returns
+    -------
+    ndarray
+        E mm per mm of path, the shape of the inputs (0 where nothing is known).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.minimum(np.minimum(limits.e_only_accel_mm_s2 / np.asarray(accel_mm_s2),
+                                  limits.e_only_speed_mm_s / np.asarray(speed_mm_s)),
+                       limits.max_ratio)
+    return ALONG_LIMIT * np.where(np.isfinite(r) & (r > 0), r, 0.0)
+
+
+#: Closest a relief laid along may cut a travel to one of its ends, mm.
+_MIN_CUT_MM = 0.005
+
+
+def _lay_along(a: int, b: int, ret: int, back: int, p0: int, p1: int, piece_of: IntArray,
+               xyz: FloatArray, start: FloatArray, limits: ExtruderLimits,
+               along: tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]],
+               e_unit_mm: float) -> tuple[FloatArray, IntArray, IntArray] | None:
+    """Points, E and original piece (counted from ``p0``) of the pieces of one interim
+    with its relief laid along, or ``None`` where it does not fit (a row in it that is
+    not an XY travel of one piece, or a path too short for both parts at
+    :func:`along_ratio`)."""
+    speed, accel, xy_travel = along
+    rows = piece_of[p0:p1]
+    if (rows.size != b - a + 1 or not np.all(np.diff(rows) == 1)
+            or not np.all(xy_travel[a:b + 1])):
+        return None
+    pts = np.vstack((start[a][None, :], xyz[p0:p1]))
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    cum = np.concatenate(([0.0], np.cumsum(seg)))
+    total = float(cum[-1])  # (the last row's own end, to the bit: it must keep its piece)
+    if np.any(seg <= _MIN_CUT_MM):
+        return None
+    rho = float(np.min(along_ratio(speed[a:b + 1], accel[a:b + 1], limits)))
+    if rho <= 0:
+        return None
+    # the push-back's part is sized for the whole retraction: a later pass may push back
+    # up to that much (:func:`relieved_gaps`)
+    d = max(ret, back) * e_unit_mm / rho
+    if not 0.0 < 2.0 * d <= total:
+        return None
+    # cut the path where the retraction ends and the push-back starts
+    cuts = np.array([d, total - d])
+    # a cut within a few µm of a row's end would leave a piece too short to write
+    cuts = cuts[np.min(np.abs(cuts[:, None] - cum[None, :]), axis=1) > _MIN_CUT_MM]
+    s_all = np.unique(np.concatenate((cum, cuts)))
+    s_all = s_all[(s_all > 0) & (s_all <= total)]
+    # E at every new end point: −ret over [0, d], then +back over [total − d, total]
+    e_at = (-ret * np.minimum(s_all, d) / d
+            + back * np.maximum(s_all - (total - d), 0.0) / d)
+    e_cum = np.rint(e_at).astype(np.int64)
+    e_cum[-1] = back - ret
+    es = np.diff(np.concatenate(([0], e_cum)))
+    seg_of = np.minimum(np.searchsorted(cum, s_all, side="left") - 1, seg.size - 1)
+    t = (s_all - cum[seg_of]) / np.maximum(seg[seg_of], 1e-12)
+    out = pts[seg_of] + (pts[seg_of + 1] - pts[seg_of]) * t[:, None]
+    return out, es, seg_of.astype(np.int64)
