@@ -3,7 +3,8 @@ printer — and whether a print belongs to the *dev* set (may be looked at while
 or to a *check* set (run only to report, never tuned on): ``check`` since session 5,
 ``check2`` (four more models: a thin-walled clip, a knurled knob, an arch, a perforated
 plate) since session 12, ``check3`` (a J hook, a tapered cup, a lattice block, a hex nut)
-since session 13.
+since session 13, ``check4`` (a spool, a comb of thin fins, a honeycomb panel, a wave wall)
+since session 14.
 
 Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
@@ -34,7 +35,7 @@ class Print:
     name
         File stem.
     split
-        ``"dev"``, ``"check"``, ``"check2"`` or ``"check3"``.
+        ``"dev"``, ``"check"``, ``"check2"``, ``"check3"`` or ``"check4"``.
     model
         OpenSCAD model in ``models/`` (without ``.scad``).
     slicer
@@ -133,6 +134,19 @@ PRINTS: tuple[Print, ...] = (
     _p("check3", "cup", "prusa-arachne", 0.25, 200, 300, 5000, False, "klipper", 300, 5),
     _p("check3", "lattice", "cura", 0.2, 80, 120, 2000, True, "marlin-generic"),
     _p("check3", "nut", "cura", 0.3, 60, 90, 1200, True, "klipper", 200, 4),
+    # ---- check4 (session 14): new models and settings, chosen before any was run --------
+    _p("check4", "spool", "prusa-arachne", 0.2, 110, 180, 2500, True, "klipper", 250, 5),
+    _p("check4", "comb", "cura", 0.2, 100, 150, 3000, False, "klipper", 300, 5),
+    _p("check4", "honeycomb", "slic3r", 0.25, 70, 100, 1500, True, "marlin-generic"),
+    _p("check4", "wave", "prusa-classic", 0.15, 50, 80, 1000, False, "marlin-mk25"),
+    _p("check4", "spool", "cura", 0.15, 60, 90, 1500, True, "marlin-generic"),
+    _p("check4", "comb", "prusa-classic", 0.3, 150, 250, 4000, True, "klipper", 300, 6),
+    _p("check4", "honeycomb", "cura", 0.25, 120, 200, 3500, True, "klipper", 250, 5),
+    _p("check4", "wave", "slic3r", 0.2, 130, 200, 2500, False, "klipper", 300, 5),
+    _p("check4", "spool", "slic3r", 0.1, 40, 55, 700, False, "marlin-mk25"),
+    _p("check4", "comb", "prusa-arachne", 0.12, 45, 65, 800, False, "marlin-generic"),
+    _p("check4", "honeycomb", "prusa-arachne", 0.3, 180, 280, 5000, False, "klipper", 300, 8),
+    _p("check4", "wave", "cura", 0.3, 90, 140, 2000, True, "marlin-mk25"),
 )
 
 #: The splits, in the order they were made.
