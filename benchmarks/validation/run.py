@@ -1,8 +1,9 @@
 """Compensate the validation prints and report the spread of the improvement.
 
-    python -m benchmarks.validation.run --split dev|check|check2|check3|check4 [--pace [--everywhere]
-                                        [--pull-ratio R] [--spots ERROR]
-                                        [--budget PCT | --no-budget]] [--slip]
+    python -m benchmarks.validation.run --split dev|check|check2|check3|check4
+                                        [--pace [--everywhere] [--pull-ratio R]
+                                        [--spots ERROR] [--budget PCT | --no-budget]]
+                                        [--slip]
                                         [--only SUBSTR]
 
 For every print of the split (made by :mod:`benchmarks.validation.generate` first when

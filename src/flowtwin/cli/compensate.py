@@ -81,8 +81,9 @@ def render_report(report: CompensationReport) -> None:
                      f"(+{report.guard_time_cost_s:.1f} s)")
     for p in report.advance:
         kept = "" if p.kept else " (not kept)"
+        along = f" ({p.relief_along} along the travel)" if p.relief_along else ""
         notes.append(f"advance pass: {p.pieces:,} pieces in {p.runs:,} runs, "
-                     f"{p.relief_travels} relief retractions added, "
+                     f"{p.relief_travels} relief retractions added{along}, "
                      f"{p.relief_precharge_mm:.3f} mm pre-charge, "
                      f"{p.pull_pieces:,} pieces pulling back while slowing{kept}")
     if report.trajectory is not None:
@@ -90,8 +91,10 @@ def render_report(report: CompensationReport) -> None:
         notes.append(f"trajectory: L = {t.lag_mm:.3f} mm, {t.pivots} pivots, laid road "
                      f"within {t.road_deviation_before_mm:.3f} → "
                      f"{t.road_deviation_after_mm:.3f} mm of the intended one")
+    if report.corner_velocity is not None:
+        notes.append(report.corner_velocity.note())
     for n in notes:
-        console.print(n)
+        console.print(n, markup=False)
     for w in report.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", markup=True)
 

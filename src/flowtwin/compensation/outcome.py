@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from flowtwin.compensation.bake import PassReport
+from flowtwin.compensation.corner import CornerVelocityCost
 from flowtwin.compensation.limits import ExtruderLimits
 from flowtwin.compensation.metrics import FlowFigures
 from flowtwin.compensation.pace import PaceReport
@@ -187,6 +188,10 @@ class CompensationReport:
         Print time the pacing added (re-planned with and without it), s.
     pace
         Figures of the pacing stage, or ``None`` when it did not run.
+    corner_velocity
+        On Klipper, where the advance made the file more than 5 % slower: its print time
+        at larger extruder corner velocities (:mod:`flowtwin.compensation.corner`), or
+        ``None``.
     original_simulation
         The original file's simulation, or how to simulate it again (the compensation
         lets it go once its figures are taken: :attr:`original_result` simulates it when
@@ -227,6 +232,7 @@ class CompensationReport:
     paced_moves: tuple[int, ...] = ()
     pace_time_cost_s: float = 0.0
     pace: PaceReport | None = None
+    corner_velocity: CornerVelocityCost | None = None
     original_simulation: SimulationResult | Callable[[], SimulationResult] | None = field(
         default=None, repr=False, compare=False)
     compensated_result: SimulationResult | None = field(default=None, repr=False,
@@ -293,6 +299,8 @@ class CompensationReport:
             "max_force_after_n": self.max_force_after_n,
             "advance": [p.as_dict() for p in self.advance],
             "trajectory": None if self.trajectory is None else self.trajectory.as_dict(),
+            "extruder_corner_velocity": (None if self.corner_velocity is None
+                                         else self.corner_velocity.as_dict()),
             "limits": self.limits.as_dict(), "lines_rewritten": self.lines_rewritten,
             "lag_factor_changed_moves": self.lag_factor_changed_moves,
             "warnings": list(self.warnings), "seconds": self.seconds,

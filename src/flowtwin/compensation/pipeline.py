@@ -39,6 +39,7 @@ import numpy.typing as npt
 
 from flowtwin.compensation.advance import AdvanceOptions
 from flowtwin.compensation.ahead import Pending, WriteAhead
+from flowtwin.compensation.corner import corner_velocity_cost
 from flowtwin.compensation.draft import Draft
 from flowtwin.compensation.guard import GuardOptions
 from flowtwin.compensation.limits import extruder_limits
@@ -374,6 +375,8 @@ def _report(setting: Setting, draft: Draft, after_sim: SimulationResult, record:
         lines_rewritten=lines_rewritten, warnings=tuple(warnings), seconds=seconds,
         lag_factor_changed_moves=int(changed_k.size), paced_moves=paced,
         pace_time_cost_s=float(record.pace_cost_s), pace=record.pace,
+        corner_velocity=(corner_velocity_cost(after_sim.plan, intent.time_s)
+                         if "advance" in record.names else None),
         original_simulation=original, compensated_result=after_sim,
         piece_row=np.asarray(draft.row, dtype=np.int64))
 
