@@ -4,7 +4,8 @@ or to a *check* set (run only to report, never tuned on): ``check`` since sessio
 ``check2`` (four more models: a thin-walled clip, a knurled knob, an arch, a perforated
 plate) since session 12, ``check3`` (a J hook, a tapered cup, a lattice block, a hex nut)
 since session 13, ``check4`` (a spool, a comb of thin fins, a honeycomb panel, a wave wall)
-since session 14.
+and ``check5`` (a tube bundle, a thin cross, a stepped pyramid, a slotted plate) since
+session 14.
 
 Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
@@ -35,7 +36,7 @@ class Print:
     name
         File stem.
     split
-        ``"dev"``, ``"check"``, ``"check2"``, ``"check3"`` or ``"check4"``.
+        ``"dev"``, ``"check"``, ``"check2"``, ``"check3"``, ``"check4"`` or ``"check5"``.
     model
         OpenSCAD model in ``models/`` (without ``.scad``).
     slicer
@@ -147,6 +148,19 @@ PRINTS: tuple[Print, ...] = (
     _p("check4", "comb", "prusa-arachne", 0.12, 45, 65, 800, False, "marlin-generic"),
     _p("check4", "honeycomb", "prusa-arachne", 0.3, 180, 280, 5000, False, "klipper", 300, 8),
     _p("check4", "wave", "cura", 0.3, 90, 140, 2000, True, "marlin-mk25"),
+    # ---- check5 (session 14, later): new models and settings, chosen before any was run --
+    _p("check5", "tubes", "cura", 0.2, 120, 180, 3000, True, "klipper", 300, 5),
+    _p("check5", "cross", "prusa-arachne", 0.25, 150, 250, 4000, False, "klipper", 300, 5),
+    _p("check5", "steps", "slic3r", 0.15, 60, 90, 1200, True, "marlin-generic"),
+    _p("check5", "slots", "prusa-classic", 0.2, 80, 120, 2000, False, "marlin-mk25"),
+    _p("check5", "tubes", "prusa-classic", 0.3, 200, 300, 5000, True, "klipper", 300, 8),
+    _p("check5", "cross", "cura", 0.12, 50, 70, 800, False, "marlin-mk25"),
+    _p("check5", "steps", "prusa-arachne", 0.2, 100, 160, 2500, True, "klipper", 250, 5),
+    _p("check5", "slots", "cura", 0.25, 70, 110, 1500, True, "marlin-generic"),
+    _p("check5", "tubes", "slic3r", 0.1, 40, 60, 600, False, "marlin-mk25"),
+    _p("check5", "cross", "slic3r", 0.3, 130, 200, 3000, True, "klipper", 300, 6),
+    _p("check5", "steps", "cura", 0.3, 160, 260, 4500, False, "klipper", 300, 5),
+    _p("check5", "slots", "prusa-arachne", 0.15, 45, 70, 1000, False, "marlin-generic"),
 )
 
 #: The splits, in the order they were made.
