@@ -184,3 +184,4 @@ def test_every_travel_row_keeps_its_piece_whatever_the_lengths() -> None:
             inter = (rows >= 1) & (rows <= n - 2)
             assert np.all(np.abs(e[inter]) * unit
                           <= ALONG_LIMIT * _RATIO * length[inter] + 2 * unit)
+

@@ -55,8 +55,9 @@ from flowtwin.errors import ProfileError
 from flowtwin.gcode.moves import MoveKind, MoveTable
 from flowtwin.planner.timeline import Timeline
 
-__all__ = ["AdvanceLaw", "AdvanceOptions", "LawResult", "advance_targets", "eligible_rows",
-           "follow_law", "smoothed_advance_term"]
+__all__ = ["KLIPPER_PIECE_FRACTION", "PIECE_FRACTION", "AdvanceLaw", "AdvanceOptions",
+           "LawResult", "advance_targets", "eligible_rows", "follow_law",
+           "smoothed_advance_term"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -67,6 +68,12 @@ class AdvanceLaw(StrEnum):
 
     DISCRETE = "discrete"   #: [001 Eq. 13] on the phase pieces
     SMOOTHED = "smoothed"   #: [001 Eq. 11] integrated, advance term smoothed
+
+
+#: Longest smoothed-law piece near speed changes, as a fraction of ``smooth_time_s``.
+PIECE_FRACTION = 0.25
+#: The same on Klipper (see ``AdvanceOptions.piece_time_fraction``).
+KLIPPER_PIECE_FRACTION = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,7 +96,11 @@ class AdvanceOptions:
         discrete law cuts at the phase boundaries only).
     piece_time_fraction
         Smoothed law: longest piece in acceleration, deceleration and the cruise edges
-        as a fraction of ``smooth_time_s`` (short pieces keep the ratio steps small).
+        as a fraction of ``smooth_time_s`` (short pieces keep the ratio steps small);
+        ``None``: :data:`KLIPPER_PIECE_FRACTION` on Klipper, whose extruder corner
+        velocity limits every junction to ``icv/|Δratio|`` so that a later pass can only
+        follow the law in small steps, :data:`PIECE_FRACTION` elsewhere (measured on the
+        validation prints: docs/compensation.md, "Session 14").
     anchor_band
         Pieces at least ``smooth_time_s`` long keep their ratio within this fraction of
         the target's; the envelope of the shorter pieces before them is planned so they
@@ -142,7 +153,7 @@ class AdvanceOptions:
     k_s: float | None = None
     smooth_time_s: float = 0.02
     accel_pieces: int = 2
-    piece_time_fraction: float = 0.25
+    piece_time_fraction: float | None = None
     anchor_band: float = 0.25
     min_piece_mm: float = 0.1
     min_flow_fraction: float = 0.05
@@ -154,6 +165,12 @@ class AdvanceOptions:
     twin_gain: float = 0.5
     retract_ratio: float = 4.0
     retime_share: float = 0.02
+
+    def piece_fraction(self, firmware: str) -> float:
+        """``piece_time_fraction`` for a firmware (``"klipper"`` or ``"marlin"``)."""
+        if self.piece_time_fraction is not None:
+            return self.piece_time_fraction
+        return KLIPPER_PIECE_FRACTION if firmware == "klipper" else PIECE_FRACTION
 
     @property
     def is_identity(self) -> bool:
@@ -168,7 +185,9 @@ class AdvanceOptions:
                               "0 < t <= 0.2 s"),
             "accel_pieces": (self.accel_pieces, 1 <= self.accel_pieces <= 16, "1 .. 16"),
             "piece_time_fraction": (self.piece_time_fraction,
-                                    0.05 <= self.piece_time_fraction <= 1.0, "0.05 .. 1"),
+                                    self.piece_time_fraction is None
+                                    or 0.05 <= self.piece_time_fraction <= 1.0,
+                                    "0.05 .. 1 or None"),
             "anchor_band": (self.anchor_band, 0.0 <= self.anchor_band <= 10.0, "0 .. 10"),
             "min_piece_mm": (self.min_piece_mm, 0.0 <= self.min_piece_mm <= 10.0,
                              "0 .. 10 mm"),
@@ -185,7 +204,7 @@ class AdvanceOptions:
         if self.k_s is not None:
             checks["k_s"] = (self.k_s, 0.0 <= self.k_s <= 10.0, "0 <= K <= 10 s")
         for name, (value, ok, allowed) in checks.items():
-            if not (ok and math.isfinite(float(value))):
+            if not (ok and (value is None or math.isfinite(float(value)))):
                 raise ProfileError("invalid advance option", field=name, value=value,
                                    allowed=allowed)
 

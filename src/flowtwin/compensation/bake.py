@@ -171,7 +171,8 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
     w = options.smooth_time_s
     pieces = split_rows(timeline, elig if split else np.zeros(n, dtype=bool),
                         accel_pieces=options.accel_pieces if smoothed else 1,
-                        max_piece_s=options.piece_time_fraction * w if smoothed else 0.0,
+                        max_piece_s=(options.piece_fraction(limits.firmware) * w
+                                     if smoothed else 0.0),
                         cruise_edge_s=0.5 * w if smoothed else 0.0,
                         min_piece_mm=options.min_piece_mm)
     # the law's E⁰: each original move's intent spread over its rows by planned length
