@@ -351,9 +351,7 @@ def _push_shares(back: int, hold: int, delta: int, cur_e: IntArray,
     rows = rows[(cur_e[rows] > 0) & ((kind[rows] & MoveKind.XY) != 0)]
     have = cur_e[rows].astype(np.float64)
     delta = max(delta, int(rows.size) - int(np.sum(have)))  # every piece keeps one unit
-    cum = np.rint(np.cumsum(have) * (delta / np.sum(have))).astype(np.int64)
-    cum[-1] = delta
-    share = np.diff(np.concatenate(([0], cum)))
+    share = round_total(have, delta, np.zeros(rows.size, dtype=bool))
     return [(int(r), int(d)) for r, d in zip(rows, share, strict=True) if d]
 
 

@@ -170,9 +170,9 @@ class Draft:
             Feed of every sub-piece (``nan``: its line's); default: the piece's.
         """
         piece = np.asarray(piece, dtype=np.int64)
-        n_now = self.row.size
-        if piece.size and (np.any(np.diff(piece) < 0) or piece[0] != 0
-                           or piece[-1] != n_now - 1 or np.any(np.diff(piece) > 1)):
+        step = np.diff(piece)
+        if piece.size and (piece[0] != 0 or piece[-1] != self.row.size - 1
+                           or (step.size and not 0 <= step.min() <= step.max() <= 1)):
             # the writer lays every line out from its pieces in order: a piece lost or out
             # of order here would corrupt the output, so it is an internal error
             raise RuntimeError("a draft's sub-pieces must cover every piece, in order")

@@ -88,17 +88,12 @@ def extruder_limits(settings: KlipperSettings | MarlinSettings) -> ExtruderLimit
     ExtruderLimits
     """
     if isinstance(settings, KlipperSettings):
-        ex = settings.extruders[0]
-        e_only = float(ex.max_extrude_only_velocity)
-        if not math.isfinite(e_only):  # Klipper's derived default
-            e_only = float(settings.max_velocity) * float(ex.max_extrude_ratio)
-        e_accel = float(ex.max_extrude_only_accel)
-        if not math.isfinite(e_accel):
-            e_accel = float(settings.max_accel) * float(ex.max_extrude_ratio)
+        ex = settings.extruders[0]  # (resolved: Klipper's derived defaults filled in)
         return ExtruderLimits("klipper", jump_mm_s=float(ex.instantaneous_corner_velocity),
                               max_ratio=float(ex.max_extrude_ratio),
                               tiny_e_mm=float(ex.nozzle_diameter * ex.max_extrude_ratio),
-                              e_only_speed_mm_s=e_only, e_only_accel_mm_s2=e_accel)
+                              e_only_speed_mm_s=float(ex.max_extrude_only_velocity),
+                              e_only_accel_mm_s2=float(ex.max_extrude_only_accel))
     amax_e = float(settings.max_acceleration_mm_s2[3])
     if settings.junction_deviation_mm is None:
         jump = float(settings.jerk_mm_s[3])

@@ -377,10 +377,12 @@ def insert_relief(reliefs: list[tuple[int, int, int, int]], piece_of: IntArray,
     parts: list[tuple[IntArray, IntArray, IntArray, IntArray, FloatArray, IntArray,
                       FloatArray]] = []
     if along is not None and limits.firmware == "klipper" and e_unit_mm > 0:
+        row_speed, row_accel, xy_travel = along
+        rho = along_ratio(row_speed, row_accel, limits)  # of every row, once
         for k in range(arr.shape[0]):
             p0, p1 = int(first_of[k]), int(after_last[k])
             lay = _lay_along(int(row_a[k]), int(row_b[k]), int(ret[k]), int(back[k]), p0,
-                             p1, piece_of, xyz, start, limits, along, e_unit_mm)
+                             p1, xyz, start, rho, xy_travel, e_unit_mm)
             if lay is None:
                 continue
             pts, es, of = lay
@@ -446,18 +448,15 @@ def along_ratio(speed_mm_s: FloatArray, accel_mm_s2: FloatArray,
 _MIN_CUT_MM = 0.005
 
 
-def _lay_along(a: int, b: int, ret: int, back: int, p0: int, p1: int, piece_of: IntArray,
-               xyz: FloatArray, start: FloatArray, limits: ExtruderLimits,
-               along: tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]],
+def _lay_along(a: int, b: int, ret: int, back: int, p0: int, p1: int, xyz: FloatArray,
+               start: FloatArray, rho_row: FloatArray, xy_travel: npt.NDArray[np.bool_],
                e_unit_mm: float) -> tuple[FloatArray, IntArray, IntArray] | None:
     """Points, E and original piece (counted from ``p0``) of the pieces of one interim
-    with its relief laid along, or ``None`` where it does not fit (a row in it that is
-    not an XY travel of one piece, or a path too short for both parts at
-    :func:`along_ratio`)."""
-    speed, accel, xy_travel = along
-    rows = piece_of[p0:p1]
-    if (rows.size != b - a + 1 or not np.all(np.diff(rows) == 1)
-            or not np.all(xy_travel[a:b + 1])):
+    (rows ``a … b``, pieces ``p0:p1``) with its relief laid along, or ``None`` where it
+    does not fit (a row in it that is not an XY travel of one piece, or a path too short
+    for both parts at the rows' :func:`along_ratio` ``rho_row``)."""
+    # every row has a piece: as many pieces as rows is one piece each
+    if p1 - p0 != b - a + 1 or not np.all(xy_travel[a:b + 1]):
         return None
     pts = np.vstack((start[a][None, :], xyz[p0:p1]))
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -465,7 +464,7 @@ def _lay_along(a: int, b: int, ret: int, back: int, p0: int, p1: int, piece_of: 
     total = float(cum[-1])  # (the last row's own end, to the bit: it must keep its piece)
     if np.any(seg <= _MIN_CUT_MM):
         return None
-    rho = float(np.min(along_ratio(speed[a:b + 1], accel[a:b + 1], limits)))
+    rho = float(np.min(rho_row[a:b + 1]))
     if rho <= 0:
         return None
     # the push-back's part is sized for the whole retraction: a later pass may push back
