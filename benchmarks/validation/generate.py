@@ -1,6 +1,6 @@
 """Make the validation prints: OpenSCAD models → STL → G-code by Debian's slicers.
 
-    python -m benchmarks.validation.generate [--split dev|check|…|check5] [--out DIR]
+    python -m benchmarks.validation.generate [--split dev|check|…|check6] [--out DIR]
 
 Needs ``openscad``, ``prusa-slicer``, ``slic3r``, ``CuraEngine`` and the ``cura`` package's
 definitions (``apt-get install -y prusa-slicer slic3r cura-engine cura openscad``). Writes,

@@ -3,9 +3,10 @@ printer — and whether a print belongs to the *dev* set (may be looked at while
 or to a *check* set (run only to report, never tuned on): ``check`` since session 5,
 ``check2`` (four more models: a thin-walled clip, a knurled knob, an arch, a perforated
 plate) since session 12, ``check3`` (a J hook, a tapered cup, a lattice block, a hex nut)
-since session 13, ``check4`` (a spool, a comb of thin fins, a honeycomb panel, a wave wall)
-and ``check5`` (a tube bundle, a thin cross, a stepped pyramid, a slotted plate) since
-session 14.
+since session 13, ``check4`` (a spool, a comb of thin fins, a honeycomb panel, a wave wall),
+``check5`` (a tube bundle, a thin cross, a stepped pyramid, a slotted plate) since
+session 14, and ``check6`` (a twisted prism, a peg board, a bridge on two pillars, a vent
+grille) since session 15.
 
 Every print is a model of ``models/`` (OpenSCAD) sliced by one of Debian's slicers
 (``prusa-slicer`` 2.5 with its Arachne or classic perimeters, ``slic3r`` 1.3,
@@ -36,7 +37,7 @@ class Print:
     name
         File stem.
     split
-        ``"dev"``, ``"check"``, ``"check2"``, ``"check3"``, ``"check4"`` or ``"check5"``.
+        ``"dev"``, ``"check"``, ``"check2"`` … ``"check6"``.
     model
         OpenSCAD model in ``models/`` (without ``.scad``).
     slicer
@@ -161,6 +162,19 @@ PRINTS: tuple[Print, ...] = (
     _p("check5", "cross", "slic3r", 0.3, 130, 200, 3000, True, "klipper", 300, 6),
     _p("check5", "steps", "cura", 0.3, 160, 260, 4500, False, "klipper", 300, 5),
     _p("check5", "slots", "prusa-arachne", 0.15, 45, 70, 1000, False, "marlin-generic"),
+    # ---- check6 (session 15): new models and settings, chosen before any was run --------
+    _p("check6", "twist", "prusa-classic", 0.2, 90, 140, 2000, True, "klipper", 250, 5),
+    _p("check6", "pegs", "cura", 0.15, 60, 90, 1200, False, "marlin-mk25"),
+    _p("check6", "bridge", "slic3r", 0.25, 110, 170, 3000, False, "klipper", 300, 5),
+    _p("check6", "vent", "prusa-arachne", 0.2, 70, 110, 1500, True, "marlin-generic"),
+    _p("check6", "twist", "cura", 0.28, 170, 260, 4500, True, "klipper", 300, 6),
+    _p("check6", "pegs", "prusa-arachne", 0.3, 150, 230, 4000, False, "klipper", 300, 5),
+    _p("check6", "bridge", "prusa-classic", 0.12, 45, 65, 800, False, "marlin-mk25"),
+    _p("check6", "vent", "slic3r", 0.15, 120, 180, 2500, True, "klipper", 250, 5),
+    _p("check6", "twist", "slic3r", 0.1, 40, 55, 600, False, "marlin-generic"),
+    _p("check6", "pegs", "slic3r", 0.2, 80, 120, 2000, True, "marlin-generic"),
+    _p("check6", "bridge", "cura", 0.2, 60, 100, 1500, True, "klipper", 200, 4),
+    _p("check6", "vent", "cura", 0.25, 130, 200, 3000, False, "marlin-mk25"),
 )
 
 #: The splits, in the order they were made.

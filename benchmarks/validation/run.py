@@ -1,6 +1,6 @@
 """Compensate the validation prints and report the spread of the improvement.
 
-    python -m benchmarks.validation.run --split dev|check|check2|check3|check4|check5
+    python -m benchmarks.validation.run --split dev|check|check2|check3|check4|check5|check6
                                         [--pace [--everywhere] [--pull-ratio R]
                                         [--spots ERROR] [--budget PCT | --no-budget]]
                                         [--slip]
