@@ -89,8 +89,10 @@ def test_relief_min_lags_relieves_shorter_travels(example: Path, tmp_path: Path)
         assert res.exit_code == 0, res.output
         return int(json.loads(res.stdout)["advance"][0]["relief_travels"])
 
-    default, shorter = relieved(), relieved("--relief-min-lags", "0.25")
-    assert default > 0 and shorter > default
+    # the example's printer is Marlin's: a quarter of K by default (half on Klipper)
+    half, default = relieved("--relief-min-lags", "0.5"), relieved()
+    assert half > 0 and default > half
+    assert relieved("--relief-min-lags", "0.25") == default
     res = runner.invoke(app(), ["compensate", str(example), "-o", str(tmp_path / "o.gcode"),
                                 "--advance", "--relief-min-lags", "-1"])
     assert res.exit_code != 0

@@ -149,11 +149,11 @@ def register(app: typer.Typer) -> None:
             "--refine/--no-refine", help="Refine the law with the twin's lag model.")] = True,
         relief: Annotated[bool, typer.Option(
             "--relief/--no-relief", help="Relieve the pressure over travels.")] = True,
-        relief_min_lags: Annotated[float, typer.Option(
+        relief_min_lags: Annotated[float | None, typer.Option(
             "--relief-min-lags", metavar="LAGS",
-            help="Relieve travels lasting at least this many lag factors (0.25: stronger "
-                 "where slicers travel unretracted, slower on Klipper; "
-                 "docs/compensation.md).")] = 0.5,
+            help="Relieve travels lasting at least this many lag factors (default 0.5 on "
+                 "Klipper, where a relief costs ~50 ms, 0.25 elsewhere; lower is stronger "
+                 "where slicers travel unretracted; docs/compensation.md).")] = None,
         relief_along: Annotated[bool, typer.Option(
             "--relief-along/--relief-e-only",
             help="On Klipper, retract and push back while the head travels (default) "

@@ -189,7 +189,7 @@ def advance_pass(draft: Draft, table: MoveTable, timeline: Timeline, lag_k_s: Fl
                      pull_rows=None if split else cur_e < 0)
     report = PassReport(runs=int(law.run_total.size), law_counts=dict(law.counts))
     e_run = law.e
-    lags = options.relief_min_lags * np.asarray(lag_k_s, dtype=np.float64)
+    lags = options.relief_lags(limits.firmware) * np.asarray(lag_k_s, dtype=np.float64)
     travels = travel_interims(elig, kind, cur_e, timeline, lags) if relief else []
     retracting = (retraction_interims(elig, kind, cur_e, table.moves["tool"], timeline, lags)
                   if relief else [])
