@@ -299,11 +299,16 @@ def _resume_collection() -> None:
     gc.enable()
 
 
-#: Python functions that C code calls back through ctypes while numba compiles or loads a
-#: kernel (llvmlite's object cache): (file name ending, function name). An exception
-#: raised in them is printed and dropped by ctypes, and the run would go on.
+#: Python functions that C code calls back and whose exception it prints and drops, so the
+#: run would go on: (file name ending, function name). llvmlite's object cache, called
+#: through ctypes while numba compiles or loads a kernel; and weak-reference callbacks,
+#: which the garbage collector runs wherever it happens to collect (numba's type cache,
+#: the weak containers of ``weakref`` and ``_weakrefset``, ``weakref.finalize``).
 _NATIVE_CALLBACKS = (("executionengine.py", "_raw_object_cache_notify"),
-                     ("executionengine.py", "_raw_object_cache_getbuffer"))
+                     ("executionengine.py", "_raw_object_cache_getbuffer"),
+                     ("numba/core/types/abstract.py", "_on_type_disposal"),
+                     ("/weakref.py", "remove"), ("/weakref.py", "__call__"),
+                     ("/_weakrefset.py", "_remove"))
 #: Modules whose locks run Python code between the lock's acquire and the ``with`` body
 #: (and before its release): llvmlite's lock around every LLVM call, whose callbacks are
 #: numba's events, and numba's compiler lock. An exception raised there leaves the lock
