@@ -136,15 +136,33 @@ def percent(elapsed_s: float, total_s: float) -> int:
     return 100 if elapsed_s >= total_s else int(100 * elapsed_s / total_s + 1e-9)
 
 
+_LAST_PLAN: list[tuple[Any, np.ndarray, np.ndarray, dict[int, list[tuple[int, float]]]]] = []
+
+
+def _plan_lines(plan: Any) -> tuple[np.ndarray, np.ndarray, dict[int, list[tuple[int, float]]]]:
+    """The plan's move lines (contiguous), its moves' end times (the timeline works them
+    out on every call) and its dwells as ``(line, seconds)`` by the move they come before,
+    kept for the last plan asked about (a test asks for every line of a file)."""
+    if not _LAST_PLAN or _LAST_PLAN[0][0] is not plan:
+        lines = np.ascontiguousarray(plan.table.moves["line"])
+        dwells: dict[int, list[tuple[int, float]]] = {}
+        for move, seconds, reason in plan.timeline.dwell_s:
+            if m := re.search(r"line (\d+)$", reason):
+                dwells.setdefault(min(int(move), lines.size), []).append(
+                    (int(m.group(1)), float(seconds)))
+        end = np.asarray(plan.timeline.end_time_s, dtype=np.float64)
+        _LAST_PLAN[:] = [(plan, lines, end, dwells)]
+    return _LAST_PLAN[0][1], _LAST_PLAN[0][2], _LAST_PLAN[0][3]
+
+
 def elapsed_at(plan: Any, line: int) -> float:
     """When the printer reaches ``line`` (the test's own definition): the end of the last
     move from an earlier line, plus the dwells of earlier lines since that move (the
     planner names each dwell's line in its reason)."""
-    lines = np.asarray(plan.table.moves["line"])
+    lines, end, dwells = _plan_lines(plan)
     k = int(np.searchsorted(lines, line))
-    t = float(plan.timeline.end_time_s[k - 1]) if k else 0.0
-    for move, seconds, reason in plan.timeline.dwell_s:
-        m = re.search(r"line (\d+)$", reason)
-        if min(move, lines.size) == k and m and int(m.group(1)) < line:
+    t = float(end[k - 1]) if k else 0.0
+    for dwell_line, seconds in dwells.get(k, ()):
+        if dwell_line < line:
             t += seconds
     return t
