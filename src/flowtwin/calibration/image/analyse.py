@@ -43,6 +43,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
+from flowtwin.calibration.image.scale import shrink, working_scale
 from flowtwin.calibration.image.widths import (
     band_half_mm,
     bead_contrast,
@@ -270,6 +271,11 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
                                allowed="0.05 .. 5 mm")
     m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
+    # a large photo is read at the pitch the reader needs; px figures come back in its own
+    scale = working_scale(gray)
+    if scale < 1.0:
+        gray = shrink(gray, scale)
+        mm_per_px = None if mm_per_px is None else mm_per_px / scale
     full = lag_model(pattern.text().encode(), None, machine=m)
     geo, k_index = layout_geometry(pattern, full)
     model = full.subset(k_index)
@@ -370,9 +376,14 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     if check.reason is not None:
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)
-    ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines])
+    ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines]) / scale
+    homography = np.diag([1.0 / scale, 1.0 / scale, 1.0]) @ reading.homography
+    if scale < 1.0:
+        notes.append(f"read at {scale:.2f}× the photo's size (its line pitch "
+                     f"{ls.pitch_px / scale:.0f} px; the widths need about 48)")
     return PhotoResult(name, pattern.kind, tuple(lines), best, k_acc, k_dec, lag, problem,
-                       ls.light, f"{reading.name} (decided by {how})", reading.px_per_mm,
-                       reading.reprojection_rms_mm, reading.homography, ends, tuple(notes),
+                       ls.light, f"{reading.name} (decided by {how})",
+                       reading.px_per_mm / scale, reading.reprojection_rms_mm, homography,
+                       ends, tuple(notes),
                        k_cross_s=choice_best.k_cross_s, best_by=choice_best.by,
                        disagreement=check.z)

@@ -64,6 +64,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import local_scale, marks_seen, refine_homography
+from flowtwin.calibration.image.scale import shrink, working_scale
 from flowtwin.calibration.image.widths import (
     SHEET_SMOOTH_MM,
     ContrastStrip,
@@ -382,6 +383,10 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
                                allowed="0.05 .. 5 mm")
     m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
+    # a large photo is read at the pitch the reader needs; px figures come back in its own
+    shrunk = working_scale(gray)
+    if shrunk < 1.0:
+        gray = shrink(gray, shrunk)
     full = lag_model(pattern.text().encode(), None, machine=m)
     geo = chevron_geometry(pattern, full)
     n = geo.apex.shape[0]
@@ -475,9 +480,14 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
     if check.reason is not None:
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)
+    if shrunk < 1.0:
+        notes.append(f"read at {shrunk:.2f}× the photo's size (its arm pitch "
+                     f"{fa.pitch_px / shrunk:.0f} px; the widths need about 48)")
     return ChevronResult(name, "chevron", tuple(lines), choice.index, choice.k_cross_s,
                          choice.by, lag, problem, fa.light,
-                         f"{reading.name} (decided by {how})", scale,
-                         reading.across_rms_px / scale, reading.hom, reading.paths,
-                         tuple(notes), np.asarray(arm_errors, dtype=np.float64),
+                         f"{reading.name} (decided by {how})", scale / shrunk,
+                         reading.across_rms_px / scale,
+                         np.diag([1.0 / shrunk, 1.0 / shrunk, 1.0]) @ reading.hom,
+                         reading.paths / shrunk, tuple(notes),
+                         np.asarray(arm_errors, dtype=np.float64),
                          disagreement=check.z)

@@ -1,0 +1,72 @@
+"""The scale a photo is read at: a phone's 12 MP photo is shrunk to the pitch the reader
+needs.
+
+The reader's filters are sized in line pitches (the top-hat's element, the local level's
+disc, the blurs), so its work grows with the image's pixels times the pitch squared: a
+photo taken twice as close takes ~10× longer (measured: a 1 MP photo of the Marlin
+pattern 7.7 s, the same photo at 2× 78 s, on a 2-core AMD EPYC VM). The widths need the
+bead across a few pixels, no more: the project's synthetic photos, on which the reading
+is validated, have a pitch of ~44 px (a 0.48 mm bead over ~4 px at 5 mm pitch). A photo
+of more than :data:`SMALL_PIXELS` whose pitch is more than a quarter above
+:data:`READ_PITCH_PX` is shrunk (area
+averaging, which keeps each bead's integrated contrast) to that pitch; the result's
+pixel figures are given back in the photo's own pixels.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from flowtwin.calibration.image.signal import deskew, line_direction_deg, pitch_px
+
+__all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "shrink", "working_scale"]
+
+#: Line pitch the reader works at, at most, px.
+READ_PITCH_PX = 48.0
+#: Photos of at most this many pixels are read as they are (no pitch is measured first):
+#: the real photos whose outcomes the project holds (``make photos``: up to 3614×2009) were
+#: read at their full size, and could not be read again when this was added; a phone's
+#: 12 MP photo is above it.
+SMALL_PIXELS = 8.0e6
+#: The pitch of a larger photo is measured on a copy of about this many pixels.
+_PROXY_PIXELS = 1.0e6
+
+
+def shrink(gray: npt.NDArray[np.uint8], scale: float) -> npt.NDArray[np.uint8]:
+    """``gray`` resized by ``scale`` (< 1) with area averaging, shape about
+    ``(H·scale, W·scale)``."""
+    return np.asarray(cv2.resize(gray, None, fx=scale, fy=scale,
+                                 interpolation=cv2.INTER_AREA), dtype=np.uint8)
+
+
+def working_scale(gray: npt.NDArray[np.uint8]) -> float:
+    """Factor (≤ 1) by which to shrink ``gray`` so that its line pitch is at most
+    :data:`READ_PITCH_PX`.
+
+    Parameters
+    ----------
+    gray
+        Grey photo, uint8, shape ``(H, W)``.
+
+    Returns
+    -------
+    float
+        1 for a photo of at most :data:`SMALL_PIXELS`, one without a measurable pitch,
+        or one whose pitch is within a quarter of :data:`READ_PITCH_PX`; else
+        ``READ_PITCH_PX/pitch``.
+    """
+    pixels = float(gray.shape[0]) * float(gray.shape[1])
+    if gray.ndim != 2 or pixels <= SMALL_PIXELS:
+        return 1.0
+    s0 = math.sqrt(_PROXY_PIXELS / pixels)
+    proxy = shrink(gray, s0)
+    angle, _coherence = line_direction_deg(proxy)
+    desk = deskew(proxy, angle)
+    pitch = pitch_px(desk.image, desk.valid) / s0
+    if not math.isfinite(pitch) or pitch <= 1.25 * READ_PITCH_PX:
+        return 1.0
+    return READ_PITCH_PX / pitch
