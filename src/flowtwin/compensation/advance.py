@@ -126,8 +126,9 @@ class AdvanceOptions:
         Relieve only travels lasting at least this many lag factors ``K`` (a shorter
         travel lets the column ooze ``x·(1 − e^(−T/K))`` unrelieved). ``None``:
         :data:`KLIPPER_RELIEF_LAGS` on Klipper, :data:`RELIEF_LAGS` elsewhere. A relief's
-        two E-only moves cost ~5 ms on Marlin but ~50 ms on Klipper, which runs them at
-        its ``max_extrude_only_accel`` and slows the junctions around them to its extruder
+        two E-only moves cost ~5 ms on Marlin at 60–80 mm/s (~40 ms at 130–200 mm/s, the
+        head stopping from full speed) but ~50 ms on Klipper, which runs them at its
+        ``max_extrude_only_accel`` and slows the junctions around them to its extruder
         corner velocity; measured on the validation prints, relieving from a quarter of
         ``K`` raised the Marlin prints at 5× from 27 to 32 of 35 for +1 % print time
         (median; worst +6.6 %) and lowered the Klipper prints from 24 to 23 of 37 for up

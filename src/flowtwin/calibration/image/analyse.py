@@ -43,7 +43,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
-from flowtwin.calibration.image.scale import shrink, working_scale
+from flowtwin.calibration.image.scale import scale_note, shrink, working_scale
 from flowtwin.calibration.image.widths import (
     band_half_mm,
     bead_contrast,
@@ -379,8 +379,7 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines]) / scale
     homography = np.diag([1.0 / scale, 1.0 / scale, 1.0]) @ reading.homography
     if scale < 1.0:
-        notes.append(f"read at {scale:.2f}× the photo's size (its line pitch "
-                     f"{ls.pitch_px / scale:.0f} px; the widths need about 48)")
+        notes.append(scale_note(scale, ls.pitch_px))
     return PhotoResult(name, pattern.kind, tuple(lines), best, k_acc, k_dec, lag, problem,
                        ls.light, f"{reading.name} (decided by {how})",
                        reading.px_per_mm / scale, reading.reprojection_rms_mm, homography,

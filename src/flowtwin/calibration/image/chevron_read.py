@@ -64,7 +64,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import local_scale, marks_seen, refine_homography
-from flowtwin.calibration.image.scale import shrink, working_scale
+from flowtwin.calibration.image.scale import scale_note, shrink, working_scale
 from flowtwin.calibration.image.widths import (
     SHEET_SMOOTH_MM,
     ContrastStrip,
@@ -481,8 +481,7 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)
     if shrunk < 1.0:
-        notes.append(f"read at {shrunk:.2f}× the photo's size (its arm pitch "
-                     f"{fa.pitch_px / shrunk:.0f} px; the widths need about 48)")
+        notes.append(scale_note(shrunk, fa.pitch_px, "arm"))
     return ChevronResult(name, "chevron", tuple(lines), choice.index, choice.k_cross_s,
                          choice.by, lag, problem, fa.light,
                          f"{reading.name} (decided by {how})", scale / shrunk,

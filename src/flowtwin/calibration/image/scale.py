@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from flowtwin.calibration.image.signal import deskew, line_direction_deg, pitch_px
 
-__all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "shrink", "working_scale"]
+__all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "scale_note", "shrink", "working_scale"]
 
 #: Line pitch the reader works at, at most, px.
 READ_PITCH_PX = 48.0
@@ -43,6 +43,13 @@ def shrink(gray: npt.NDArray[np.uint8], scale: float) -> npt.NDArray[np.uint8]:
                                  interpolation=cv2.INTER_AREA), dtype=np.uint8)
 
 
+def scale_note(scale: float, pitch_px: float, what: str = "line") -> str:
+    """The result's note for a photo read at ``scale`` (``pitch_px``: the pitch in the
+    shrunk photo)."""
+    return (f"read at {scale:.2f}× the photo's size (its {what} pitch {pitch_px / scale:.0f} "
+            f"px; the widths need about {READ_PITCH_PX:.0f})")
+
+
 def working_scale(gray: npt.NDArray[np.uint8]) -> float:
     """Factor (≤ 1) by which to shrink ``gray`` so that its line pitch is at most
     :data:`READ_PITCH_PX`.
@@ -59,9 +66,9 @@ def working_scale(gray: npt.NDArray[np.uint8]) -> float:
         or one whose pitch is within a quarter of :data:`READ_PITCH_PX`; else
         ``READ_PITCH_PX/pitch``.
     """
-    pixels = float(gray.shape[0]) * float(gray.shape[1])
-    if gray.ndim != 2 or pixels <= SMALL_PIXELS:
+    if gray.ndim != 2 or float(gray.shape[0]) * float(gray.shape[1]) <= SMALL_PIXELS:
         return 1.0
+    pixels = float(gray.shape[0]) * float(gray.shape[1])
     s0 = math.sqrt(_PROXY_PIXELS / pixels)
     proxy = shrink(gray, s0)
     angle, _coherence = line_direction_deg(proxy)
