@@ -97,10 +97,12 @@ class PaceOptions:
         Also pace the fall of the flow to the end of a run (before a travel, a retraction or
         a stop), to the planner's end speed of the run.
     gap_lags
-        A run followed by the next one within ``gap_lags·K`` (too short for the advance's
-        pressure relief over the travel, :class:`~flowtwin.compensation.advance.
-        AdvanceOptions` ``relief_min_lags``) is treated as a cross-section step to the next
-        run's first piece, the outflow decaying by ``exp(−gap/K)`` in between.
+        A run followed by the next one within ``gap_lags·K`` is treated as a cross-section
+        step to the next run's first piece, the outflow decaying by ``exp(−gap/K)`` in
+        between. Not tied to the advance's relief threshold (:class:`~flowtwin.compensation.
+        advance.AdvanceOptions` ``relief_min_lags``, a quarter of ``K`` on Marlin): tied to
+        it, the Marlin validation prints came out the same with ``--pace``
+        (docs/compensation.md, "Which travels are relieved").
     pull_ratio
         ``r``: pace for an advance pulling back while slowing (off: 0): ``ẋ = −x/K − r·Q``,
         so ``d ln Q/dt ≥ −m·(1 + r)/K``, steps need ``1 + r`` less path. ``compensate``

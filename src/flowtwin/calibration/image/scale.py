@@ -66,9 +66,9 @@ def working_scale(gray: npt.NDArray[np.uint8]) -> float:
         or one whose pitch is within a quarter of :data:`READ_PITCH_PX`; else
         ``READ_PITCH_PX/pitch``.
     """
-    if gray.ndim != 2 or float(gray.shape[0]) * float(gray.shape[1]) <= SMALL_PIXELS:
+    pixels = float(gray.size)
+    if gray.ndim != 2 or pixels <= SMALL_PIXELS:
         return 1.0
-    pixels = float(gray.shape[0]) * float(gray.shape[1])
     s0 = math.sqrt(_PROXY_PIXELS / pixels)
     proxy = shrink(gray, s0)
     angle, _coherence = line_direction_deg(proxy)
