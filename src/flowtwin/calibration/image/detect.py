@@ -26,6 +26,7 @@ width and of its contrast). Both totals are kept as evidence; within a factor
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -40,6 +41,7 @@ from flowtwin.calibration.image.signal import (
     line_direction_deg,
     pitch_px,
 )
+from flowtwin.calibration.image.smooth import local_max
 from flowtwin.errors import VisionError
 
 __all__ = ["POLARITY_MARGIN", "FoundLine", "LineSet", "detect_lines"]
@@ -137,6 +139,15 @@ class LineSet:
     mark_signal: F32
     notes: tuple[str, ...] = field(default_factory=tuple)
 
+    @functools.cached_property
+    def mark_signal_near(self) -> F32:
+        """``mark_signal`` dilated by a disc of 0.15 pitch: the best signal within that
+        distance of each pixel (a mark near its nominal path counts; the registration
+        samples it along many paths, so it is made once per line set)."""
+        r = max(1, int(round(0.15 * self.pitch_px)))
+        se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        return np.asarray(cv2.dilate(self.mark_signal, se), dtype=np.float32)
+
 
 @dataclass(frozen=True)
 class _Piece:
@@ -176,9 +187,7 @@ def _pieces(sig: F32, valid: npt.NDArray[np.uint8], pitch: float) -> list[_Piece
     # a bead is at least _LOCAL_LEVEL of the strongest beads around it (the light and
     # the bead signal change across a photo) and clear of the sheet's scatter
     rad = max(3, int(round(2.0 * pitch)))
-    env = cv2.dilate(np.where(valid > 0, sm, 0.0).astype(np.float32),
-                     cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rad + 1, 2 * rad + 1)))
-    env = cv2.GaussianBlur(env, (0, 0), pitch)
+    env = local_max(np.where(valid > 0, sm, 0.0).astype(np.float32), rad, pitch)
     thr = np.maximum(_LOCAL_LEVEL * env, med + _SHEET_SIGMAS * mad)
     strong = (sm > thr) & (valid > 0)
     # hysteresis: a bead's fainter stretch (thin, or in the shade) continues a strong one

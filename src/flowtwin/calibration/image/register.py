@@ -124,9 +124,7 @@ def _path_samples(ls: LineSet, hom: FloatArray, path: FloatArray, step_mm: float
     tp = _to_turned(ls, np.asarray(img, dtype=np.float64)).astype(np.float32)
     # a mark within 0.15 pitch of its nominal path counts (the homography is extrapolated
     # beyond the test lines to reach some marks): best of that neighbourhood
-    r = max(1, int(round(0.15 * ls.pitch_px)))
-    sig = cv2.dilate(ls.mark_signal, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
-                                                               (2 * r + 1, 2 * r + 1)))
+    sig = ls.mark_signal_near
     vals = cv2.remap(sig, tp[:, 0].reshape(1, -1), tp[:, 1].reshape(1, -1),
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     return np.asarray(vals, dtype=np.float64).ravel()

@@ -28,6 +28,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from flowtwin.calibration.image.smooth import wide_gaussian
+
 __all__ = ["Deskewed", "bead_signal", "deskew", "line_direction_deg", "pitch_px"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -113,7 +115,7 @@ def pitch_px(turned: F32, valid: npt.NDArray[np.uint8]) -> float:
     Returns NaN when the rows show no periodic structure.
     """
     h, _ = turned.shape
-    hp = turned - cv2.GaussianBlur(turned, (0, 0), max(4.0, h / 40.0))
+    hp = turned - wide_gaussian(turned, max(4.0, h / 40.0))
     hp = np.where(valid > 0, hp, 0.0).astype(np.float32)
     # column strips: average a few columns so each strip's profile is less noisy
     cols = np.flatnonzero(valid.sum(axis=0) > 0.8 * valid.sum(axis=0).max())
@@ -178,7 +180,7 @@ def bead_signal(turned: F32, valid: npt.NDArray[np.uint8], pitch: float, *,
         th = turned - cv2.morphologyEx(turned, cv2.MORPH_OPEN, se)
     else:
         th = cv2.morphologyEx(turned, cv2.MORPH_CLOSE, se) - turned
-    bright = cv2.GaussianBlur(turned, (0, 0), max(2.0, 2.0 * pitch))
+    bright = wide_gaussian(turned, max(2.0, 2.0 * pitch))
     floor = max(8.0, float(np.percentile(turned[valid > 0], 99.0)) * 0.05)
     out = th / np.maximum(bright, floor)
     out[valid == 0] = 0.0
