@@ -253,8 +253,10 @@ class LagModel:
                       series_dt_s=self.series_dt_s, series_window_s=(max(t_a, 0.0), t_b))
         series = res.series
         assert series is not None  # asked for
-        return (np.asarray(series["t_s"], dtype=np.float64),
-                np.asarray(series["q_out_mm3_s"], dtype=np.float64))
+        # the series' fields are strided views of its records: made contiguous once here,
+        # not by ``np.interp`` at every line of every trial (it copies a strided ``xp``)
+        return (np.ascontiguousarray(series["t_s"], dtype=np.float64),
+                np.ascontiguousarray(series["q_out_mm3_s"], dtype=np.float64))
 
     def widths(self, params: LagParams, positions_mm: Sequence[npt.ArrayLike], *,
                series: tuple[FloatArray, FloatArray] | None = None) -> list[FloatArray]:
