@@ -2,9 +2,11 @@
 needs.
 
 The reader's filters are sized in line pitches (the top-hat's element, the local level's
-disc, the blurs), so its work grows with the image's pixels times the pitch squared: a
-photo taken twice as close takes ~10× longer (measured: a 1 MP photo of the Marlin
-pattern 7.7 s, the same photo at 2× 78 s, on a 2-core AMD EPYC VM). The widths need the
+disc, the blurs), so a photo taken closer costs more than its pixels: the widest of them
+are made on a coarser grid (:mod:`.smooth`), but the top-hats' openings keep the full
+resolution (a disc of 0.6 pitch for the marks costs the pixels times the pitch squared).
+Measured on a 2-core AMD EPYC VM: the Marlin pattern at 1 MP 1.9 s, at 4.8 MP 5.0 s, at
+14.7 MP (shrunk) 2.5 s. The widths need the
 bead across a few pixels, no more: the project's synthetic photos, on which the reading
 is validated, have a pitch of ~44 px (a 0.48 mm bead over ~4 px at 5 mm pitch). A photo
 of more than :data:`SMALL_PIXELS` whose pitch is more than a quarter above
@@ -27,10 +29,10 @@ __all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "scale_note", "shrink", "working_sca
 
 #: Line pitch the reader works at, at most, px.
 READ_PITCH_PX = 48.0
-#: Photos of at most this many pixels are read as they are (no pitch is measured first):
-#: the real photos whose outcomes the project holds (``make photos``: up to 3614×2009) were
-#: read at their full size, and could not be read again when this was added; a phone's
-#: 12 MP photo is above it.
+#: Photos of at most this many pixels are read as they are (no pitch is measured first);
+#: a phone's 12 MP photo is above it. Shrinking costs width accuracy on real photos: at
+#: 2 MP, PressureAdvanceCamera's black frame (2.07 MP, read right at its own size) was
+#: refused, its lag 5.5σ from its best line (docs/calibration.md, "Wide filters").
 SMALL_PIXELS = 8.0e6
 #: The pitch of a larger photo is measured on a copy of about this many pixels.
 _PROXY_PIXELS = 1.0e6
