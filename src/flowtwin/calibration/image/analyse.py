@@ -43,7 +43,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry, layout_geometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey, score_line
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import Reading, local_scale, register_layout
-from flowtwin.calibration.image.scale import scale_note, shrink, working_scale
+from flowtwin.calibration.image.scale import homography_to_photo, scale_note, working_copy
 from flowtwin.calibration.image.widths import (
     band_half_mm,
     bead_contrast,
@@ -272,10 +272,8 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
     # a large photo is read at the pitch the reader needs; px figures come back in its own
-    scale = working_scale(gray)
-    if scale < 1.0:
-        gray = shrink(gray, scale)
-        mm_per_px = None if mm_per_px is None else mm_per_px / scale
+    gray, scale = working_copy(gray)
+    mm_per_px = None if mm_per_px is None else mm_per_px / scale
     full = lag_model(pattern.text().encode(), None, machine=m)
     geo, k_index = layout_geometry(pattern, full)
     model = full.subset(k_index)
@@ -377,12 +375,12 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)
     ends = np.array([[ln.start_px, ln.end_px] for ln in reading.lines]) / scale
-    homography = np.diag([1.0 / scale, 1.0 / scale, 1.0]) @ reading.homography
     if scale < 1.0:
         notes.append(scale_note(scale, ls.pitch_px))
     return PhotoResult(name, pattern.kind, tuple(lines), best, k_acc, k_dec, lag, problem,
                        ls.light, f"{reading.name} (decided by {how})",
-                       reading.px_per_mm / scale, reading.reprojection_rms_mm, homography,
+                       reading.px_per_mm / scale, reading.reprojection_rms_mm,
+                       homography_to_photo(reading.homography, scale),
                        ends, tuple(notes),
                        k_cross_s=choice_best.k_cross_s, best_by=choice_best.by,
                        disagreement=check.z)

@@ -64,7 +64,7 @@ from flowtwin.calibration.image.geometry import LayoutGeometry
 from flowtwin.calibration.image.kimage import LineReading, load_grey
 from flowtwin.calibration.image.quality import MIN_LINES, answer_reason, blur_reason
 from flowtwin.calibration.image.register import local_scale, marks_seen, refine_homography
-from flowtwin.calibration.image.scale import scale_note, shrink, working_scale
+from flowtwin.calibration.image.scale import homography_to_photo, scale_note, working_copy
 from flowtwin.calibration.image.widths import (
     SHEET_SMOOTH_MM,
     ContrastStrip,
@@ -384,9 +384,7 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
     m = machine_for_pattern(pattern, machine)
     gray, name = load_grey(image)
     # a large photo is read at the pitch the reader needs; px figures come back in its own
-    shrunk = working_scale(gray)
-    if shrunk < 1.0:
-        gray = shrink(gray, shrunk)
+    gray, shrunk = working_copy(gray)
     full = lag_model(pattern.text().encode(), None, machine=m)
     geo = chevron_geometry(pattern, full)
     n = geo.apex.shape[0]
@@ -486,7 +484,7 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
                          choice.by, lag, problem, fa.light,
                          f"{reading.name} (decided by {how})", scale / shrunk,
                          reading.across_rms_px / scale,
-                         np.diag([1.0 / shrunk, 1.0 / shrunk, 1.0]) @ reading.hom,
+                         homography_to_photo(reading.hom, shrunk),
                          reading.paths / shrunk, tuple(notes),
                          np.asarray(arm_errors, dtype=np.float64),
                          disagreement=check.z)

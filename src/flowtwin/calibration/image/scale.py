@@ -25,7 +25,8 @@ import numpy.typing as npt
 
 from flowtwin.calibration.image.signal import deskew, line_direction_deg, pitch_px
 
-__all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "scale_note", "shrink", "working_scale"]
+__all__ = ["READ_PITCH_PX", "SMALL_PIXELS", "homography_to_photo", "scale_note", "shrink",
+           "working_copy", "working_scale"]
 
 #: Line pitch the reader works at, at most, px.
 READ_PITCH_PX = 48.0
@@ -79,3 +80,15 @@ def working_scale(gray: npt.NDArray[np.uint8]) -> float:
     if not math.isfinite(pitch) or pitch <= 1.25 * READ_PITCH_PX:
         return 1.0
     return READ_PITCH_PX / pitch
+
+
+def working_copy(gray: npt.NDArray[np.uint8]) -> tuple[npt.NDArray[np.uint8], float]:
+    """The photo as the reader reads it, and the factor it was shrunk by (1: as it is;
+    :func:`working_scale`)."""
+    scale = working_scale(gray)
+    return (shrink(gray, scale) if scale < 1.0 else gray), scale
+
+
+def homography_to_photo(hom: npt.NDArray[np.float64], scale: float) -> npt.NDArray[np.float64]:
+    """A homography bed (mm) → the working copy (px) as bed → the photo's own pixels."""
+    return np.asarray(np.diag([1.0 / scale, 1.0 / scale, 1.0]) @ hom, dtype=np.float64)
