@@ -21,7 +21,15 @@ CLAIMS = all_claims()
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 
-@pytest.mark.parametrize("claim", CLAIMS, ids=[c.key for c in CLAIMS])
+def _param(claim: Claim) -> object:
+    """A claim as a test case; the claims of one memoised engine share a worker (the
+    print-job test of [003 §3.3] is computed once per process, ~50 s on 2 cores)."""
+    if claim.engine.endswith("compare_print_jobs"):
+        return pytest.param(claim, id=claim.key, marks=pytest.mark.xdist_group(claim.engine))
+    return pytest.param(claim, id=claim.key)
+
+
+@pytest.mark.parametrize("claim", [_param(c) for c in CLAIMS])
 def test_claim(claim: Claim, repro_ctx: ReproContext) -> None:
     row = claim.run(repro_ctx)
     assert row.passed, (row.paper_value, row.flowtwin_value, row.tolerance, row.note)
