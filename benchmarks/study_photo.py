@@ -137,6 +137,7 @@ def analyse_case(case: Case, method: str = "area") -> dict[str, Any]:
                best_error_s=best - case.lag_s,
                best_error_steps=(best - case.lag_s) / case.k_step_s,
                k_cross_s=getattr(res, "k_cross_s", None),
+               best_by=getattr(res, "best_by", None),
                lag_fit_s=None if res.lag is None else res.lag.k_s,
                lag_fit_err_s=None if res.lag is None else res.lag.k_err_s,
                lag_problem=res.lag_problem, reading=res.reading,

@@ -76,3 +76,31 @@ def test_public_photo(entry: dict[str, Any], request: pytest.FixtureRequest) -> 
     assert abs(out.error_steps) <= entry["tolerance_steps"] + 1e-6, (
         f"best line {out.best_k_s:.4f} s, judged {entry['judged_k_s']}: "
         f"{out.error_steps:+.1f} steps")
+
+
+def test_qidi_gold_sheet_with_its_overlay_inpainted_is_refused() -> None:
+    """Session 13's follow-up, held (docs/calibration.md, "Session 17"; a known case, not
+    a blind check): the QIDI wizard's gold-sheet photo, read as a photo of the top, with
+    the author's red box inpainted away (OpenCV, a 5-px-dilated mask of the red pixels).
+    Its scores are then flat, the errors do not cross in the range and no lag can be
+    fitted: before session 17 the reader answered 0.022 s (judged 0.03 s, −2 steps); now
+    it refuses."""
+    import cv2
+    import numpy as np
+
+    from flowtwin.calibration.image.analyse import analyse_line_photo
+    from flowtwin.errors import VisionError
+
+    entry = next(e for e in PHOTOS if e["file"] == "qidi-pa-lines-gold.png")
+    path = STUDY.locate(entry)
+    if path is None:
+        pytest.fail(f"{entry['file']} not found (tests/data/kphoto/PROVENANCE.md)")
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    b, g, r = (img[..., i].astype(np.int32) for i in range(3))
+    red = ((r > 150) & (g < 100) & (b < 100)).astype(np.uint8) * 255
+    assert 0.01 < np.count_nonzero(red) / red.size < 0.05       # the box, and little else
+    mask = cv2.dilate(red, np.ones((5, 5), np.uint8))
+    clean = cv2.inpaint(img, mask, 5, cv2.INPAINT_TELEA)
+    with pytest.raises(VisionError, match="only the smallest score picks the best line") as exc:
+        analyse_line_photo(clean, STUDY.pattern_of(entry), machine=STUDY.MACHINE, view="top")
+    assert "lag could not be fitted" in exc.value.message

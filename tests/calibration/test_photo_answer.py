@@ -1,6 +1,7 @@
 """The answer checks of ``from-image`` (:func:`flowtwin.calibration.image.quality.answer_reason`):
-never a confident K from a photo whose best line lies at an end of the printed range, or
-whose best line and twin's lag disagree far beyond their uncertainties.
+never a confident K from a photo whose best line lies at an end of the printed range,
+whose best line and twin's lag disagree far beyond their uncertainties, or whose best line
+only the smallest score supports.
 
 Every image here comes from the independent renderer
 (:mod:`flowtwin.calibration.image.photosynth`), whose true lag is known; the real photos the
@@ -95,6 +96,34 @@ def test_disagreement_in_units_of_half_a_step_and_sigma() -> None:
     # no lag fit: only the range check
     check = answer_reason(k, 0, list(range(17)), k_lag_s=None, k_lag_err_s=None)
     assert check.check == "range-end" and check.values["lag_k_s"] is None
+
+
+def test_a_best_line_only_the_score_supports_is_refused_when_the_lag_fit_failed() -> None:
+    """The inpainted QIDI photo of session 13 (docs/calibration.md, "Session 17"), as
+    numbers: 11 lines 0.01–0.05 s, best by the smallest score at 0.022 s, the errors'
+    crossing outside the range, the lag fit failed."""
+    k = 0.01 + 0.004 * np.arange(11)
+    every = list(range(11))
+    failed = "only 0 usable width samples for 4 parameter(s)"
+    check = answer_reason(k, 3, every, k_lag_s=None, k_lag_err_s=None, best_by="score",
+                          lag_problem=failed)
+    assert check.check == "unsupported" and check.reason is not None
+    assert "only the smallest score picks the best line (K 0.022 s)" in check.reason
+    assert failed in check.reason and check.values["best_k_s"] == pytest.approx(0.022)
+    # a second witness is enough: the errors' crossing, or a lag fit that agrees
+    assert answer_reason(k, 3, every, k_lag_s=None, k_lag_err_s=None, best_by="errors",
+                         lag_problem=failed).check is None
+    assert answer_reason(k, 3, every, k_lag_s=0.023, k_lag_err_s=0.001,
+                         best_by="score").check is None
+    # no lag fit asked for (API ``fit=False``): not refused for it
+    assert answer_reason(k, 3, every, k_lag_s=None, k_lag_err_s=None,
+                         best_by="score").check is None
+    # the range end is said first; chevrons are named as such
+    assert answer_reason(k, 0, every, k_lag_s=None, k_lag_err_s=None, best_by="score",
+                         lag_problem=failed).check == "range-end"
+    chev = answer_reason(k, 3, every, k_lag_s=None, k_lag_err_s=None, best_by="score",
+                         lag_problem=failed, item="chevron")
+    assert chev.reason is not None and "best chevron" in chev.reason
 
 
 # --- best line at an end of the range, on renders -------------------------------------------------

@@ -165,7 +165,10 @@ of the photo, --json everything (k_s, k_err_s, k_best_line_s, scores).
 
 A photo that cannot support an answer is refused with the reason: blur,
 too few lines, lines cut by the frame, a line count that is not the
-pattern's, a direction neither the marks nor the widths decide.
+pattern's, a direction neither the marks nor the widths decide; and an
+answer the photo does not support: the best line at an end of the range,
+a best line and lag that disagree, or a best line only the smallest
+score picks when no lag could be fitted.
 """
 
 FIT_SLIP_HELP = """Fit a drive's slip law from test-stand records; write a drive fragment.

@@ -256,7 +256,8 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
     VisionError
         The photo cannot support an answer (blank, too few lines, lines cut by the frame,
         blur, a line count or geometry that does not match, a reading neither the marks
-        nor the widths decide).
+        nor the widths decide), or does not support the answer it gives
+        (:func:`~flowtwin.calibration.image.quality.answer_reason`).
     CalibrationError
         Bad options, or a pattern for another firmware than the machine's.
     """
@@ -370,7 +371,8 @@ def analyse_line_photo(image: str | os.PathLike[str] | npt.NDArray[Any], pattern
                     problem = exc2.message
     check = answer_reason(ks, best, usable, k_lag_s=None if lag is None else lag.k_s,
                           k_lag_err_s=None if lag is None else lag.k_err_s,
-                          dead_time=lag is not None and "dead_time_s" in lag.fitted)
+                          dead_time=lag is not None and "dead_time_s" in lag.fitted,
+                          best_by=choice_best.by, lag_problem=problem)
     if check.reason is not None:
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)

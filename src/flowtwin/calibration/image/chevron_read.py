@@ -474,7 +474,8 @@ def analyse_chevron_photo(image: str | os.PathLike[str] | npt.NDArray[Any], patt
         except CalibrationError as exc:
             problem = exc.message
     check = answer_reason(ks, choice.index, usable, k_lag_s=None if lag is None else lag.k_s,
-                          k_lag_err_s=None if lag is None else lag.k_err_s, item="chevron")
+                          k_lag_err_s=None if lag is None else lag.k_err_s, item="chevron",
+                          best_by=choice.by, lag_problem=problem)
     if check.reason is not None:
         raise VisionError(check.reason, source=name, field="k_best_line_s",
                           value=check.values)

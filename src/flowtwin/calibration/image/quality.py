@@ -36,6 +36,14 @@ Two more checks look at the answer itself (:func:`answer_reason`), once the line
   ``M572 S``: every layout flowtwin writes) and the twin's lag is the ``τ`` that factor
   cancels — not when a dead time is fitted too (then the best K is not ``τ`` alone), nor
   when the lines' K do not step.
+* **No witness beside the smallest score.** The best line is taken where the lines'
+  signed errors cross zero [001 Fig. 2] (:mod:`flowtwin.calibration.image.bestline`);
+  only when they do not cross within the printed range does the smallest score decide.
+  When, on top of that, the twin's lag could not be fitted to the widths, nothing on
+  the photo confirms the line the score picked: the scores of a photo whose widths do
+  not read are flat and noisy, and their minimum is a guess (docs/calibration.md,
+  "Session 17": a real photo read 2 steps off this way). The analysis refuses then,
+  with both reasons. A caller that did not ask for the lag fit is not refused.
 """
 
 from __future__ import annotations
@@ -234,7 +242,7 @@ class AnswerCheck:
     reason
         Why the photo cannot give a confident K, or ``None``.
     check
-        ``"range-end"``, ``"disagreement"`` or ``None``.
+        ``"range-end"``, ``"disagreement"``, ``"unsupported"`` or ``None``.
     z
         Disagreement of the best line and the lag (NaN when not commensurable or no lag).
     values
@@ -250,9 +258,11 @@ class AnswerCheck:
 
 def answer_reason(k_s: npt.ArrayLike, best_index: int, usable: Sequence[int], *,
                   k_lag_s: float | None, k_lag_err_s: float | None, dead_time: bool = False,
-                  item: str = "line", max_z: float = MAX_DISAGREEMENT) -> AnswerCheck:
-    """Both answer checks (module docstring): the best line at an end of the range first,
-    then its disagreement with the twin's lag where the two are commensurable.
+                  item: str = "line", max_z: float = MAX_DISAGREEMENT,
+                  best_by: str = "errors", lag_problem: str | None = None) -> AnswerCheck:
+    """The answer checks (module docstring): the best line at an end of the range first,
+    then its disagreement with the twin's lag where the two are commensurable, then a best
+    line that only the smallest score supports.
 
     Parameters
     ----------
@@ -264,6 +274,12 @@ def answer_reason(k_s: npt.ArrayLike, best_index: int, usable: Sequence[int], *,
         A dead time was fitted with the lag (then the two are not compared).
     max_z
         Largest disagreement accepted.
+    best_by
+        How the best line was chosen: ``"errors"`` (nearest the errors' zero crossing)
+        or ``"score"`` (the smallest score; :class:`~flowtwin.calibration.image.bestline.
+        BestLine`).
+    lag_problem
+        Why the lag fit failed (``None``: it was not asked for, or it succeeded).
 
     Returns
     -------
@@ -290,4 +306,11 @@ def answer_reason(k_s: npt.ArrayLike, best_index: int, usable: Sequence[int], *,
             f"combined uncertainty (more than {max_z:g}): the photo does not support a "
             "confident K; check the pattern's parameters as printed, or photograph it again "
             "square on, evenly lit", "disagreement", z, values)
+    if best_by == "score" and k_lag_s is None and lag_problem is not None:
+        return AnswerCheck(
+            f"only the smallest score picks the best {item} (K {k[best_index]:g} s): the "
+            f"{item}s' errors do not cross zero within the printed range, and the twin's "
+            f"lag could not be fitted to the widths ({lag_problem}); the photo does not "
+            "support a confident K: photograph the pattern closer, square on and evenly "
+            "lit, without marks drawn over the lines", "unsupported", z, values)
     return AnswerCheck(None, None, z, values)
