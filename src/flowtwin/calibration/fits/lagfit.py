@@ -408,15 +408,29 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
             cache[params.k_s] = model.flow_series(params)
         return cache[params.k_s]
 
+    placed: dict[tuple[float, float], tuple[list[FloatArray], list[tuple[FloatArray,
+                                                                         FloatArray]]]] = {}
+
+    def positions(shift: float, stretch: float
+                  ) -> tuple[list[FloatArray], list[tuple[FloatArray, FloatArray]]]:
+        # the sample windows' positions and when the nozzle passes them depend on the
+        # registration only (the lag, dead time and gain act on the flow)
+        key = (shift, stretch)
+        if key not in placed:
+            if len(placed) > 8:
+                placed.pop(next(iter(placed)))
+            pts = []
+            for x, off, c, ln in zip(xs, offsets, centres, model.lines, strict=True):
+                xm = c + (1.0 + stretch) * (x - c) + shift
+                pts.append(np.clip(xm[:, None] + off[None, :], 0.0, ln.length_mm).ravel())
+            placed[key] = (pts, model.passes(pts))
+        return placed[key]
+
     def predict(v: FloatArray) -> FloatArray:
         d = dict(zip(names, v.tolist(), strict=True))
-        shift, stretch = d.get("shift_mm", 0.0), d.get("stretch", 0.0)
-        pts = []
-        for x, off, c, ln in zip(xs, offsets, centres, model.lines, strict=True):
-            xm = c + (1.0 + stretch) * (x - c) + shift
-            pts.append(np.clip(xm[:, None] + off[None, :], 0.0, ln.length_mm).ravel())
+        pts, at = positions(d.get("shift_mm", 0.0), d.get("stretch", 0.0))
         lp = params_of(v)
-        w = model.widths(lp, pts, series=series(lp))
+        w = model.widths(lp, pts, series=series(lp), passes=at)
         return np.concatenate([wi.reshape(-1, off.size).mean(axis=1)
                                for wi, off in zip(w, offsets, strict=True)])
 

@@ -258,8 +258,37 @@ class LagModel:
         return (np.ascontiguousarray(series["t_s"], dtype=np.float64),
                 np.ascontiguousarray(series["q_out_mm3_s"], dtype=np.float64))
 
+    def passes(self, positions_mm: Sequence[npt.ArrayLike]
+               ) -> list[tuple[FloatArray, FloatArray]]:
+        """When the nozzle passes the given positions of each line, and how fast.
+
+        Parameters
+        ----------
+        positions_mm
+            One array per test line (same order as :attr:`lines`): distance along the
+            line from its start, mm, each within ``[0, length]``.
+
+        Returns
+        -------
+        list of tuple
+            Per line, the times (s) and nozzle speeds (mm/s) at the positions, each of the
+            positions' shape. They do not depend on the lag: a fit that tries many lags at
+            the same positions computes them once (``widths(..., passes=...)``).
+        """
+        if len(positions_mm) != len(self.lines):
+            raise CalibrationError("one position array per test line is needed",
+                                   field="positions_mm", value=len(positions_mm),
+                                   allowed=f"{len(self.lines)} arrays")
+        out: list[tuple[FloatArray, FloatArray]] = []
+        for grid, pos in zip(self._grids, positions_mm, strict=True):
+            t = np.interp(np.asarray(pos, dtype=np.float64), grid.s_mm, grid.t_s)
+            out.append((t, np.interp(t, grid.t_s, grid.v_mm_s)))
+        return out
+
     def widths(self, params: LagParams, positions_mm: Sequence[npt.ArrayLike], *,
-               series: tuple[FloatArray, FloatArray] | None = None) -> list[FloatArray]:
+               series: tuple[FloatArray, FloatArray] | None = None,
+               passes: Sequence[tuple[FloatArray, FloatArray]] | None = None
+               ) -> list[FloatArray]:
         """Predicted bead width at the given positions of each line, mm.
 
         Parameters
@@ -269,6 +298,10 @@ class LagModel:
         positions_mm
             One array per test line (same order as :attr:`lines`): distance along the
             line from its start, mm, each within ``[0, length]``.
+        series
+            :meth:`flow_series` for ``params`` when already made.
+        passes
+            :meth:`passes` of ``positions_mm`` when already made.
 
         Returns
         -------
@@ -276,16 +309,13 @@ class LagModel:
             Width ``w = g·Q_twin(t − τ)/(h·v(t)) + (1 − π/4)·h`` at the time ``t`` the
             nozzle passes each position [001 Eq. 7]; NaN where the nozzle stands still.
         """
-        if len(positions_mm) != len(self.lines):
-            raise CalibrationError("one position array per test line is needed",
-                                   field="positions_mm", value=len(positions_mm),
-                                   allowed=f"{len(self.lines)} arrays")
+        at = self.passes(positions_mm) if passes is None else passes
+        if len(at) != len(self.lines):
+            raise CalibrationError("one pass array per test line is needed", field="passes",
+                                   value=len(at), allowed=f"{len(self.lines)} pairs")
         t_q, q = self.flow_series(params) if series is None else series
         out: list[FloatArray] = []
-        for line, grid, pos in zip(self.lines, self._grids, positions_mm, strict=True):
-            x = np.asarray(pos, dtype=np.float64)
-            t = np.interp(x, grid.s_mm, grid.t_s)
-            v = np.interp(t, grid.t_s, grid.v_mm_s)
+        for line, (t, v) in zip(self.lines, at, strict=True):
             q_at = params.gain * np.interp(t - params.dead_time_s, t_q, q)
             out.append(np.asarray(bead_width_mm(q_at, line.layer_height_mm, v).width_mm,
                                   dtype=np.float64))
