@@ -91,7 +91,7 @@ _SERIES_COLUMNS = {"t_s": S_T, "e_cmd_mm": S_E, "v_cmd_mm_s": S_VCMD, "v_fil_mm_
                    "q_out_mm3_s": S_Q, "feed_force_n": S_F, "slip": S_SLIP,
                    "compression_mm": S_X}
 if (tuple(_SERIES_COLUMNS) != SERIES_DTYPE.names
-        or [SERIES_DTYPE.fields[f][1] for f in _SERIES_COLUMNS]
+        or [SERIES_DTYPE.fields[f][1] for f in _SERIES_COLUMNS]  # type: ignore[index]
         != [8 * c for c in _SERIES_COLUMNS.values()]
         or SERIES_DTYPE.itemsize != 8 * N_SER):
     raise ImportError("SERIES_DTYPE does not lay out the kernel's sample columns S_T … S_X")
