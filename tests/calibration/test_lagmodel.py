@@ -62,6 +62,26 @@ def test_width_after_a_speed_step_is_bellinis_response(klipper_machine: Machine)
     np.testing.assert_allclose(w, expected, rtol=1e-3)
 
 
+def test_widths_from_passes_made_once_are_the_same(klipper_machine: Machine) -> None:
+    """``widths(..., passes=model.passes(x))`` is ``widths(x)`` to the bit (the lag fit
+    makes the passing times once per registration), and a pass list for other lines is
+    refused with the count."""
+    p = kline_for_machine(klipper_machine, PrintSettings(accel_mm_s2=2000.0),
+                          KLineParams(k_start=0.0, k_end=0.02, k_step=0.01, mark_every=0))
+    model = lag_model(p.text().encode(), [seg.line for seg in p.segments],
+                      machine=klipper_machine)
+    xs = [np.linspace(1.0, ln.length_mm - 1.0, 57) for ln in model.lines]
+    at = model.passes(xs)
+    assert [(t.shape, v.shape) for t, v in at] == [((57,), (57,))] * len(xs)
+    for params in (LagParams(0.03), LagParams(0.05, 0.01, 0.97)):
+        direct = model.widths(params, xs)
+        reused = model.widths(params, xs, passes=at)
+        for a, b in zip(direct, reused, strict=True):
+            np.testing.assert_array_equal(a, b)
+    with pytest.raises(CalibrationError, match="one pass array per test line"):
+        model.widths(LagParams(0.03), xs, passes=at[:-1])
+
+
 def test_steady_width_is_the_slicer_bead(klipper_machine: Machine) -> None:
     """After the transient the bead is the slicer's ``A = w·h − (1 − π/4)·h²`` [001 Eq. 7],
     for the filament really fed: the G-code is written for 1.75 mm, the set-up's PLA is
