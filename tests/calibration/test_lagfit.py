@@ -133,6 +133,12 @@ def test_fragment_and_adaptive_row(line: tuple[Pattern, LagModel]) -> None:
     assert table["k_s"] == pytest.approx(fit.k_s, abs=1e-6)
     assert PressureAdvance.model_validate(table).k_s == table["k_s"]
     assert "flow gain" in text and "± " in text
+    # the gain's comment says which way it points: the measured widths 1.3x the twin's
+    wide = fit_lag(model, [_measured(model, LagParams(0.05, gain=1.3), seed=5)],
+                   fit_gain=True)
+    assert wide.params.gain == pytest.approx(1.3, rel=0.02)
+    assert "(> 1: beads wider than the twin's" in wide.fragment()
+    assert ("(< 1: under-extrusion" in text) == (fit.params.gain < 1.0)
     row = fit.measurement_row()
     assert row["k_s"] == fit.k_s and row["k_err_s"] == fit.k_err_s
     assert row["accel_mm_s2"] == 1000.0          # Prusa MK2.5 printing acceleration

@@ -247,8 +247,12 @@ class LagFit:
             lines.append(f"dead time {self.params.dead_time_s:.4g} ± "
                          f"{self.stderr['dead_time_s']:.2g} s (no profile key)")
         if "gain" in self.fitted:
+            meaning = ("(< 1: under-extrusion; adjust the extrusion multiplier)"
+                       if self.params.gain < 1.0 else
+                       "(> 1: beads wider than the twin's for this flow: over-extrusion, a "
+                       "squashed first layer, or a width scale that is off)")
             lines.append(f"flow gain {self.params.gain:.4g} ± {self.stderr['gain']:.2g} "
-                         "(< 1: under-extrusion; adjust the extrusion multiplier)")
+                         f"{meaning}")
         lines.append("paste into the printer profile in place of its [pressure_advance] "
                      "table (a Klipper smooth_time_s there stays as it was)")
         return render_fragment("pressure_advance", {"k_s": round(self.params.k_s, 6)},
