@@ -33,7 +33,8 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -404,13 +405,30 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
 
     cache: dict[float, tuple[FloatArray, FloatArray]] = {}
 
+    def keep(k_s: float, made: tuple[FloatArray, FloatArray]) -> None:
+        if len(cache) > 8:
+            cache.pop(next(iter(cache)))
+        cache[k_s] = made
+
     def series(params: LagParams) -> tuple[FloatArray, FloatArray]:
         # the dynamics depend on K only (dead time, gain and positions act afterwards)
         if params.k_s not in cache:
-            if len(cache) > 8:
-                cache.pop(next(iter(cache)))
-            cache[params.k_s] = model.flow_series(params)
+            keep(params.k_s, model.flow_series(params))
         return cache[params.k_s]
+
+    workers = min(2, os.cpu_count() or 1)
+
+    def prefetch(ks: Iterable[float]) -> None:
+        # the series of two trial lags side by side (a Jacobian's K ± h, two points of
+        # the scan): the integrator's kernel releases the GIL, and each series is what
+        # it would be alone (deterministic, nothing shared between the two)
+        missing = list(dict.fromkeys(k for k in ks if k not in cache))
+        if workers < 2 or len(missing) < 2:
+            return
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            made = list(pool.map(lambda k: model.flow_series(LagParams(k_s=k)), missing))
+        for k, m in zip(missing, made, strict=True):
+            keep(k, m)
 
     placed: dict[tuple[float, float], tuple[list[FloatArray], list[tuple[FloatArray,
                                                                          FloatArray]]]] = {}
@@ -454,6 +472,8 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
             a, b = max(v[j] - h, lo), min(v[j] + h, hi)
             va, vb = v.copy(), v.copy()
             va[j], vb[j] = a, b
+            if name == "k_s":
+                prefetch((float(vb[j]), float(va[j])))
             cols.append((residuals(vb) - residuals(va)) / (b - a))
         return np.column_stack(cols)
 
@@ -461,7 +481,9 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
     rest = {"dead_time_s": min(max(base.dead_time_s, 0.002), DEAD_TIME_MAX_S / 2),
             "gain": base.gain, "shift_mm": 0.0, "stretch": 0.0}
     scan = []
-    for k in _K_SCAN:
+    for i, k in enumerate(_K_SCAN):
+        if i % 2 == 0:
+            prefetch(float(x) for x in _K_SCAN[i:i + 2])
         r = residuals(np.array([float(k)] + [rest[nm] for nm in names[1:]]))
         scan.append(float(np.sum(r[np.isfinite(r)] ** 2)))
     x0 = [float(_K_SCAN[int(np.argmin(scan))])] + [rest[nm] for nm in names[1:]]
