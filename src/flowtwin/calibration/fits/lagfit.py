@@ -30,10 +30,11 @@ Fitting hygiene (docs/calibration.md):
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import os
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -403,56 +404,37 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
         return LagParams(k_s=d["k_s"], dead_time_s=d.get("dead_time_s", base.dead_time_s),
                          gain=d.get("gain", base.gain))
 
-    cache: dict[float, tuple[FloatArray, FloatArray]] = {}
-
-    def keep(k_s: float, made: tuple[FloatArray, FloatArray]) -> None:
-        if len(cache) > 8:
-            cache.pop(next(iter(cache)))
-        cache[k_s] = made
-
-    def series(params: LagParams) -> tuple[FloatArray, FloatArray]:
+    @functools.lru_cache(maxsize=9)
+    def flow_at(k_s: float) -> tuple[FloatArray, FloatArray]:
         # the dynamics depend on K only (dead time, gain and positions act afterwards)
-        if params.k_s not in cache:
-            keep(params.k_s, model.flow_series(params))
-        return cache[params.k_s]
+        return model.flow_series(LagParams(k_s=k_s))
 
     workers = min(2, os.cpu_count() or 1)
 
-    def prefetch(ks: Iterable[float]) -> None:
+    def prefetch(ks: Sequence[float]) -> None:
         # the series of two trial lags side by side (a Jacobian's K ± h, two points of
         # the scan): the integrator's kernel releases the GIL, and each series is what
         # it would be alone (deterministic, nothing shared between the two)
-        missing = list(dict.fromkeys(k for k in ks if k not in cache))
-        if workers < 2 or len(missing) < 2:
-            return
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            made = list(pool.map(lambda k: model.flow_series(LagParams(k_s=k)), missing))
-        for k, m in zip(missing, made, strict=True):
-            keep(k, m)
+        if workers >= 2 and len(set(ks)) > 1:
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                list(pool.map(flow_at, ks))
 
-    placed: dict[tuple[float, float], tuple[list[FloatArray], list[tuple[FloatArray,
-                                                                         FloatArray]]]] = {}
-
+    @functools.lru_cache(maxsize=9)
     def positions(shift: float, stretch: float
                   ) -> tuple[list[FloatArray], list[tuple[FloatArray, FloatArray]]]:
         # the sample windows' positions and when the nozzle passes them depend on the
         # registration only (the lag, dead time and gain act on the flow)
-        key = (shift, stretch)
-        if key not in placed:
-            if len(placed) > 8:
-                placed.pop(next(iter(placed)))
-            pts = []
-            for x, off, c, ln in zip(xs, offsets, centres, model.lines, strict=True):
-                xm = c + (1.0 + stretch) * (x - c) + shift
-                pts.append(np.clip(xm[:, None] + off[None, :], 0.0, ln.length_mm).ravel())
-            placed[key] = (pts, model.passes(pts))
-        return placed[key]
+        pts = []
+        for x, off, c, ln in zip(xs, offsets, centres, model.lines, strict=True):
+            xm = c + (1.0 + stretch) * (x - c) + shift
+            pts.append(np.clip(xm[:, None] + off[None, :], 0.0, ln.length_mm).ravel())
+        return pts, model.passes(pts)
 
     def predict(v: FloatArray) -> FloatArray:
         d = dict(zip(names, v.tolist(), strict=True))
         pts, at = positions(d.get("shift_mm", 0.0), d.get("stretch", 0.0))
         lp = params_of(v)
-        w = model.widths(lp, pts, series=series(lp), passes=at)
+        w = model.widths(lp, pts, series=flow_at(lp.k_s), passes=at)
         return np.concatenate([wi.reshape(-1, off.size).mean(axis=1)
                                for wi, off in zip(w, offsets, strict=True)])
 
@@ -483,7 +465,7 @@ def fit_lag(model: LagModel, profiles: Sequence[WidthProfile] | Mapping[Any, Wid
     scan = []
     for i, k in enumerate(_K_SCAN):
         if i % 2 == 0:
-            prefetch(float(x) for x in _K_SCAN[i:i + 2])
+            prefetch([float(x) for x in _K_SCAN[i:i + 2]])
         r = residuals(np.array([float(k)] + [rest[nm] for nm in names[1:]]))
         scan.append(float(np.sum(r[np.isfinite(r)] ** 2)))
     x0 = [float(_K_SCAN[int(np.argmin(scan))])] + [rest[nm] for nm in names[1:]]
