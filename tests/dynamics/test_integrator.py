@@ -28,6 +28,23 @@ def params(n: int = 1, **kw: object) -> ExtrusionParams:
     return ExtrusionParams.build(n, **base)  # type: ignore[arg-type]
 
 
+def test_series_records_are_the_kernels_sample_columns() -> None:
+    """The integrator views the kernel's sample rows as the series' records: the fields of
+    ``SERIES_DTYPE`` must be the columns ``S_T … S_X`` of ``_acc_kernel``, in that order,
+    eight bytes each."""
+    from flowtwin.dynamics import _acc_kernel as acc
+    from flowtwin.dynamics.extrusion_result import SERIES_DTYPE
+
+    columns = {"t_s": acc.S_T, "e_cmd_mm": acc.S_E, "v_cmd_mm_s": acc.S_VCMD,
+               "v_fil_mm_s": acc.S_VFIL, "q_out_mm3_s": acc.S_Q, "feed_force_n": acc.S_F,
+               "slip": acc.S_SLIP, "compression_mm": acc.S_X}
+    assert SERIES_DTYPE.names == tuple(columns)
+    fields = SERIES_DTYPE.fields
+    assert fields is not None
+    assert [fields[f][1] for f in columns] == [8 * c for c in columns.values()]
+    assert SERIES_DTYPE.itemsize == 8 * acc.N_SER
+
+
 def test_step_response_is_first_order_lag(make_feed):
     # H(s) = 1/(1 + Ks) [001 Eq. 15]: a step v0 gives v_out = v0 (1 - exp(-t/K)) [002].
     v0 = 3.0

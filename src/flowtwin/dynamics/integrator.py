@@ -50,14 +50,7 @@ from flowtwin.dynamics._acc_kernel import (
     BUF_WIDTH,
     N_ACC,
     N_SER,
-    S_E,
-    S_F,
     S_Q,
-    S_SLIP,
-    S_T,
-    S_VCMD,
-    S_VFIL,
-    S_X,
     T_SUM,
 )
 from flowtwin.dynamics._expint import MAX_STAGES, WS_ROWS
@@ -84,17 +77,6 @@ _MIN_STAGES = 2
 _FLOAT_COLUMNS = ("cmd_mm3", "fed_cmd_mm3", "fed_mm3", "out_mm3", "stop_out_mm3", "ooze_mm3",
                   "q_mean_mm3_s", "q_min_mm3_s", "q_max_mm3_s", "peak_force_n", "slip",
                   "slip_loss_mm3", "grind_loss_mm3", "duration_s")
-
-#: Kernel sample column of every field of ``SERIES_DTYPE``, in its order: the two must
-#: agree for the sample rows to be viewed as the series' records.
-_SERIES_COLUMNS = {"t_s": S_T, "e_cmd_mm": S_E, "v_cmd_mm_s": S_VCMD, "v_fil_mm_s": S_VFIL,
-                   "q_out_mm3_s": S_Q, "feed_force_n": S_F, "slip": S_SLIP,
-                   "compression_mm": S_X}
-if (tuple(_SERIES_COLUMNS) != SERIES_DTYPE.names
-        or [SERIES_DTYPE.fields[f][1] for f in _SERIES_COLUMNS]  # type: ignore[index]
-        != [8 * c for c in _SERIES_COLUMNS.values()]
-        or SERIES_DTYPE.itemsize != 8 * N_SER):
-    raise ImportError("SERIES_DTYPE does not lay out the kernel's sample columns S_T … S_X")
 
 
 def _series_times(feed: CommandedFeed, t_end: float, dt_s: float,
@@ -269,8 +251,9 @@ def _integrate(feed: CommandedFeed, params: ExtrusionParams, *,
     series = None
     if series_dt_s is not None:
         # the kernel's sample rows are the series' records: its columns S_T … S_X are
-        # SERIES_DTYPE's fields in order (checked by _SERIES_COLUMNS), so the rows are
-        # viewed as records, not copied field by field; the outflow becomes mm³/s in place
+        # SERIES_DTYPE's fields in order (tests/dynamics/test_integrator.py holds the two
+        # together), so the rows are viewed as records, not copied field by field; the
+        # outflow becomes mm³/s in place
         samples[:, S_Q] *= area
         series = samples.view(SERIES_DTYPE).reshape(-1)
     return DynamicsResult(moves=moves, summary=summary, series=series,
